@@ -64,7 +64,56 @@ def _add_inspect(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_inspect(args: argparse.Namespace) -> int:
-    raise NotImplementedError
+    import time
+
+    from .io import load_run
+    from .osm import highway_counts, load_osm, load_osm_online
+    from .plots import plot_overview
+
+    started = time.perf_counter()
+    cfg = _load_config(args.config).load
+    run = load_run(args.run_dir, config=cfg)
+    osm_graph = None
+    if args.osm_online:
+        osm_graph = load_osm_online(frame=run.frame, around_xy=run.trajectory.xy, config=cfg)
+        osm_source = "OSM online (Overpass via OSMnx)"
+    elif run.osm_path is not None:
+        osm_graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy, config=cfg)
+        osm_source = run.osm_path.name
+    out = args.output if args.output is not None else run.root / "overview.png"
+    plot_overview(run, osm_graph, out)
+
+    s = run.summary()
+    n_left = int((run.edge_side == 1).sum())
+    n_right = int((run.edge_side == -1).sum())
+    sides = f" ({n_left:,} left, {n_right:,} right)" if n_left + n_right else " (no side)"
+    xmin, ymin, xmax, ymax = s.bbox_m
+    crs = s.crs if s.crs != "local" else f"local ({run.frame.geo_reference})"
+    lines = [
+        f"run        {run.root}",
+        f"driven     {s.driven_length_m / 1000:.3f} km in {s.duration_s:.1f} s, "
+        f"{s.frames:,} frames",
+        f"points     {s.edge_points:,} road-edge points{sides}, {s.lane_samples:,} lane samples",
+        f"dropped    {s.dropped_edge_points:,} road-edge points, {s.dropped_lane_samples:,} "
+        f"lane samples (farther than {cfg.max_point_distance_m:g} m from the trajectory)",
+        f"bbox       x {xmin:.1f} .. {xmax:.1f} m, y {ymin:.1f} .. {ymax:.1f} m "
+        f"({xmax - xmin:.0f} m x {ymax - ymin:.0f} m, mapping frame)",
+        f"crs        {crs}",
+        f"traffic    {s.traffic_side}-hand, pose height {run.pose_height_m:g} m",
+    ]
+    if osm_graph is None:
+        lines.append("osm        none (no OSM file in run.toml: no ramps will be built)")
+    else:
+        counts = highway_counts(osm_graph)
+        by_class = ", ".join(f"{k} {v}" for k, v in counts.items()) or "none"
+        lines.append(
+            f"osm        {osm_source}: {sum(counts.values())} ways within "
+            f"{cfg.osm_buffer_m:g} m ({by_class})"
+        )
+    lines.append(f"overview   {out}")
+    lines.append(f"time       {time.perf_counter() - started:.2f} s")
+    print("\n".join(lines))
+    return 0
 
 
 # ---------------------------------------------------------------------------
@@ -81,7 +130,34 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    raise NotImplementedError
+    import json
+    import time
+
+    from .simulate import load_scenario, simulate_run
+
+    started = time.perf_counter()
+    scenario = load_scenario(args.scenario)
+    out = simulate_run(scenario, args.output, seed=args.seed)
+    truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
+    counts = truth["counts"]
+    ramps = ", ".join(f"{r['type']} at {r['station_m']:g} m ({r['lanes']} lane)" for r in truth["ramps"])
+    files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
+    print(
+        "\n".join(
+            [
+                f"scenario   {scenario.name} (seed {truth['seed']}, "
+                f"{scenario.traffic_side}-hand traffic)",
+                f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
+                f"{scenario.lanes.count} lanes, car in lane {truth['car_lane']}",
+                f"ramps      {ramps or 'none'}",
+                f"run        {counts['frames']:,} frames, {counts['edge_points']:,} road-edge "
+                f"points, {counts['lane_samples']:,} lane samples",
+                f"wrote      {out}: {files}",
+                f"time       {time.perf_counter() - started:.2f} s",
+            ]
+        )
+    )
+    return 0
 
 
 # ---------------------------------------------------------------------------
@@ -118,7 +194,147 @@ def _add_build(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
-    raise NotImplementedError
+    import dataclasses
+    import json
+    import shutil
+    import tempfile
+    import time
+
+    from tqdm import tqdm
+
+    from .export import plot_network, write_geojson, write_kml
+    from .io import load_run
+    from .osm import load_osm, load_osm_online
+    from .pipeline import build_map
+    from .xodr import write_xodr
+
+    started = time.perf_counter()
+    cfg = _load_config(args.config)
+    if args.method is not None:
+        cfg = dataclasses.replace(
+            cfg, mainline=dataclasses.replace(cfg.mainline, method=args.method)
+        )
+    if args.junctions is not None:
+        cfg = dataclasses.replace(
+            cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
+        )
+    out = args.output if args.output is not None else args.run_dir / "out"
+    steps = ["load run", "load OSM", "build map", "write files"]
+    if not args.no_check:
+        steps.append("check")
+    bar = tqdm(total=len(steps), disable=args.quiet, unit="step", file=sys.stderr)
+    times: dict[str, float] = {}
+
+    def step(name: str) -> None:
+        bar.set_description(name)
+
+    t0 = time.perf_counter()
+    step("load run")
+    run = load_run(args.run_dir, config=cfg.load)
+    times["load run"] = time.perf_counter() - t0
+    bar.update()
+
+    t0 = time.perf_counter()
+    step("load OSM")
+    osm_graph = None
+    if args.osm_online:
+        osm_graph = load_osm_online(frame=run.frame, around_xy=run.trajectory.xy, config=cfg.load)
+    elif run.osm_path is not None:
+        osm_graph = load_osm(
+            run.osm_path, frame=run.frame, around_xy=run.trajectory.xy, config=cfg.load
+        )
+    times["load OSM"] = time.perf_counter() - t0
+    bar.update()
+
+    step("build map")
+    result = build_map(run, osm_graph, config=cfg)
+    times.update(result.timings_s)
+    bar.update()
+
+    t0 = time.perf_counter()
+    step("write files")
+    out.mkdir(parents=True, exist_ok=True)
+    names = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
+    tmp = Path(tempfile.mkdtemp(prefix=".build.", dir=out))
+    try:
+        write_xodr(result.network, tmp / "map.xodr")
+        write_kml(result.network, run.frame, tmp / "map.kml")
+        write_geojson(result.network, run.frame, tmp / "map.geojson")
+        plot_network(result.network, run, tmp / "map.png")
+        ramps_info = [
+            {
+                "road_id": rid,
+                "type": r.type,
+                "station_m": round(r.station_m, 3),
+                "station_source": r.station_source,
+                "lanes": r.lanes,
+                "lane_rule": r.lane_rule,
+                "osm_lanes": r.osm_lanes,
+                "osm_lane_rule": r.osm_lane_rule,
+                "type_geometry": r.type_geometry,
+                "osm_way_ids": [str(w) for w in r.osm_way_ids],
+                "attach_gap_m": r.attach_gap_m,
+                "attach_heading_deg": r.attach_heading_deg,
+                "warnings": list(r.warnings),
+            }
+            for rid, r in zip(result.topology.ramp_road_ids, result.ramps, strict=True)
+        ]
+        info = {
+            "summary": result.summary(),
+            "timings_s": result.timings_s,
+            "ramps": ramps_info,
+            "rejected": [list(x) for x in result.ramp_set.rejected],
+            "skipped": [list(x) for x in (*result.ramp_set.skipped, *result.topology.skipped)],
+            "warnings": list(result.warnings),
+        }
+        (tmp / "build.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+        for name in names:
+            (tmp / name).replace(out / name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    times["write files"] = time.perf_counter() - t0
+    bar.update()
+
+    report = None
+    if not args.no_check:
+        from .check import check_file
+
+        t0 = time.perf_counter()
+        step("check")
+        report = check_file(out / "map.xodr", external=True)
+        times["check"] = time.perf_counter() - t0
+        bar.update()
+    bar.close()
+
+    s = result.summary()
+    lines = [
+        f"run        {run.root}",
+        f"roads      {s['roads']} ({s['mainline_roads']} mainline, {s['connecting_roads']} "
+        f"connecting), {s['junctions']} {cfg.topology.junctions} junctions",
+        f"ramps      {s['exits']} exit, {s['entries']} entry "
+        f"({len(result.ramp_set.candidates)} OSM candidates, "
+        f"{len(result.ramp_set.rejected)} rejected, "
+        f"{len(result.ramp_set.skipped) + len(result.topology.skipped)} skipped)",
+    ]
+    for rid, r in zip(result.topology.ramp_road_ids, result.ramps, strict=True):
+        lines.append(
+            f"  road {rid:>4}  {r.type:<5} at s={r.station_m:8.1f} m ({r.station_source}), "
+            f"{r.lanes} lane(s) by {r.lane_rule}"
+        )
+    lines.append(
+        f"length     {s['total_km']:.3f} km ({s['mainline_km']:.3f} km mainline, "
+        f"{s['ramp_km']:.3f} km ramps)"
+    )
+    lines.append("time       " + ", ".join(f"{k} {v:.2f} s" for k, v in times.items()))
+    lines.append(f"total      {time.perf_counter() - started:.2f} s")
+    lines.append(f"written    {', '.join(str(out / n) for n in names[:4])}")
+    for w in result.warnings:
+        lines.append(f"note       {w}")
+    print("\n".join(lines))
+    if report is not None:
+        print(report.format_text())
+        return 0 if report.errors == 0 else 1
+    return 0
 
 
 # ---------------------------------------------------------------------------
@@ -139,7 +355,16 @@ def _add_check(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
-    raise NotImplementedError
+    import json
+
+    from .check import check_file
+
+    report = check_file(args.xodr, external=not args.no_external)
+    if args.json:
+        print(json.dumps(report.to_dict(), indent=2))
+    else:
+        print(report.format_text())
+    return 0 if report.ok else 1
 
 
 # ---------------------------------------------------------------------------
@@ -153,11 +378,84 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("run_dirs", type=Path, nargs="+", help="mapping-run folder(s)")
     p.add_argument("--truth", type=Path, default=None, help="ground-truth OpenDRIVE file")
     p.add_argument("-o", "--output", type=Path, default=None, help="report folder")
+    p.add_argument(
+        "--compare-methods",
+        action="store_true",
+        help="also build each run with the default and the paper method and report both",
+    )
+    p.add_argument("--config", type=Path, default=None, help="TOML file with stage settings")
     p.set_defaults(func=_cmd_evaluate)
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    raise NotImplementedError
+    import time
+
+    from .evaluation import evaluate_paths, format_table
+    from .report import write_report
+
+    def _fmt_m(value) -> str:
+        return "-" if value is None or value != value else f"{value:.3f} m"
+
+    def _fmt_pct(value) -> str:
+        return "-" if value is None else f"{100.0 * value:.1f} %"
+
+    start = time.perf_counter()
+    progress = None
+    if len(args.run_dirs) > 1 and not args.quiet:
+        from tqdm import tqdm
+
+        def progress(items):
+            return tqdm(items, desc="evaluate", unit="run", file=sys.stderr)
+
+    for run_dir in args.run_dirs:
+        if not (run_dir / "run.toml").is_file():
+            raise InputError(f"{run_dir}: not a mapping-run folder (no run.toml)")
+    if args.truth is not None and not args.truth.is_file():
+        raise InputError(f"{args.truth}: truth file not found")
+    report = evaluate_paths(args.xodr, args.run_dirs, truth_path=args.truth, progress=progress)
+    if args.compare_methods:
+        from .evaluation import combine_reports, compare_methods, load_truth
+        from .io import load_run
+
+        config = _load_config(args.config)
+        extra = []
+        for run_dir in args.run_dirs:
+            truth_path = args.truth
+            if truth_path is None and (run_dir / "truth.xodr").is_file():
+                truth_path = run_dir / "truth.xodr"
+            truth, info = load_truth(truth_path) if truth_path is not None else (None, None)
+            run = load_run(run_dir, config=config.load)
+            extra.append(compare_methods(run, truth=truth, truth_info=info, config=config))
+        report = combine_reports([report, *extra])
+    out_dir = args.output if args.output is not None else args.xodr.parent / "report"
+    paths = write_report(report, out_dir)
+    print(format_table(report))
+    for run in report.runs:
+        line = f"{run.label} [{run.method or 'map'}]:"
+        if run.truth:
+            t = run.truth
+            line += (
+                f" vs truth edge RMSE {_fmt_m(t['road_edge']['rmse_m'])},"
+                f" lane boundary RMSE {_fmt_m(t['lane_boundary']['rmse_m'])},"
+                f" elevation RMSE {_fmt_m(t['elevation']['rmse_m'])},"
+                f" ramp centre RMSE {_fmt_m(t['ramp_centre']['rmse_m'])},"
+                f" lane count right {_fmt_pct(t['lane_count']['matched_fraction'])}"
+            )
+        topo = run.topology or {}
+        ramps = topo.get("ramps", [])
+        if "true_ramps" in topo:
+            line += (
+                f"; ramps {topo['matched']}/{topo['true_ramps']} matched,"
+                f" {len(topo['missed'])} missed, {len(topo['spurious'])} spurious,"
+                f" {topo['type_correct']} typed right"
+            )
+        line += f"; {sum(r['connected'] for r in ramps)}/{len(ramps)} ramps connected by lane links"
+        print(line)
+    print(
+        f"report: {paths['html']} (+ report.json, {len(paths) - 2} PNG) "
+        f"in {time.perf_counter() - start:.1f} s"
+    )
+    return 0
 
 
 # ---------------------------------------------------------------------------
@@ -183,7 +481,115 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    raise NotImplementedError
+    import importlib
+    import json
+    import tempfile
+    import time
+
+    from tqdm import tqdm
+
+    from .simulate import load_scenario, simulate_run
+
+    started = time.perf_counter()
+    root = args.output or Path(tempfile.mkdtemp(prefix="roadtwin-demo-"))
+    run_dir, out_dir = root / "run", root / "out"
+    scenario = load_scenario(args.scenario)
+    lines: list[str] = []
+    wrote: list[Path] = []
+    state: dict = {}
+
+    def has(module: str, name: str) -> bool:
+        try:
+            return hasattr(importlib.import_module(f"roadtwin.{module}"), name)
+        except ImportError:
+            return False
+
+    def simulate() -> str:
+        simulate_run(scenario, run_dir)
+        truth = json.loads((run_dir / "truth.json").read_text(encoding="utf-8"))
+        state["truth_info"] = truth
+        wrote.extend([run_dir / "run.toml", run_dir / "truth.xodr"])
+        c = truth["counts"]
+        return (
+            f"{scenario.name}: {truth['mainline_length_m'] / 1000:.1f} km, "
+            f"{len(truth['ramps'])} ramps, {c['frames']:,} frames, "
+            f"{c['edge_points']:,} edge points, {c['lane_samples']:,} lane samples"
+        )
+
+    def inspect() -> str:
+        from .io import load_run
+        from .osm import load_osm
+        from .plots import plot_overview
+
+        run = load_run(run_dir)
+        osm_graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+        state["run"], state["osm_graph"] = run, osm_graph
+        png = plot_overview(run, osm_graph, run_dir / "overview.png")
+        wrote.append(Path(png))
+        return f"loaded, {osm_graph.number_of_edges()} OSM edges, overview plotted"
+
+    def build() -> str:
+        from .pipeline import build_map
+        from .xodr import write_xodr
+
+        result = build_map(state["run"], state["osm_graph"])
+        state["network"] = result.network
+        path = write_xodr(result.network, out_dir / "map.xodr")
+        wrote.append(path)
+        if has("export", "write_kml"):
+            from .export import write_geojson, write_kml
+
+            frame = state["run"].frame
+            wrote.append(write_kml(result.network, frame, out_dir / "map.kml"))
+            wrote.append(write_geojson(result.network, frame, out_dir / "map.geojson"))
+        n_main = sum(r.name == "mainline" for r in result.network.roads)
+        return f"{len(result.network.roads)} roads ({n_main} mainline), {len(result.ramps)} ramps"
+
+    def check() -> str:
+        from .check import check_file
+
+        target = out_dir / "map.xodr" if "network" in state else run_dir / "truth.xodr"
+        report = check_file(target, external=True)
+        state["check_ok"] = report.ok
+        return f"{target.name}: {'ok' if report.ok else 'FINDINGS'}, {len(report.findings)} findings"
+
+    def evaluate() -> str:
+        from .evaluation import evaluate_paths
+        from .report import write_report
+
+        report = evaluate_paths(out_dir / "map.xodr", [run_dir], truth_path=run_dir / "truth.xodr")
+        paths = write_report(report, out_dir / "report")
+        wrote.append(Path(paths["html"]))
+        t = report.runs[0].truth or {}
+        edge = (t.get("road_edge") or {}).get("rmse_m")
+        lane = (t.get("lane_boundary") or {}).get("rmse_m")
+        if edge is None:
+            return "report written"
+        return f"vs truth: road edge RMSE {edge:.3f} m, lane boundary RMSE {lane:.3f} m"
+
+    stages = [("simulate", simulate, True), ("inspect", inspect, has("io", "load_run"))]
+    stages.append(("build", build, has("pipeline", "build_map")))
+    stages.append(("check", check, has("check", "check_file")))
+    stages.append(("evaluate", evaluate, has("pipeline", "build_map") and has("evaluation", "evaluate_paths")))
+    bar = tqdm(stages, desc="demo", unit="stage", disable=args.quiet, file=sys.stderr, leave=False)
+    for name, stage, available in bar:
+        bar.set_postfix_str(name)
+        if not available:
+            lines.append(f"{name:<10} not available yet")
+            continue
+        t0 = time.perf_counter()
+        try:
+            text = stage()
+        except NotImplementedError:
+            lines.append(f"{name:<10} not available yet")
+            continue
+        lines.append(f"{name:<10} {text} ({time.perf_counter() - t0:.1f} s)")
+    bar.close()
+    lines.append(f"{'folder':<10} {root}")
+    lines += [f"{'':<10} {p}" for p in wrote if p.exists()]
+    lines.append(f"{'time':<10} {time.perf_counter() - started:.1f} s")
+    print("\n".join(lines))
+    return 0 if state.get("check_ok", True) else 1
 
 
 # ---------------------------------------------------------------------------

@@ -37,6 +37,56 @@ class MainlineConfig:
     """Largest K tried by the paper's K-means lane clustering."""
     elevation_radius_m: float = 3.0
     """Search radius r for heights around each station (metres)."""
+    grid_step_m: float = 1.0
+    """Station step of the regular grids the default method smooths on (metres)."""
+    edge_smoothing_m: float = 40.0
+    """Cut-off wavelength of the road-edge smoother (metres): shape features shorter than
+    this are treated as noise."""
+    edge_outlier_mad: float = 4.0
+    """Edge points farther than this many robust sigmas (1.4826 MAD, local) from the
+    running fit are outliers."""
+    edge_outlier_min_m: float = 0.08
+    """Outlier threshold never below this (metres), so clean data keeps all points."""
+    elevation_bin_m: float = 5.0
+    """Bin length for heights and cross slope (metres)."""
+    elevation_smoothing_m: float = 60.0
+    """Cut-off wavelength of the elevation / cross-slope smoother (metres)."""
+    elevation_tolerance_m: float = 0.005
+    """Max deviation of the C1 elevation pieces from the smoothed heights (metres)."""
+    superelevation_min_rad: float = 0.005
+    """Superelevation is written only if the fitted cross slope exceeds this somewhere."""
+    lane_column_m: float = 5.0
+    """Station step of the lane-marking histogram columns (metres)."""
+    lane_window_columns: int = 1
+    """Columns summed per marking search window (covers broken-line gaps)."""
+    lane_bin_m: float = 0.05
+    """Lateral histogram bin of the lane-marking search (metres)."""
+    lane_min_separation_m: float = 0.8
+    """Two markings closer than this are one (metres)."""
+    lane_link_m: float = 0.6
+    """Max lateral jump between consecutive columns of one marking track (metres)."""
+    lane_max_gap_m: float = 60.0
+    """Longest stretch without observations bridged inside one track (metres)."""
+    lane_min_track_m: float = 60.0
+    """Marking tracks shorter than this are false positives (metres)."""
+    lane_assign_m: float = 0.35
+    """Lane samples within this of a track belong to it (metres)."""
+    lane_smoothing_m: float = 30.0
+    """Cut-off wavelength of the marking smoother (metres)."""
+    lane_width_tolerance_m: float = 0.01
+    """Max deviation of the lane-width pieces from the smoothed widths (metres)."""
+    lane_taper_max_m: float = 250.0
+    """A lane birth/end is extrapolated to zero width at most this far (metres)."""
+    lane_split_m: float = 1.6
+    """A marking that starts/ends within this of a neighbour opens/closes a tapering lane."""
+    broken_gap_m: float = 3.0
+    """Gaps between samples longer than this count towards a broken marking (metres)."""
+    broken_gap_fraction: float = 0.3
+    """A marking is broken if such gaps cover more than this fraction of its length."""
+    min_section_m: float = 20.0
+    """Lane sections shorter than this are merged into a neighbour (metres)."""
+    seed: int = 0
+    """Seed of the paper method's K-means and silhouette sub-sampling."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +107,23 @@ class RampConfig:
     """Length over which a re-anchored ramp blends back into the OSM shape (metres)."""
     lane_type: Literal["driving", "spec"] = "driving"
     """``driving`` ramp lanes (CARLA-friendly) or the spec's onRamp/offRamp types."""
+    savgol_polyorder: int = 3
+    """Polynomial order of the Savitzky-Golay smoothing."""
+    mainline_match_m: float = 25.0
+    """An OSM node is on the driven carriageway when it lies within this of the trajectory
+    (metres) and has a non-link edge whose heading matches the driven direction."""
+    max_heading_diff_deg: float = 40.0
+    """Largest heading difference (degrees) between an OSM edge and the driven direction for
+    a mainline edge, and between a ramp at its attachment and the driven direction."""
+    min_ramp_length_m: float = 30.0
+    """Ramp chains shorter than this (metres) after trimming are skipped with a warning."""
+    gore_search_upstream_m: float = 150.0
+    """A measured gore (a lane ending/starting at full width) is matched to an OSM attachment
+    when it lies at most this far upstream of it (metres)."""
+    gore_search_downstream_m: float = 300.0
+    """... or at most this far downstream of it (metres) (entries: mirrored)."""
+    fit_tolerance_m: float = 0.02
+    """Max deviation of the ramp's ParamPoly3 pieces from the smoothed polyline (metres)."""
 
 
 @dataclass(frozen=True)
@@ -65,6 +132,10 @@ class TopologyConfig:
 
     junctions: Literal["default", "direct"] = "default"
     """Junctions with connecting roads (every consumer) or OpenDRIVE 1.7 direct ones."""
+    junction_length_m: float = 20.0
+    """Length along the mainline of a junction with connecting roads (metres)."""
+    min_road_length_m: float = 5.0
+    """A ramp whose junction would leave a mainline road shorter than this is skipped."""
 
 
 @dataclass(frozen=True)
@@ -95,3 +166,27 @@ class PipelineConfig:
         if unknown_tables:
             raise InputError(f"config: unknown tables {sorted(unknown_tables)}")
         return cls(**parts)
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """Accuracy evaluation (``roadtwin.evaluation``)."""
+
+    max_lateral_m: float = 40.0
+    """Points farther than this (metres) from every mainline reference line are excluded."""
+    end_tolerance_m: float = 0.1
+    """A point projecting more than this (metres) beyond a road's start or end is not on it."""
+    truth_step_m: float = 1.0
+    """Spacing (metres) of the samples along every true boundary."""
+    lane_count_min_width_m: float = 1.75
+    """A driving lane counts towards the lane count where it is at least this wide (metres),
+    so tapers count as half a lane."""
+    ramp_match_distance_m: float = 60.0
+    """Largest distance (metres) between a true and a built ramp's attachment points for
+    them to be the same ramp."""
+
+    def __post_init__(self) -> None:
+        for name in ("max_lateral_m", "truth_step_m", "ramp_match_distance_m"):
+            if not getattr(self, name) > 0:
+                msg = f"evaluation config: {name} must be > 0, got {getattr(self, name)}"
+                raise ValueError(msg)

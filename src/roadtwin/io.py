@@ -1,19 +1,37 @@
 """Mapping-run loading and validation (DESIGN.md section 3).
 
 A run folder holds ``run.toml`` and the files it names. :func:`load_run` reads them into
-one :class:`MappingRun` of NumPy arrays in the mapping frame.
+one :class:`MappingRun` of NumPy arrays in the mapping frame. Every reader is vectorised
+(pandas / pyarrow / laspy / ``np.fromfile``); bad input raises
+:class:`~roadtwin._errors.InputError` with one line naming the file, row or field and what
+was expected; suspicious but usable input warns with
+:class:`~roadtwin._errors.InputWarning`.
 """
 
 from __future__ import annotations
 
+import logging
+import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
-from .frames import MappingFrame
+from ._errors import InputError, InputWarning
+from .config import LoadConfig
+from .frames import MappingFrame, Origin
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -117,12 +135,794 @@ class MappingRun:
         )
 
 
-def load_run(run_dir: str | Path, *, config=None) -> MappingRun:
+# ---------------------------------------------------------------------------
+# loading
+# ---------------------------------------------------------------------------
+
+TRAJECTORY_COLUMNS = ("frame", "t", "x", "y", "z", "yaw")
+EDGE_SUFFIXES = (".las", ".laz", ".ply", ".csv", ".npy", ".parquet")
+OSM_SUFFIXES = (".osm", ".osm.gz", ".osm.bz2", ".osm.pbf")
+SIDE_LEFT = 1
+"""Internal edge side code of a left road-edge point (``MappingRun.edge_side``)."""
+SIDE_RIGHT = -1
+"""Internal edge side code of a right road-edge point."""
+_MIN_MOTION_STEP_M = 0.2
+
+
+def load_run(run_dir: str | Path, *, config: LoadConfig | None = None) -> MappingRun:
     """Load and validate a mapping-run folder (DESIGN.md section 3).
+
+    Parameters
+    ----------
+    run_dir
+        Folder holding ``run.toml`` (or the path of the ``run.toml`` itself).
+    config
+        Loading thresholds; :class:`~roadtwin.config.LoadConfig` defaults if None.
+
+    Returns
+    -------
+    MappingRun
+        Poses, road-edge points and lane samples in the mapping frame (metres, radians).
+        Points farther than ``config.max_point_distance_m`` from the trajectory are dropped
+        with an :class:`~roadtwin._errors.InputWarning` and counted in ``dropped_*``.
 
     Raises
     ------
     InputError
         With one line naming the file, row or field and what was expected.
     """
-    raise NotImplementedError("filled in by the foundation issue")
+    cfg = config if config is not None else LoadConfig()
+    root = Path(run_dir)
+    if root.is_file() and root.suffix == ".toml":
+        manifest_path, root = root, root.parent
+    else:
+        manifest_path = root / "run.toml"
+    manifest = _read_manifest(manifest_path)
+    frame = _frame_from_manifest(manifest, manifest_path)
+    pose_height = _number(manifest, "vehicle", "pose_height", manifest_path, default=0.0)
+    side = _traffic_side(manifest, manifest_path)
+    files = _files_from_manifest(manifest, manifest_path, root)
+
+    trajectory = read_trajectory(files["trajectory"], config=cfg)
+    edges, edge_side = read_road_edges(files["road_edges"])
+    lane_samples, lane_frame = read_lane_samples(
+        files["lane_samples"], trajectory, pose_height_m=pose_height
+    )
+    tree = _trajectory_tree(trajectory.xy)
+    keep_e = _near_trajectory(tree, edges[:, :2], files["road_edges"], "road-edge points", cfg)
+    keep_l = _near_trajectory(tree, lane_samples[:, :2], files["lane_samples"], "lane samples", cfg)
+    dropped_e = int(keep_e.size - np.count_nonzero(keep_e))
+    dropped_l = int(keep_l.size - np.count_nonzero(keep_l))
+    if dropped_e:
+        edges, edge_side = edges[keep_e], edge_side[keep_e]
+    if dropped_l:
+        lane_samples, lane_frame = lane_samples[keep_l], lane_frame[keep_l]
+
+    run = MappingRun(
+        root=root,
+        frame=frame,
+        trajectory=trajectory,
+        pose_height_m=pose_height,
+        edges=edges,
+        edge_side=edge_side,
+        lane_samples=lane_samples,
+        lane_sample_frame=lane_frame,
+        osm_path=files.get("osm"),
+        traffic_side=side,
+        dropped_edge_points=dropped_e,
+        dropped_lane_samples=dropped_l,
+    )
+    s = run.summary()
+    log.info(
+        "loaded run %s: %.3f km, %d frames, %d edge points, %d lane samples "
+        "(dropped %d / %d far from the trajectory)",
+        root,
+        s.driven_length_m / 1000.0,
+        s.frames,
+        s.edge_points,
+        s.lane_samples,
+        dropped_e,
+        dropped_l,
+    )
+    return run
+
+
+# ---------------------------------------------------------------------------
+# run.toml
+# ---------------------------------------------------------------------------
+
+
+def _read_manifest(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        msg = f"{path}: file not found (expected the run manifest run.toml in the run folder)"
+        raise InputError(msg)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        msg = f"{path}: cannot read the run manifest ({exc})"
+        raise InputError(msg) from None
+    if not text.strip():
+        msg = f"{path}: file is empty (expected [origin], [frame] and [files] tables)"
+        raise InputError(msg)
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = f"{path}: not valid TOML: {exc}"
+        raise InputError(msg) from None
+
+
+def _table(manifest: dict[str, Any], name: str, path: Path, *, required: bool) -> dict:
+    table = manifest.get(name)
+    if table is None:
+        if required:
+            msg = f"{path}: missing table [{name}]"
+            raise InputError(msg)
+        return {}
+    if not isinstance(table, dict):
+        msg = f"{path}: [{name}] must be a table"
+        raise InputError(msg)
+    return table
+
+
+def _number(
+    manifest: dict[str, Any],
+    table: str,
+    key: str,
+    path: Path,
+    *,
+    default: float | None = None,
+) -> float:
+    values = _table(manifest, table, path, required=default is None)
+    if key not in values:
+        if default is None:
+            msg = f"{path}: [{table}] {key} is missing (expected a number)"
+            raise InputError(msg)
+        return default
+    value = values[key]
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
+        msg = f"{path}: [{table}] {key} = {value!r}: expected a finite number"
+        raise InputError(msg)
+    return float(value)
+
+
+def _frame_from_manifest(manifest: dict[str, Any], path: Path) -> MappingFrame:
+    lat = _number(manifest, "origin", "lat", path)
+    lon = _number(manifest, "origin", "lon", path)
+    alt = _number(manifest, "origin", "alt", path, default=0.0)
+    crs = _table(manifest, "frame", path, required=False).get("crs", "local")
+    if not isinstance(crs, str) or not crs.strip():
+        msg = f"{path}: [frame] crs = {crs!r}: expected 'local' or a pyproj CRS string"
+        raise InputError(msg)
+    try:
+        origin = Origin(lat, lon, alt)
+        return MappingFrame(origin, crs=crs.strip())
+    except InputError as exc:
+        msg = f"{path}: {exc}"
+        raise InputError(msg) from None
+
+
+def _traffic_side(manifest: dict[str, Any], path: Path) -> Literal["right", "left"]:
+    side = _table(manifest, "traffic", path, required=False).get("side", "right")
+    if side not in ("right", "left"):
+        msg = f"{path}: [traffic] side = {side!r}: expected 'right' or 'left'"
+        raise InputError(msg)
+    return side
+
+
+def _files_from_manifest(manifest: dict[str, Any], path: Path, root: Path) -> dict[str, Path]:
+    table = _table(manifest, "files", path, required=True)
+    files: dict[str, Path] = {}
+    for key in ("trajectory", "road_edges", "lane_samples", "osm"):
+        name = table.get(key)
+        if name is None:
+            if key == "osm":
+                continue
+            msg = f"{path}: [files] {key} is missing (expected a file name relative to the run)"
+            raise InputError(msg)
+        if not isinstance(name, str) or not name.strip():
+            msg = f"{path}: [files] {key} = {name!r}: expected a file name"
+            raise InputError(msg)
+        file = root / name
+        if not file.is_file():
+            msg = f"{file}: file not found (named by [files] {key} in {path.name})"
+            raise InputError(msg)
+        files[key] = file
+    edge_name = files["road_edges"].name.lower()
+    if not edge_name.endswith(EDGE_SUFFIXES):
+        msg = (
+            f"{files['road_edges']}: unsupported road-edge format "
+            f"(expected one of {', '.join(EDGE_SUFFIXES)})"
+        )
+        raise InputError(msg)
+    if "osm" in files:
+        osm = files["osm"]
+        if not osm.name.lower().endswith(OSM_SUFFIXES):
+            msg = f"{osm}: unsupported OSM format (expected one of {', '.join(OSM_SUFFIXES)})"
+            raise InputError(msg)
+        if osm.stat().st_size == 0:
+            msg = f"{osm}: OSM file is empty"
+            raise InputError(msg)
+    return files
+
+
+# ---------------------------------------------------------------------------
+# tables (CSV / Parquet) -> validated float columns
+# ---------------------------------------------------------------------------
+
+
+def _read_csv(path: Path, what: str) -> pd.DataFrame:
+    """Read a CSV with a header row; column names stripped and lower-cased."""
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg)
+    try:
+        df = pd.read_csv(path, skipinitialspace=True, comment=None, low_memory=False)
+    except pd.errors.EmptyDataError:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg) from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        msg = f"{path}: not a readable CSV file ({exc}); expected {what}"
+        raise InputError(msg) from None
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    if df.shape[0] == 0:
+        msg = f"{path}: file has a header but no data rows (expected {what})"
+        raise InputError(msg)
+    return df
+
+
+def _require(columns: Iterable[str], needed: Iterable[str], path: Path, what: str) -> None:
+    have = set(columns)
+    for name in needed:
+        if name not in have:
+            msg = (
+                f"{path}: missing column '{name}' (expected {what}; "
+                f"found: {', '.join(map(str, columns))})"
+            )
+            raise InputError(msg)
+
+
+def _float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
+    """A column as float64; non-numbers, NaN and inf name the first bad data row."""
+    series = values if isinstance(values, pd.Series) else pd.Series(np.asarray(values))
+    if series.dtype.kind in "fiub":
+        arr = series.to_numpy(dtype=np.float64)
+    else:
+        arr = pd.to_numeric(series, errors="coerce").to_numpy(dtype=np.float64)
+        bad_text = np.isnan(arr) & series.notna().to_numpy()
+        if bad_text.any():
+            row = int(np.argmax(bad_text))
+            msg = (
+                f"{path}: data row {row + 1}, column '{name}': {series.iloc[row]!r} is not a number"
+            )
+            raise InputError(msg)
+    finite = np.isfinite(arr)
+    if not finite.all():
+        row = int(np.argmin(finite))
+        count = int(finite.size - np.count_nonzero(finite))
+        msg = (
+            f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not a finite number "
+            f"({count} NaN/inf value(s) in this column; expected finite numbers)"
+        )
+        raise InputError(msg)
+    return arr
+
+
+def _int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
+    arr = _float_column(values, path, name)
+    rounded = np.round(arr)
+    bad = np.abs(arr - rounded) > 1e-9
+    if bad.any():
+        row = int(np.argmax(bad))
+        msg = f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not an integer"
+        raise InputError(msg)
+    return rounded.astype(np.int64)
+
+
+# ---------------------------------------------------------------------------
+# trajectory
+# ---------------------------------------------------------------------------
+
+
+def read_trajectory(path: str | Path, *, config: LoadConfig | None = None) -> Trajectory:
+    """Read and validate ``trajectory.csv`` (``frame,t,x,y,z,yaw[,pitch,roll]``).
+
+    Parameters
+    ----------
+    path
+        CSV file with a header; any column order, extra columns ignored.
+    config
+        Thresholds for the jump check.
+
+    Returns
+    -------
+    Trajectory
+        Mapping-frame poses (metres), yaw unwrapped (radians, CCW from +x).
+
+    Raises
+    ------
+    InputError
+        Missing columns, NaN/inf, duplicate frames, non-increasing ``t``, yaw in degrees or
+        not matching the direction of travel, jumps.
+    """
+    cfg = config if config is not None else LoadConfig()
+    path = Path(path)
+    what = "columns frame,t,x,y,z,yaw[,pitch,roll]"
+    df = _read_csv(path, what)
+    _require(df.columns, TRAJECTORY_COLUMNS, path, what)
+    frame = _int_column(df["frame"], path, "frame")
+    t = _float_column(df["t"], path, "t")
+    xyz = np.column_stack([_float_column(df[c], path, c) for c in ("x", "y", "z")])
+    yaw = _float_column(df["yaw"], path, "yaw")
+    n = t.size
+    pitch = _float_column(df["pitch"], path, "pitch") if "pitch" in df else np.zeros(n)
+    roll = _float_column(df["roll"], path, "roll") if "roll" in df else np.zeros(n)
+
+    order = np.argsort(frame, kind="stable")
+    dup = np.flatnonzero(np.diff(frame[order]) == 0)
+    if dup.size:
+        rows = sorted((int(order[dup[0]]) + 1, int(order[dup[0] + 1]) + 1))
+        msg = (
+            f"{path}: duplicate frame {frame[order[dup[0]]]} in data rows {rows[0]} and "
+            f"{rows[1]} ({dup.size} duplicate(s); expected one row per frame)"
+        )
+        raise InputError(msg)
+    if n < 2:
+        msg = f"{path}: only {n} pose(s); expected at least 2 rows"
+        raise InputError(msg)
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        row = int(np.argmax(dt <= 0)) + 1
+        msg = (
+            f"{path}: data row {row + 1}, column 't': {t[row]} is not after the previous "
+            f"row's {t[row - 1]} (expected strictly increasing time)"
+        )
+        raise InputError(msg)
+    _check_yaw(path, xyz[:, :2], yaw)
+    _check_jumps(path, xyz[:, :2], t, cfg)
+    return Trajectory(
+        frame=frame,
+        t=t,
+        xyz=xyz,
+        yaw=np.unwrap(yaw),
+        pitch=pitch,
+        roll=roll,
+    )
+
+
+def _wrap(angle: NDArray[np.float64]) -> NDArray[np.float64]:
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _check_yaw(path: Path, xy: NDArray[np.float64], yaw: NDArray[np.float64]) -> None:
+    """Yaw must be radians, CCW from +x, along the direction of travel."""
+    step = np.diff(xy, axis=0)
+    dist = np.hypot(step[:, 0], step[:, 1])
+    moving = dist > _MIN_MOTION_STEP_M
+    max_abs = float(np.max(np.abs(yaw)))
+    if np.count_nonzero(moving) >= 3:
+        motion = np.arctan2(step[moving, 1], step[moving, 0])
+        y_mid = yaw[:-1][moving]
+        err_rad = np.degrees(np.median(np.abs(_wrap(y_mid - motion))))
+        err_deg = np.degrees(np.median(np.abs(_wrap(np.radians(y_mid) - motion))))
+        if err_rad > 45.0 and err_deg < 15.0:
+            msg = (
+                f"{path}: column 'yaw' is in degrees (it matches the direction of travel only "
+                f"read as degrees; max |yaw| = {max_abs:.1f}); expected radians, CCW from +x"
+            )
+            raise InputError(msg)
+        if err_rad > 60.0:
+            compass = np.degrees(np.median(np.abs(_wrap(np.pi / 2 - y_mid - motion))))
+            hint = (
+                " (it looks like a compass heading, clockwise from north)" if compass < 15.0 else ""
+            )
+            msg = (
+                f"{path}: column 'yaw' does not match the direction of travel (median "
+                f"difference {err_rad:.0f} deg){hint}; expected radians, CCW from +x"
+            )
+            raise InputError(msg)
+    elif max_abs > 4.0 * np.pi:
+        msg = (
+            f"{path}: column 'yaw' reaches |yaw| = {max_abs:.1f}, far beyond 2*pi: looks like "
+            "degrees; expected radians, CCW from +x"
+        )
+        raise InputError(msg)
+
+
+def _check_jumps(
+    path: Path, xy: NDArray[np.float64], t: NDArray[np.float64], cfg: LoadConfig
+) -> None:
+    dist = np.hypot(*np.diff(xy, axis=0).T)
+    dt = np.diff(t)
+    median_step = float(np.median(dist))
+    median_dt = float(np.median(dt))
+    expected = 3.0 * median_step * dt / median_dt
+    jump = (dist > cfg.max_pose_jump_m) & (dist > expected)
+    if jump.any():
+        i = int(np.argmax(jump))
+        msg = (
+            f"{path}: trajectory jumps {dist[i]:.1f} m between data rows {i + 1} and {i + 2} "
+            f"(typical step {median_step:.2f} m; expected steps under "
+            f"{max(cfg.max_pose_jump_m, float(expected[i])):.1f} m)"
+        )
+        raise InputError(msg)
+
+
+# ---------------------------------------------------------------------------
+# road edges
+# ---------------------------------------------------------------------------
+
+
+def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
+    """Read road-edge points from LAS/LAZ, PLY, CSV, NPY or Parquet.
+
+    Parameters
+    ----------
+    path
+        Point file; ``x, y, z`` in the mapping frame (metres), optional ``side``
+        (strings ``left``/``right``, or integers 1 = left, 2 = right, 0 = unknown;
+        -1 is accepted for right).
+
+    Returns
+    -------
+    edges : (N, 3) float64 points, mapping frame, metres.
+    edge_side : (N,) int8, +1 left, -1 right, 0 unknown.
+    """
+    path = Path(path)
+    name = path.name.lower()
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected road-edge points x,y,z)"
+        raise InputError(msg)
+    if name.endswith((".las", ".laz")):
+        cols, side = _read_las(path)
+    elif name.endswith(".ply"):
+        cols, side = _read_ply(path)
+    elif name.endswith(".csv"):
+        df = _read_csv(path, "columns x,y,z[,side]")
+        _require(df.columns, "xyz", path, "columns x,y,z[,side]")
+        cols = {c: df[c] for c in "xyz"}
+        side = df.get("side")
+    elif name.endswith(".npy"):
+        cols, side = _read_npy(path)
+    elif name.endswith(".parquet"):
+        cols, side = _read_parquet(path)
+    else:
+        msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
+        raise InputError(msg)
+    xyz = np.column_stack([_float_column(cols[c], path, c) for c in "xyz"])
+    if xyz.shape[0] == 0:
+        msg = f"{path}: no points (expected road-edge points x,y,z)"
+        raise InputError(msg)
+    codes = _side_codes(side, path, xyz.shape[0])
+    return xyz, codes
+
+
+def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
+    """Map a ``side`` column (strings or integer codes) to +1 left / -1 right / 0."""
+    if side is None:
+        return np.zeros(n, np.int8)
+    series = side if isinstance(side, pd.Series) else pd.Series(np.asarray(side))
+    out = np.zeros(n, np.int8)
+    if series.dtype.kind in "iuf":
+        vals = series.to_numpy(dtype=np.float64)
+        vals = np.where(np.isnan(vals), 0.0, vals)
+        ok = np.isin(vals, (0.0, 1.0, 2.0, -1.0))
+        if not ok.all():
+            row = int(np.argmin(ok))
+            msg = (
+                f"{path}: data row {row + 1}, field 'side': {vals[row]:g} is not a side code "
+                "(expected 1 = left, 2 = right, 0 = unknown)"
+            )
+            raise InputError(msg)
+        out[vals == 1.0] = SIDE_LEFT
+        out[(vals == 2.0) | (vals == -1.0)] = SIDE_RIGHT
+        return out
+    text = series.astype("string").str.strip().str.lower().fillna("")
+    left = (text == "left").to_numpy(dtype=bool)
+    right = (text == "right").to_numpy(dtype=bool)
+    unknown = text.isin(["", "unknown", "none"]).to_numpy(dtype=bool)
+    ok = left | right | unknown
+    if not ok.all():
+        row = int(np.argmin(ok))
+        msg = (
+            f"{path}: data row {row + 1}, column 'side': {series.iloc[row]!r} is not a side "
+            "(expected 'left' or 'right')"
+        )
+        raise InputError(msg)
+    out[left] = SIDE_LEFT
+    out[right] = SIDE_RIGHT
+    return out
+
+
+def _read_las(path: Path) -> tuple[dict[str, Any], Any]:
+    import laspy
+
+    try:
+        las = laspy.read(path)
+    except Exception as exc:  # laspy raises many kinds on corrupt files
+        msg = f"{path}: not a readable LAS/LAZ file ({exc})"
+        raise InputError(msg) from None
+    cols = {"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z)}
+    names = {d.lower(): d for d in las.point_format.dimension_names}
+    side = np.asarray(las[names["side"]]) if "side" in names else None
+    return cols, side
+
+
+def _read_npy(path: Path) -> tuple[dict[str, Any], Any]:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as exc:
+        msg = f"{path}: not a readable .npy array ({exc})"
+        raise InputError(msg) from None
+    if arr.dtype.names:
+        names = {n.lower(): n for n in arr.dtype.names}
+        _require(names, "xyz", path, "fields x,y,z[,side]")
+        cols = {c: arr[names[c]] for c in "xyz"}
+        side = arr[names["side"]] if "side" in names else None
+        return cols, side
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4):
+        msg = (
+            f"{path}: array of shape {arr.shape}; expected (N, 3) x,y,z, (N, 4) x,y,z,side "
+            "or a structured array with fields x,y,z[,side]"
+        )
+        raise InputError(msg)
+    cols = {c: arr[:, i] for i, c in enumerate("xyz")}
+    return cols, (arr[:, 3] if arr.shape[1] == 4 else None)
+
+
+def _read_parquet(path: Path) -> tuple[dict[str, Any], Any]:
+    import pyarrow.parquet as pq
+
+    try:
+        schema = pq.read_schema(path)
+    except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
+        msg = f"{path}: not a readable Parquet file ({exc})"
+        raise InputError(msg) from None
+    names = {n.lower(): n for n in schema.names}
+    _require(names, "xyz", path, "columns x,y,z[,side]")
+    wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
+    table = pq.read_table(path, columns=wanted)
+    cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
+    side = table.column(names["side"]).to_pandas() if "side" in names else None
+    return cols, side
+
+
+_PLY_TYPES = {
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
+}
+
+
+def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
+    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
+    with path.open("rb") as fh:
+        head = fh.read(65536)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        msg = f"{path}: not a PLY file (expected a 'ply' header ending in 'end_header')"
+        raise InputError(msg)
+    nl = head.find(b"\n", end)
+    body_offset = nl + 1
+    lines = head[:end].decode("ascii", errors="replace").splitlines()
+    fmt = None
+    elements: list[tuple[str, int, list[tuple[str, str | None]]]] = []
+    for raw in lines[1:]:
+        tok = raw.split()
+        if not tok or tok[0] in ("comment", "obj_info"):
+            continue
+        if tok[0] == "format" and len(tok) >= 2:
+            fmt = tok[1]
+        elif tok[0] == "element" and len(tok) == 3:
+            elements.append((tok[1], int(tok[2]), []))
+        elif tok[0] == "property" and elements:
+            if tok[1] == "list":
+                elements[-1][2].append((tok[-1], None))
+            elif len(tok) == 3 and tok[1] in _PLY_TYPES:
+                elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]]))
+            else:
+                msg = f"{path}: PLY header line {raw.strip()!r}: unknown property type"
+                raise InputError(msg)
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        msg = f"{path}: PLY format {fmt!r}; expected ascii or binary_little/big_endian"
+        raise InputError(msg)
+    skip_rows = 0
+    skip_bytes = 0
+    vertex = None
+    for name, count, props in elements:
+        if name == "vertex":
+            vertex = (count, props)
+            break
+        if any(t is None for _, t in props) and fmt != "ascii":
+            msg = f"{path}: PLY element {name!r} with list properties before 'vertex'"
+            raise InputError(msg)
+        skip_rows += count
+        skip_bytes += count * sum(np.dtype(t).itemsize for _, t in props if t is not None)
+    if vertex is None:
+        msg = f"{path}: PLY file has no 'vertex' element (expected x,y,z vertices)"
+        raise InputError(msg)
+    count, props = vertex
+    if any(t is None for _, t in props):
+        msg = f"{path}: PLY 'vertex' element has list properties; expected scalar x,y,z[,side]"
+        raise InputError(msg)
+    names = [p.lower() for p, _ in props]
+    _require(names, "xyz", path, "vertex properties x,y,z[,side]")
+    if count == 0:
+        msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
+        raise InputError(msg)
+    if fmt == "ascii":
+        try:
+            df = pd.read_csv(
+                path,
+                sep=r"\s+",
+                header=None,
+                skiprows=len(head[:body_offset].splitlines()) + skip_rows,
+                nrows=count,
+                names=names,
+                usecols=range(len(names)),
+                engine="c",
+            )
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
+            msg = f"{path}: PLY ascii body not readable ({exc})"
+            raise InputError(msg) from None
+        if df.shape[0] != count:
+            msg = f"{path}: PLY header says {count} vertices, body has {df.shape[0]}"
+            raise InputError(msg)
+        cols = {c: df[c] for c in "xyz"}
+        return cols, df.get("side")
+    endian = "<" if fmt == "binary_little_endian" else ">"
+    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])
+    size = path.stat().st_size
+    need = body_offset + skip_bytes + count * dtype.itemsize
+    if size < need:
+        msg = (
+            f"{path}: PLY body too short: header says {count} vertices of {dtype.itemsize} "
+            f"bytes, file has {size - body_offset - skip_bytes} bytes of vertex data"
+        )
+        raise InputError(msg)
+    data = np.fromfile(path, dtype=dtype, count=count, offset=body_offset + skip_bytes)
+    cols = {c: data[c].astype(np.float64) for c in "xyz"}
+    return cols, (data["side"] if "side" in names else None)
+
+
+# ---------------------------------------------------------------------------
+# lane samples
+# ---------------------------------------------------------------------------
+
+
+def read_lane_samples(
+    path: str | Path,
+    trajectory: Trajectory,
+    *,
+    pose_height_m: float = 0.0,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Read lane samples (ego frame) and transform them into the mapping frame.
+
+    Parameters
+    ----------
+    path
+        CSV ``frame,x,y[,z]`` (or ``t,x,y[,z]``): ego frame of that pose, metres; x forward
+        along the yaw, y to the left, z up relative to the pose.
+    trajectory
+        Poses; a ``t`` row takes the pose interpolated in time (yaw unwrapped).
+    pose_height_m
+        Height of the pose point above the road; used for z when there is no ``z`` column.
+
+    Returns
+    -------
+    xyz : (M, 3) float64 samples, mapping frame, metres. The 2-D transform of the paper:
+        rotation by yaw and translation by the pose xy; pitch and roll are not applied.
+        z = pose z + ego z, or pose z - pose_height_m without a ``z`` column.
+    frame : (M,) int64 frame of each sample (nearest pose in time for ``t`` rows).
+    """
+    path = Path(path)
+    what = "columns frame,x,y[,z] or t,x,y[,z]"
+    df = _read_csv(path, what)
+    _require(df.columns, ("x", "y"), path, what)
+    ex = _float_column(df["x"], path, "x")
+    ey = _float_column(df["y"], path, "y")
+    ez = _float_column(df["z"], path, "z") if "z" in df else None
+    traj_frame = trajectory.frame
+    order = np.argsort(traj_frame)
+    if "frame" in df:
+        frame = _int_column(df["frame"], path, "frame")
+        pos = np.searchsorted(traj_frame[order], frame)
+        pos_c = np.minimum(pos, order.size - 1)
+        found = traj_frame[order][pos_c] == frame
+        if not found.all():
+            row = int(np.argmin(found))
+            missing = np.unique(frame[~found])
+            msg = (
+                f"{path}: data row {row + 1}, column 'frame': frame {frame[row]} has no pose in "
+                f"the trajectory ({missing.size} frame(s) without a pose, "
+                f"{np.count_nonzero(~found)} row(s); expected frames of trajectory.csv)"
+            )
+            raise InputError(msg)
+        idx = order[pos_c]
+        px, py, pz = trajectory.xyz[idx].T
+        yaw = trajectory.yaw[idx]
+    elif "t" in df:
+        t = _float_column(df["t"], path, "t")
+        t0, t1 = float(trajectory.t[0]), float(trajectory.t[-1])
+        outside = (t < t0) | (t > t1)
+        if outside.any():
+            row = int(np.argmax(outside))
+            msg = (
+                f"{path}: data row {row + 1}, column 't': {t[row]} is outside the trajectory's "
+                f"time span [{t0}, {t1}] ({np.count_nonzero(outside)} row(s); no pose to "
+                "interpolate)"
+            )
+            raise InputError(msg)
+        tt = trajectory.t
+        px = np.interp(t, tt, trajectory.xyz[:, 0])
+        py = np.interp(t, tt, trajectory.xyz[:, 1])
+        pz = np.interp(t, tt, trajectory.xyz[:, 2])
+        yaw = np.interp(t, tt, trajectory.yaw)  # yaw is unwrapped
+        k = np.clip(np.searchsorted(tt, t), 1, tt.size - 1)
+        nearest = np.where(t - tt[k - 1] <= tt[k] - t, k - 1, k)
+        frame = trajectory.frame[nearest]
+    else:
+        msg = f"{path}: missing column 'frame' (expected {what})"
+        raise InputError(msg)
+    c, s = np.cos(yaw), np.sin(yaw)
+    x = px + c * ex - s * ey
+    y = py + s * ex + c * ey
+    z = pz + ez if ez is not None else pz - pose_height_m
+    return np.column_stack([x, y, z]), frame.astype(np.int64)
+
+
+# ---------------------------------------------------------------------------
+# distance to the trajectory
+# ---------------------------------------------------------------------------
+
+
+def _trajectory_tree(xy: NDArray[np.float64], step_m: float = 2.0) -> cKDTree:
+    """KD-tree of the trajectory densified to ``step_m`` (metres)."""
+    seg = np.hypot(*np.diff(xy, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    if s[-1] <= 0:
+        return cKDTree(xy[:1])
+    n = max(int(np.ceil(s[-1] / step_m)) + 1, 2)
+    grid = np.unique(np.concatenate([np.linspace(0.0, s[-1], n), s]))
+    keep = np.concatenate([[True], np.diff(s) > 0])
+    dense = np.column_stack(
+        [np.interp(grid, s[keep], xy[keep, 0]), np.interp(grid, s[keep], xy[keep, 1])]
+    )
+    return cKDTree(dense)
+
+
+def _near_trajectory(
+    tree: cKDTree, xy: NDArray[np.float64], path: Path, what: str, cfg: LoadConfig
+) -> NDArray[np.bool_]:
+    """Mask of points within ``max_point_distance_m``; warn about (or refuse) the rest."""
+    limit = cfg.max_point_distance_m
+    dist, _ = tree.query(xy, k=1, distance_upper_bound=limit, workers=-1)
+    keep = np.isfinite(dist)
+    dropped = int(keep.size - np.count_nonzero(keep))
+    if dropped == keep.size:
+        msg = (
+            f"{path}: all {dropped} {what} are farther than {limit:g} m from the trajectory "
+            "(expected points in the mapping frame of run.toml; wrong CRS or units?)"
+        )
+        raise InputError(msg)
+    if dropped:
+        row = int(np.argmin(keep))
+        warnings.warn(
+            f"{path}: dropped {dropped} of {keep.size} {what} farther than {limit:g} m from "
+            f"the trajectory (first: data row {row + 1})",
+            InputWarning,
+            stacklevel=3,
+        )
+    return keep

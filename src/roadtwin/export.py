@@ -1,0 +1,300 @@
+"""Exports of a built map besides OpenDRIVE: KML (Google Earth), GeoJSON and a PNG.
+
+* :func:`write_kml` -- every road's reference line and lane borders as KML 2.2
+  LineStrings in WGS84, one folder per road; mainline green and ramps red as in the
+  paper's Google Earth overlays, connecting roads orange.
+* :func:`write_geojson` -- lane polygons and lane borders in WGS84 (RFC 7946 order
+  lon, lat), with road id, road name, lane id and type as properties.
+* :func:`plot_network` -- a PNG of the built map over the run's inputs (road-edge points,
+  lane samples, trajectory), in the mapping frame.
+
+All writers are atomic: they write a temporary file next to the target and rename it.
+Coordinates come from the model in the mapping frame and are transformed with
+:meth:`roadtwin.frames.MappingFrame.to_lonlat`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+from lxml import etree
+from numpy.typing import NDArray
+
+from .frames import MappingFrame
+from .model import LaneSection, Road, RoadNetwork
+
+__all__ = ["network_lines", "plot_network", "write_geojson", "write_kml"]
+
+KML_NS = "http://www.opengis.net/kml/2.2"
+# KML colours are aabbggrr
+_KML_STYLES = {
+    "mainline": ("ff00ff00", 3.0),
+    "ramp": ("ff0000ff", 3.0),
+    "connector": ("ff00a5ff", 2.0),
+    "other": ("ffb0b0b0", 1.5),
+}
+_PLOT_COLORS = {"mainline": "tab:green", "ramp": "tab:red", "connector": "tab:orange"}
+
+
+def _role(road: Road) -> str:
+    if road.name == "mainline":
+        return "mainline"
+    if road.name in ("exit", "entry"):
+        return "ramp"
+    if road.name == "connector" or road.junction != "-1":
+        return "connector"
+    return "other"
+
+
+def _atomic_write(path: str | os.PathLike, data: bytes) -> Path:
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
+
+
+def _section_stations(road: Road, k: int, step_m: float) -> NDArray[np.float64]:
+    sec = road.lane_sections[k]
+    end = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+    n = max(2, math.ceil((end - sec.s0) / step_m) + 1)
+    s = np.linspace(sec.s0, end, n)
+    # stay inside this section at its end (the next section starts there)
+    s[-1] = max(sec.s0, end - 1e-6)
+    return s
+
+
+def _side_ids(section: LaneSection) -> list[int]:
+    return [lane.id for lane in (*section.left, *section.right)]
+
+
+def network_lines(
+    network: RoadNetwork, *, step_m: float = 2.0
+) -> Iterator[tuple[Road, int, int, NDArray[np.float64]]]:
+    """Every lane border of every lane section as a polyline.
+
+    Yields ``(road, section_index, lane_id, xy)``: ``xy`` is ``(N, 2)`` in the mapping
+    frame (metres), the *outer* border of ``lane_id``; lane 0 is the centre line (lane
+    offset; the reference line where there is no offset). Sampled every ``step_m``.
+    """
+    for road in network.roads:
+        for k, sec in enumerate(road.lane_sections):
+            s = _section_stations(road, k, step_m)
+            for lane_id in [0, *_side_ids(sec)]:
+                t = road.lane_border_t(s, lane_id)
+                if np.all(np.isfinite(t)):
+                    yield road, k, lane_id, road.to_xy(s, t)
+
+
+def _lonlat(frame: MappingFrame, xy: NDArray[np.float64]) -> NDArray[np.float64]:
+    lon, lat = frame.to_lonlat(xy[:, 0], xy[:, 1])
+    return np.stack([lon, lat], axis=1)
+
+
+def kml_bytes(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2.0) -> bytes:
+    """The KML 2.2 document of :func:`write_kml` as bytes."""
+    kml = etree.Element(f"{{{KML_NS}}}kml", nsmap={None: KML_NS})
+    doc = etree.SubElement(kml, "Document")
+    etree.SubElement(doc, "name").text = network.header.name or "roadtwin"
+    etree.SubElement(doc, "description").text = (
+        "roadtwin map: mainline (green, measured), ramps (red, from OpenStreetMap), "
+        "connecting roads (orange)"
+    )
+    for style_id, (color, width) in _KML_STYLES.items():
+        style = etree.SubElement(doc, "Style", id=style_id)
+        line = etree.SubElement(style, "LineStyle")
+        etree.SubElement(line, "color").text = color
+        etree.SubElement(line, "width").text = f"{width:g}"
+    folders: dict[str, etree._Element] = {}
+    for road, k, lane_id, xy in network_lines(network, step_m=step_m):
+        folder = folders.get(road.id)
+        if folder is None:
+            folder = etree.SubElement(doc, "Folder")
+            etree.SubElement(folder, "name").text = f"{road.name or 'road'} {road.id}"
+            folders[road.id] = folder
+        pm = etree.SubElement(folder, "Placemark")
+        what = "reference line" if lane_id == 0 else f"lane {lane_id} outer border"
+        etree.SubElement(pm, "name").text = f"road {road.id} section {k} {what}"
+        etree.SubElement(pm, "styleUrl").text = f"#{_role(road)}"
+        ls = etree.SubElement(pm, "LineString")
+        etree.SubElement(ls, "tessellate").text = "1"
+        etree.SubElement(ls, "altitudeMode").text = "clampToGround"
+        ll = _lonlat(frame, xy)
+        etree.SubElement(ls, "coordinates").text = " ".join(
+            f"{lon:.8f},{lat:.8f},0" for lon, lat in ll
+        )
+    return etree.tostring(kml, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+
+
+def write_kml(
+    network: RoadNetwork, frame: MappingFrame, path: str | os.PathLike, *, step_m: float = 2.0
+) -> Path:
+    """Write the map as Google Earth KML 2.2 (atomic).
+
+    Parameters
+    ----------
+    network
+        The built map (mapping frame).
+    frame
+        The run's mapping frame (for the WGS84 transform).
+    path
+        Output file (``.kml``).
+    step_m
+        Sampling step along each road (metres).
+
+    Returns
+    -------
+    Path of the written file.
+    """
+    return _atomic_write(path, kml_bytes(network, frame, step_m=step_m))
+
+
+def _round(ll: NDArray[np.float64]) -> list[list[float]]:
+    return [[round(float(a), 8), round(float(b), 8)] for a, b in ll]
+
+
+def geojson_dict(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2.0) -> dict:
+    """The GeoJSON FeatureCollection of :func:`write_geojson` as a dict."""
+    features = []
+    for road in network.roads:
+        for k, sec in enumerate(road.lane_sections):
+            s = _section_stations(road, k, step_m)
+            for lane in (*reversed(sec.left), *sec.right):
+                inner_id = lane.id - 1 if lane.id > 0 else lane.id + 1
+                outer = road.lane_border_t(s, lane.id)
+                inner = road.lane_border_t(s, inner_id)
+                if not (np.all(np.isfinite(outer)) and np.all(np.isfinite(inner))):
+                    continue
+                props = {
+                    "road_id": road.id,
+                    "road_name": road.name,
+                    "section": k,
+                    "lane_id": lane.id,
+                    "type": lane.type,
+                }
+                if np.max(np.abs(outer - inner)) > 1e-3:
+                    ring_xy = np.vstack([road.to_xy(s, inner), road.to_xy(s[::-1], outer[::-1])])
+                    ring = _round(_lonlat(frame, ring_xy))
+                    ring.append(ring[0])
+                    features.append(
+                        {
+                            "type": "Feature",
+                            "properties": {"kind": "lane", **props},
+                            "geometry": {"type": "Polygon", "coordinates": [ring]},
+                        }
+                    )
+                mark = lane.road_marks[0].type if lane.road_marks else "none"
+                features.append(
+                    {
+                        "type": "Feature",
+                        "properties": {"kind": "boundary", **props, "mark": mark},
+                        "geometry": {
+                            "type": "LineString",
+                            "coordinates": _round(_lonlat(frame, road.to_xy(s, outer))),
+                        },
+                    }
+                )
+            t0 = road.lane_border_t(s, 0)
+            features.append(
+                {
+                    "type": "Feature",
+                    "properties": {
+                        "kind": "boundary",
+                        "road_id": road.id,
+                        "road_name": road.name,
+                        "section": k,
+                        "lane_id": 0,
+                        "type": "center",
+                        "mark": sec.center.road_marks[0].type if sec.center.road_marks else "none",
+                    },
+                    "geometry": {
+                        "type": "LineString",
+                        "coordinates": _round(_lonlat(frame, road.to_xy(s, t0))),
+                    },
+                }
+            )
+    return {
+        "type": "FeatureCollection",
+        "name": network.header.name or "roadtwin",
+        "features": features,
+    }
+
+
+def write_geojson(
+    network: RoadNetwork, frame: MappingFrame, path: str | os.PathLike, *, step_m: float = 2.0
+) -> Path:
+    """Write lane polygons and lane borders as GeoJSON in WGS84 (atomic).
+
+    Features have ``properties``: ``kind`` (``"lane"`` polygon or ``"boundary"``
+    LineString), ``road_id``, ``road_name``, ``section``, ``lane_id``, ``type`` (lane
+    type; ``"center"`` for lane 0) and, for boundaries, ``mark`` (road mark type).
+    """
+    data = json.dumps(geojson_dict(network, frame, step_m=step_m), separators=(",", ":"))
+    return _atomic_write(path, data.encode("utf-8"))
+
+
+def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike = "map.png") -> Path:
+    """PNG of the built map (lane borders by role) over the run's inputs (atomic).
+
+    Parameters
+    ----------
+    network
+        The built map, mapping frame.
+    run
+        The :class:`~roadtwin.io.MappingRun` it was built from (road-edge points, lane
+        samples and trajectory are drawn underneath), or ``None``.
+    path
+        Output PNG.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(10, 10), dpi=110)
+    if run is not None:
+        edges = np.asarray(run.edges)
+        if edges.size:
+            step = max(1, edges.shape[0] // 20000)
+            ax.scatter(edges[::step, 0], edges[::step, 1], s=0.3, c="0.55", label="road edges")
+        lanes = np.asarray(run.lane_samples)
+        if lanes.size:
+            step = max(1, lanes.shape[0] // 20000)
+            ax.scatter(
+                lanes[::step, 0], lanes[::step, 1], s=0.3, c="tab:blue", label="lane samples"
+            )
+        xy = run.trajectory.xy
+        ax.plot(xy[:, 0], xy[:, 1], "k--", lw=0.6, label="trajectory")
+    labelled: set[str] = set()
+    for road, _, lane_id, xy in network_lines(network, step_m=2.0):
+        role = _role(road)
+        color = _PLOT_COLORS.get(role, "0.3")
+        label = None if role in labelled else role
+        labelled.add(role)
+        ax.plot(xy[:, 0], xy[:, 1], color=color, lw=1.2 if lane_id == 0 else 0.7, label=label)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x east (m, mapping frame)")
+    ax.set_ylabel("y north (m, mapping frame)")
+    ax.set_title(
+        f"{network.header.name}: {len(network.roads)} roads, {len(network.junctions)} junctions"
+    )
+    ax.legend(loc="best", markerscale=10, fontsize=8)
+    fig.tight_layout()
+    import io as _io
+
+    buf = _io.BytesIO()
+    fig.savefig(buf, format="png", metadata={"Software": None})
+    plt.close(fig)
+    return _atomic_write(path, buf.getvalue())

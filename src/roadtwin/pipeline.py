@@ -1,0 +1,144 @@
+"""The whole build, wired in one place: mainline -> ramps -> topology -> network.
+
+:func:`build_map` only calls the stages in order and collects their results and timings;
+every stage is a pure function of plain data (DESIGN.md section 2). Loading the inputs and
+writing files are the caller's job (``roadtwin build`` in :mod:`roadtwin.cli`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import networkx as nx
+
+from .config import PipelineConfig
+from .io import MappingRun
+from .mainline import Mainline, build_mainline
+from .model import Header, RoadNetwork
+from .ramps import Ramp, RampSet, build_ramps
+from .topology import Topology, build_topology
+
+log = logging.getLogger(__name__)
+
+__all__ = ["BuildResult", "build_map"]
+
+
+@dataclass(frozen=True)
+class BuildResult:
+    """Everything :func:`build_map` produced.
+
+    Attributes
+    ----------
+    network : the built map (mainline roads, ramp roads, connecting roads, junctions).
+    ramps : the ramps integrated into ``network`` (with their decisions and warnings).
+    ramp_set : the whole ramp stage result (candidates, chains, rejected, skipped).
+    topology : the topology stage result (road ids of the ramps, skipped ramps).
+    mainline : the mainline stage result (lane events, residuals).
+    timings_s : seconds per stage (``mainline``, ``ramps``, ``topology``).
+    warnings : every stage's notes (fallback rules, disagreements, skipped ramps).
+    """
+
+    network: RoadNetwork
+    ramps: tuple[Ramp, ...]
+    ramp_set: RampSet
+    topology: Topology
+    mainline: Mainline
+    timings_s: dict[str, float] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
+
+    def summary(self) -> dict[str, float | int]:
+        """Counts and lengths: roads, ramps by type, kilometres, seconds."""
+        roads = self.network.roads
+        return {
+            "roads": len(roads),
+            "mainline_roads": sum(r.name == "mainline" for r in roads),
+            "connecting_roads": sum(r.junction != "-1" for r in roads),
+            "junctions": len(self.network.junctions),
+            "exits": sum(r.type == "exit" for r in self.ramps),
+            "entries": sum(r.type == "entry" for r in self.ramps),
+            "mainline_km": sum(r.length for r in roads if r.name == "mainline") / 1000.0,
+            "ramp_km": sum(r.length for r in roads if r.name in ("exit", "entry")) / 1000.0,
+            "total_km": sum(r.length for r in roads) / 1000.0,
+            "seconds": sum(self.timings_s.values()),
+        }
+
+
+def build_map(
+    run: MappingRun,
+    osm_graph: nx.MultiDiGraph | None,
+    *,
+    config: PipelineConfig | None = None,
+) -> BuildResult:
+    """Build the georeferenced road network of a mapping run.
+
+    Parameters
+    ----------
+    run
+        The mapping run (``roadtwin.io.load_run``), mapping frame.
+    osm_graph
+        OSM graph in the same mapping frame (``roadtwin.osm.load_osm``), or ``None``
+        (then the map has the mainline only).
+    config
+        Stage settings.
+
+    Returns
+    -------
+    BuildResult
+        The network (header with the run's geoReference, OpenDRIVE 1.8) and every stage's
+        result. A ramp that cannot be built or integrated is skipped with a warning.
+    """
+    cfg = config or PipelineConfig()
+    timings: dict[str, float] = {}
+    warnings: list[str] = []
+
+    t0 = time.perf_counter()
+    mainline = build_mainline(run, config=cfg.mainline)
+    timings["mainline"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if osm_graph is not None and osm_graph.number_of_edges() > 0:
+        ramp_set = build_ramps(
+            osm_graph,
+            mainline.road,
+            trajectory_xy=run.trajectory.xy,
+            traffic_side=run.traffic_side,
+            config=cfg.ramps,
+        )
+    else:
+        ramp_set = RampSet(ramps=(), candidates=())
+        warnings.append("no OSM graph: the map has the mainline only")
+    warnings.extend(ramp_set.warnings)
+    timings["ramps"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    topology = build_topology(
+        mainline.road, ramp_set.ramps, traffic_side=run.traffic_side, config=cfg.topology
+    )
+    warnings.extend(f"skipped {what}: {why}" for what, why in topology.skipped)
+    timings["topology"] = time.perf_counter() - t0
+
+    header = Header(
+        name=run.root.name if run.root is not None else "roadtwin",
+        rev_major=1,
+        rev_minor=8,
+        geo_reference=run.frame.geo_reference,
+    )
+    network = RoadNetwork(header, topology.roads, topology.junctions)
+    log.info(
+        "built %d roads, %d junctions (%d ramps) in %.2f s",
+        len(network.roads),
+        len(network.junctions),
+        len(topology.ramps),
+        sum(timings.values()),
+    )
+    return BuildResult(
+        network=network,
+        ramps=topology.ramps,
+        ramp_set=ramp_set,
+        topology=topology,
+        mainline=mainline,
+        timings_s=timings,
+        warnings=tuple(warnings),
+    )

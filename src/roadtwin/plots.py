@@ -1,0 +1,153 @@
+"""Overview plot of a mapping run (and its OSM graph) in the mapping frame."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import networkx as nx
+
+    from .io import MappingRun
+
+HIGHWAY_COLORS = {
+    "motorway": "#e8384f",
+    "motorway_link": "#fd817d",
+    "trunk": "#fdae33",
+    "trunk_link": "#fdd18c",
+    "primary": "#ecd500",
+    "primary_link": "#f5e77a",
+    "secondary": "#8fd14f",
+    "secondary_link": "#bde59a",
+    "tertiary": "#4ecbc4",
+    "tertiary_link": "#9fe2de",
+}
+"""Colour per OSM ``highway`` class; every other class is grey."""
+_OTHER_COLOR = "#b0b0b0"
+
+
+def plot_overview(
+    run: MappingRun,
+    osm_graph: nx.MultiDiGraph | None,
+    path: str | Path,
+    *,
+    max_points: int = 200_000,
+    seed: int = 0,
+) -> Path:
+    """Write an overview PNG of a run in the mapping frame (atomically).
+
+    Parameters
+    ----------
+    run
+        The loaded mapping run.
+    osm_graph
+        Projected OSM graph from :func:`roadtwin.osm.load_osm`, or None.
+    path
+        PNG file to write; written to a temporary file first, then renamed.
+    max_points
+        Road-edge points and lane samples are randomly subsampled (seeded) to at most this.
+    seed
+        Seed of the subsampling (same input -> same picture).
+
+    Returns
+    -------
+    Path
+        The written PNG.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    path = Path(path)
+    rng = np.random.default_rng(seed)
+    summary = run.summary()
+    xmin, ymin, xmax, ymax = summary.bbox_m
+    aspect = (ymax - ymin + 1.0) / (xmax - xmin + 1.0)
+    fig, ax = plt.subplots(figsize=(10, float(np.clip(9.0 * aspect + 1.5, 4.5, 11.0))), dpi=110)
+    try:
+        if osm_graph is not None and osm_graph.number_of_edges():
+            by_class: dict[str, list[np.ndarray]] = {}
+            for _, _, d in osm_graph.edges(data=True):
+                hw = str(d.get("highway"))
+                key = hw if hw in HIGHWAY_COLORS else "other"
+                by_class.setdefault(key, []).append(np.asarray(d["geometry"].coords))
+            order = [k for k in HIGHWAY_COLORS if k in by_class]
+            if "other" in by_class:
+                order.append("other")
+            for key in reversed(order):
+                lw = 2.2 if key.startswith(("motorway", "trunk")) else 1.0
+                ax.add_collection(
+                    LineCollection(
+                        by_class[key],
+                        colors=HIGHWAY_COLORS.get(key, _OTHER_COLOR),
+                        linewidths=lw,
+                        alpha=0.8,
+                        label=f"OSM {key} ({len(by_class[key])} edges)",
+                        zorder=1,
+                    )
+                )
+        idx = _pick(len(run.edges), max_points, rng)
+        edges, side = run.edges[idx], run.edge_side[idx]
+        for code, name, color in ((1, "left", "#1f3a93"), (-1, "right", "#6c3483"), (0, "", "k")):
+            sel = side == code
+            if sel.any():
+                label = (
+                    f"road edge {name}".strip() + f" ({np.count_nonzero(run.edge_side == code):,})"
+                )
+                ax.scatter(*edges[sel, :2].T, s=0.6, color=color, label=label, zorder=2, lw=0)
+        lanes = run.lane_samples[_pick(len(run.lane_samples), max_points, rng)]
+        ax.scatter(
+            *lanes[:, :2].T,
+            s=0.6,
+            color="#27ae60",
+            label=f"lane samples ({summary.lane_samples:,})",
+            zorder=3,
+            lw=0,
+        )
+        xy = run.trajectory.xy
+        ax.plot(
+            *xy.T, color="#111111", lw=1.2, label=f"trajectory ({summary.frames:,} poses)", zorder=4
+        )
+        ax.plot(*xy[0], marker="o", color="#111111", ms=5, zorder=5)
+        ax.annotate("start", xy[0], xytext=(4, 4), textcoords="offset points", fontsize=8)
+        pad = max(xmax - xmin, ymax - ymin) * 0.05 + 20.0
+        ax.set_xlim(xmin - pad, xmax + pad)
+        ax.set_ylim(ymin - pad, ymax + pad)
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel("x east (m, mapping frame)")
+        ax.set_ylabel("y north (m, mapping frame)")
+        ax.grid(True, lw=0.3, alpha=0.5)
+        ax.set_title(
+            f"{run.root.name}: {summary.driven_length_m / 1000:.2f} km, "
+            f"{summary.duration_s:.0f} s, {summary.frames:,} frames, "
+            f"{summary.edge_points:,} edge pts, {summary.lane_samples:,} lane samples\n"
+            f"CRS {summary.crs}, {summary.traffic_side}-hand traffic",
+            fontsize=9,
+        )
+        ax.legend(loc="best", fontsize=7, markerscale=8, framealpha=0.85)
+        fig.tight_layout()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+        os.close(fd)
+        try:
+            fig.savefig(tmp, format="png", metadata={"Software": None})
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    finally:
+        plt.close(fig)
+    return path
+
+
+def _pick(size: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """Sorted indices of a seeded random subsample of at most ``n`` of ``size`` items."""
+    if size <= n:
+        return np.arange(size)
+    return np.sort(rng.choice(size, size=n, replace=False))

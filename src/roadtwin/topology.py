@@ -1,0 +1,549 @@
+"""Mainline-ramp integration: cut the mainline at the ramps, build junctions and links.
+
+The paper's topology rules ("Mainline-Ramp Integration"): an exit is a diverging
+connection mainline -> ramp from the ramp's start, a merge a converging connection
+ramp -> mainline at the ramp's end. Here every ramp event becomes one OpenDRIVE junction
+with lane links (DESIGN.md section 6):
+
+* ``junctions="default"`` (every consumer reads it): the mainline is cut into roads
+  before and after a junction zone of ``junction_length_m``; inside the zone a
+  *through* connecting road (the exact cut of the mainline) carries the through lanes,
+  and a *ramp* connecting road -- a ParamPoly3 cubic Hermite curve that meets the
+  mainline lane border and the ramp road exactly in position and heading -- carries the
+  ramp lanes. Exit: from the deceleration lanes (or the outermost lane) into the ramp;
+  merge: from the ramp into the acceleration lanes (or the outermost lane).
+* ``junctions="direct"`` (OpenDRIVE 1.7+): the mainline is cut at the gore; the ramp
+  road is linked directly (``linkedRoad``) to the mainline road before (exit) or after
+  (merge) the gore.
+
+Every road gets predecessor/successor links, every lane that continues across a link
+gets lane predecessor/successor (or the junction's ``laneLink``), and all of them are
+mutual. Mainline roads are ``"1", "2", ...`` in driving order (``name="mainline"``), ramp
+roads ``name="exit"``/``"entry"``, connecting roads ``name="connector"``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import networkx as nx
+import numpy as np
+
+from .config import TopologyConfig
+from .mainline import cut_road
+from .model import (
+    Connection,
+    CubicPiece,
+    CubicProfile,
+    Junction,
+    Lane,
+    LaneLink,
+    LaneSection,
+    Road,
+    RoadLink,
+    RoadMark,
+    RoadNetwork,
+)
+from .ramps import Ramp, hermite_piece
+
+log = logging.getLogger(__name__)
+
+TrafficSide = Literal["right", "left"]
+
+__all__ = ["Topology", "build_topology", "hermite_road", "lane_graph", "match_lanes"]
+
+
+@dataclass(frozen=True)
+class Topology:
+    """Result of :func:`build_topology`.
+
+    Attributes
+    ----------
+    roads : every road (mainline pieces, ramps, connecting roads).
+    junctions : one junction per ramp.
+    ramp_road_ids : id of the ramp road of each used ramp (same order as ``ramps``).
+    ramps : the ramps that were integrated.
+    skipped : ``(what, reason)`` of ramps that could not be integrated.
+    """
+
+    roads: tuple[Road, ...]
+    junctions: tuple[Junction, ...]
+    ramp_road_ids: tuple[str, ...]
+    ramps: tuple[Ramp, ...]
+    skipped: tuple[tuple[str, str], ...] = ()
+
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+
+
+def _traffic_lanes(section: LaneSection, side: TrafficSide) -> tuple[Lane, ...]:
+    return section.right if side == "right" else section.left
+
+
+def _roles(lanes: tuple[Lane, ...]) -> tuple[list[Lane], list[Lane], list[Lane]]:
+    """Split lanes (inner to outer) into leading non-driving, driving, trailing others."""
+    driving_idx = [i for i, lane in enumerate(lanes) if lane.type == "driving"]
+    if not driving_idx:
+        return list(lanes), [], []
+    lo, hi = driving_idx[0], driving_idx[-1]
+    return list(lanes[:lo]), list(lanes[lo : hi + 1]), list(lanes[hi + 1 :])
+
+
+def match_lanes(
+    a: LaneSection, b: LaneSection, *, traffic_side: TrafficSide = "right"
+) -> dict[int, int]:
+    """Lane ids of section ``a`` -> lane ids of section ``b`` for lanes that continue.
+
+    Lanes are matched by role, inner to outer: inner non-driving lanes (shoulder) with
+    each other, driving lanes with each other (surplus outer driving lanes -- deceleration
+    or acceleration lanes -- stay unmatched), outer non-driving lanes (hard shoulder) with
+    each other only where the driving-lane count is the same (beside a gore the hard
+    shoulder ends on one side and starts again on the other).
+    """
+    out: dict[int, int] = {}
+    ra, rb = _roles(_traffic_lanes(a, traffic_side)), _roles(_traffic_lanes(b, traffic_side))
+    same_driving = len(ra[1]) == len(rb[1])
+    for k, (la, lb) in enumerate(zip(ra, rb, strict=True)):
+        if k == 2 and not same_driving:
+            break  # the hard shoulder beside a gore ends/starts there
+        for x, y in zip(la, lb, strict=False):
+            out[x.id] = y.id
+    return out
+
+
+def _set_lane_links(
+    road: Road,
+    *,
+    predecessors: dict[int, int] | None = None,
+    successors: dict[int, int] | None = None,
+) -> Road:
+    """Set lane predecessors in the first section / successors in the last section."""
+    sections = list(road.lane_sections)
+
+    def apply(sec: LaneSection, links: dict[int, int], attr: str) -> LaneSection:
+        def one(lane: Lane) -> Lane:
+            return replace(lane, **{attr: links.get(lane.id)})
+
+        return replace(
+            sec, left=tuple(one(x) for x in sec.left), right=tuple(one(x) for x in sec.right)
+        )
+
+    if predecessors is not None:
+        sections[0] = apply(sections[0], predecessors, "predecessor")
+    if successors is not None:
+        sections[-1] = apply(sections[-1], successors, "successor")
+    return replace(road, lane_sections=tuple(sections))
+
+
+def hermite_road(
+    start: tuple[float, float, float],
+    end: tuple[float, float, float],
+    *,
+    road_id: str,
+    widths_start: Sequence[float],
+    widths_end: Sequence[float],
+    traffic_side: TrafficSide = "right",
+    heights: tuple[float, float] = (0.0, 0.0),
+    junction: str = "-1",
+    name: str = "connector",
+    lane_type: str = "driving",
+) -> Road:
+    """A road whose reference line is one cubic Hermite ParamPoly3 between two poses.
+
+    Parameters
+    ----------
+    start, end
+        ``(x, y, heading)`` at the start and end (mapping frame, metres, radians). The
+        curve meets both exactly in position and heading (tangent length = chord).
+    widths_start, widths_end
+        Lane widths (metres) at the two ends, inner to outer; each lane's width changes
+        along a C1 cubic. Lanes lie right of the reference line (``-1, -2, ...``) for
+        right-hand traffic, left of it for left-hand traffic.
+    heights
+        Elevation (metres) at the two ends; linear in between.
+    """
+    geometry = hermite_piece(start, end)
+    length = geometry.length
+    sign = -1 if traffic_side == "right" else 1
+    lanes = []
+    n = len(widths_start)
+    for k, (wa, wb) in enumerate(zip(widths_start, widths_end, strict=False), start=1):
+        dw = float(wb) - float(wa)
+        width = CubicProfile(
+            (CubicPiece(0.0, float(wa), 0.0, 3.0 * dw / length**2, -2.0 * dw / length**3),)
+        )
+        lanes.append(
+            Lane(
+                sign * k,
+                lane_type,  # type: ignore[arg-type]
+                width,
+                (RoadMark(0.0, "solid" if k == n else "broken"),),
+            )
+        )
+    center = Lane(0, "none", road_marks=(RoadMark(0.0, "none"),))
+    section = (
+        LaneSection(0.0, center=center, right=tuple(lanes))
+        if traffic_side == "right"
+        else LaneSection(0.0, left=tuple(lanes), center=center)
+    )
+    z0, z1 = heights
+    return Road(
+        id=road_id,
+        geometry=(geometry,),
+        lane_sections=(section,),
+        name=name,
+        elevation=CubicProfile((CubicPiece(0.0, float(z0), (float(z1) - float(z0)) / length),)),
+        junction=junction,
+    )
+
+
+def _widths(road: Road, s: float, lane_ids: Sequence[int]) -> list[float]:
+    """Widths (metres) of ``lane_ids`` at station ``s`` of ``road``."""
+    out = []
+    s_arr = np.array([s])
+    for lane_id in lane_ids:
+        inner_id = lane_id + (1 if lane_id < 0 else -1)
+        outer = road.lane_border_t(s_arr, lane_id)[0]
+        inner = road.lane_border_t(s_arr, inner_id)[0]
+        out.append(abs(float(outer - inner)))
+    return out
+
+
+def _pose(road: Road, s: float) -> tuple[float, float, float]:
+    x, y, h, _ = road.evaluate(np.array([s]))
+    return float(x[0]), float(y[0]), float(h[0])
+
+
+def _border_pose(road: Road, s: float, lane_id: int) -> tuple[float, float, float]:
+    """Pose on the inner border of ``lane_id`` (metres, radians), road heading."""
+    inner_id = lane_id + (1 if lane_id < 0 else -1)
+    t = float(road.lane_border_t(np.array([s]), inner_id)[0])
+    xy = road.to_xy(np.array([s]), np.array([t]))[0]
+    return float(xy[0]), float(xy[1]), float(road.heading(np.array([s]))[0])
+
+
+def _ramp_lane_ids(road: Road, side: TrafficSide) -> list[int]:
+    return [lane.id for lane in _traffic_lanes(road.lane_sections[0], side)]
+
+
+def _valid_sources(section: LaneSection, wanted: Sequence[int], side: TrafficSide) -> list[int]:
+    ids = {lane.id for lane in _traffic_lanes(section, side)}
+    got = [i for i in wanted if i in ids]
+    if got:
+        return got
+    driving = [lane.id for lane in _traffic_lanes(section, side) if lane.type == "driving"]
+    return driving[-1:]
+
+
+# ---------------------------------------------------------------------------
+# the stage
+# ---------------------------------------------------------------------------
+
+
+@dataclass
+class _Zone:
+    ramp: Ramp
+    a: float  # mainline station where the junction zone starts
+    b: float  # ... and ends (a == b for direct junctions)
+
+
+def build_topology(
+    mainline_road: Road,
+    ramps: Sequence[Ramp],
+    *,
+    traffic_side: TrafficSide = "right",
+    config: TopologyConfig | None = None,
+) -> Topology:
+    """Cut the mainline at the ramps and connect everything with junctions and lane links.
+
+    Parameters
+    ----------
+    mainline_road
+        The measured mainline, one road over the run (driving direction).
+    ramps
+        Ramps from :func:`roadtwin.ramps.build_ramps` (each attached at ``station_m``).
+    traffic_side
+        ``"right"`` or ``"left"``-hand traffic.
+    config
+        ``junctions``: ``"default"`` (connecting roads) or ``"direct"``.
+
+    Returns
+    -------
+    Topology
+        Roads and junctions; ramps whose junction would overlap another one or leave a
+        mainline road shorter than ``min_road_length_m`` are skipped and listed.
+    """
+    cfg = config or TopologyConfig()
+    direct = cfg.junctions == "direct"
+    length = mainline_road.length
+    zl = 0.0 if direct else cfg.junction_length_m
+
+    zones: list[_Zone] = []
+    skipped: list[tuple[str, str]] = []
+    last_end = 0.0
+    for ramp in sorted(ramps, key=lambda r: (r.station_m, r.type)):
+        s = ramp.station_m
+        a, b = (s, s + zl) if ramp.type == "exit" else (s - zl, s)
+        what = f"{ramp.type} at s={s:.0f} m"
+        if a - last_end < cfg.min_road_length_m or length - b < cfg.min_road_length_m:
+            skipped.append((what, "too close to the run's end or to another ramp's junction"))
+            continue
+        if not direct and ramp.road.length < zl + cfg.min_road_length_m:
+            skipped.append((what, f"ramp shorter than {zl + cfg.min_road_length_m:.0f} m"))
+            continue
+        zones.append(_Zone(ramp, a, b))
+        last_end = b
+
+    n_main = len(zones) + 1
+    next_id = n_main + 1
+
+    def new_id() -> str:
+        nonlocal next_id
+        out = str(next_id)
+        next_id += 1
+        return out
+
+    cuts = [0.0] + [x for z in zones for x in (z.a, z.b)] + [length]
+    main_roads = [
+        replace(
+            cut_road(mainline_road, cuts[2 * i], cuts[2 * i + 1], road_id=str(i + 1)),
+            name="mainline",
+        )
+        for i in range(n_main)
+    ]
+    ramp_roads: list[Road] = []
+    connectors: list[Road] = []
+    junctions: list[Junction] = []
+    ramp_ids: list[str] = []
+    per_zone = 1 if direct else 3  # ramp road (+ two connecting roads)
+    junction_ids = [str(n_main + per_zone * len(zones) + 1 + k) for k in range(len(zones))]
+
+    for k, zone in enumerate(zones):
+        ramp = zone.ramp
+        jid = junction_ids[k]
+        up, down = main_roads[k], main_roads[k + 1]
+        up_sec, down_sec = up.lane_sections[-1], down.lane_sections[0]
+        ramp_id = new_id()
+        ramp_ids.append(ramp_id)
+        road = replace(ramp.road, id=ramp_id)
+        rlanes = _ramp_lane_ids(road, traffic_side)
+        if ramp.type == "exit":
+            sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side)
+        else:
+            sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side)
+        # ramp lane k <-> mainline source lane k; further ramp lanes open from zero width
+        pairs = list(zip(sources, rlanes, strict=False))
+
+        up = replace(up, successor=RoadLink("junction", jid))
+        down = replace(down, predecessor=RoadLink("junction", jid))
+        if direct:
+            through = match_lanes(up_sec, down_sec, traffic_side=traffic_side)
+            conns = [
+                Connection(
+                    "0",
+                    up.id,
+                    down.id,
+                    "start",
+                    tuple(LaneLink(x, y) for x, y in sorted(through.items(), reverse=True)),
+                )
+            ]
+            if ramp.type == "exit":
+                road = replace(road, predecessor=RoadLink("junction", jid))
+                conns.append(
+                    Connection(
+                        "1", up.id, road.id, "start", tuple(LaneLink(x, y) for x, y in pairs)
+                    )
+                )
+            else:
+                road = replace(road, successor=RoadLink("junction", jid))
+                conns.append(
+                    Connection(
+                        "1", road.id, down.id, "start", tuple(LaneLink(y, x) for x, y in pairs)
+                    )
+                )
+            junctions.append(
+                Junction(jid, tuple(conns), name=f"{ramp.type} {k + 1}", type="direct")
+            )
+        else:
+            # through connecting road: the exact mainline between the zone ends
+            t_id = new_id()
+            through_road = replace(
+                cut_road(mainline_road, zone.a, zone.b, road_id=t_id),
+                name="connector",
+                junction=jid,
+                predecessor=RoadLink("road", up.id, "end"),
+                successor=RoadLink("road", down.id, "start"),
+            )
+            into = match_lanes(up_sec, through_road.lane_sections[0], traffic_side=traffic_side)
+            out_of = match_lanes(
+                through_road.lane_sections[-1], down_sec, traffic_side=traffic_side
+            )
+            through_road = _set_lane_links(
+                through_road,
+                predecessors={v: u for u, v in into.items()},
+                successors=out_of,
+            )
+            conns = [
+                Connection(
+                    "0",
+                    up.id,
+                    t_id,
+                    "start",
+                    tuple(LaneLink(x, y) for x, y in sorted(into.items(), reverse=True)),
+                )
+            ]
+            c_id = new_id()
+            if ramp.type == "exit":
+                cut_at = min(zl, 0.5 * road.length)
+                road = cut_road(road, cut_at, road.length, road_id=ramp_id)
+                start = _border_pose(up, up.length, sources[0])
+                end = _pose(road, 0.0)
+                w_start = _widths(up, up.length, sources) + [0.0] * (len(rlanes) - len(sources))
+                w_end = _widths(road, 0.0, rlanes)
+                z = (float(up.height(np.array([up.length]))[0]), float(road.height([0.0])[0]))
+                conn_road = hermite_road(
+                    start,
+                    end,
+                    road_id=c_id,
+                    widths_start=w_start,
+                    widths_end=w_end,
+                    traffic_side=traffic_side,
+                    heights=z,
+                    junction=jid,
+                )
+                conn_road = replace(
+                    conn_road,
+                    predecessor=RoadLink("road", up.id, "end"),
+                    successor=RoadLink("road", ramp_id, "start"),
+                )
+                conn_road = _set_lane_links(
+                    conn_road,
+                    predecessors={y: x for x, y in pairs},
+                    successors={i: i for i in rlanes},
+                )
+                road = replace(road, predecessor=RoadLink("junction", jid))
+                conns.append(
+                    Connection("1", up.id, c_id, "start", tuple(LaneLink(x, y) for x, y in pairs))
+                )
+            else:
+                cut_at = max(road.length - zl, 0.5 * road.length)
+                road = cut_road(road, 0.0, cut_at, road_id=ramp_id)
+                start = _pose(road, road.length)
+                end = _border_pose(down, 0.0, sources[0])
+                w_start = _widths(road, road.length, rlanes)
+                w_end = _widths(down, 0.0, sources) + [0.0] * (len(rlanes) - len(sources))
+                z = (float(road.height([road.length])[0]), float(down.height(np.array([0.0]))[0]))
+                conn_road = hermite_road(
+                    start,
+                    end,
+                    road_id=c_id,
+                    widths_start=w_start,
+                    widths_end=w_end,
+                    traffic_side=traffic_side,
+                    heights=z,
+                    junction=jid,
+                )
+                conn_road = replace(
+                    conn_road,
+                    predecessor=RoadLink("road", ramp_id, "end"),
+                    successor=RoadLink("road", down.id, "start"),
+                )
+                conn_road = _set_lane_links(
+                    conn_road,
+                    predecessors={i: i for i in rlanes},
+                    successors={y: x for x, y in pairs},
+                )
+                road = replace(road, successor=RoadLink("junction", jid))
+                conns.append(
+                    Connection("1", ramp_id, c_id, "start", tuple(LaneLink(i, i) for i in rlanes))
+                )
+            road = replace(road, name=ramp.type)
+            connectors.extend([through_road, conn_road])
+            junctions.append(Junction(jid, tuple(conns), name=f"{ramp.type} {k + 1}"))
+        main_roads[k], main_roads[k + 1] = up, down
+        ramp_roads.append(road)
+
+    roads = (*main_roads, *ramp_roads, *connectors)
+    log.info(
+        "topology: %d mainline roads, %d ramps, %d connecting roads, %d %s junctions",
+        len(main_roads),
+        len(ramp_roads),
+        len(connectors),
+        len(junctions),
+        cfg.junctions,
+    )
+    return Topology(
+        roads=roads,
+        junctions=tuple(junctions),
+        ramp_road_ids=tuple(ramp_ids),
+        ramps=tuple(z.ramp for z in zones),
+        skipped=tuple(skipped),
+    )
+
+
+# ---------------------------------------------------------------------------
+# lane graph (for routing checks)
+# ---------------------------------------------------------------------------
+
+
+def lane_graph(network: RoadNetwork, *, lane_changes: bool = False) -> nx.DiGraph:
+    """Directed graph of lanes a car can drive from one to the next.
+
+    Nodes are ``(road_id, section_index, lane_id)``; edges follow lane successors inside a
+    road and across road links, and junction lane links (default: into the connecting
+    road; direct: into the linked road). Travel is along increasing s (every road of a
+    roadtwin map runs in its driving direction). With ``lane_changes``, neighbouring
+    driving lanes of one section are connected both ways (``kind="change"``).
+    """
+    g = nx.DiGraph()
+    roads = network.id_to_road
+    for road in network.roads:
+        secs = road.lane_sections
+        for i, sec in enumerate(secs):
+            for lane in (*sec.left, *sec.right):
+                g.add_node((road.id, i, lane.id))
+            if lane_changes:
+                for side in (sec.left, sec.right):
+                    for x, y in itertools.pairwise(side):
+                        if x.type == "driving" and y.type == "driving":
+                            g.add_edge((road.id, i, x.id), (road.id, i, y.id), kind="change")
+                            g.add_edge((road.id, i, y.id), (road.id, i, x.id), kind="change")
+                if i + 1 < len(secs) and lane.successor is not None:
+                    g.add_edge((road.id, i, lane.id), (road.id, i + 1, lane.successor))
+                if i > 0 and lane.predecessor is not None:
+                    g.add_edge((road.id, i - 1, lane.predecessor), (road.id, i, lane.id))
+        last = len(secs) - 1
+        succ = road.successor
+        if succ is not None and succ.element_type == "road" and succ.element_id in roads:
+            other = roads[succ.element_id]
+            j = 0 if succ.contact_point in (None, "start") else len(other.lane_sections) - 1
+            for lane in (*secs[last].left, *secs[last].right):
+                if lane.successor is not None:
+                    g.add_edge((road.id, last, lane.id), (other.id, j, lane.successor))
+        pred = road.predecessor
+        if pred is not None and pred.element_type == "road" and pred.element_id in roads:
+            other = roads[pred.element_id]
+            j = len(other.lane_sections) - 1 if pred.contact_point in (None, "end") else 0
+            for lane in (*secs[0].left, *secs[0].right):
+                if lane.predecessor is not None:
+                    g.add_edge((other.id, j, lane.predecessor), (road.id, 0, lane.id))
+    for junction in network.junctions:
+        for c in junction.connections:
+            inc, tgt = roads.get(c.incoming_road), roads.get(c.connecting_road)
+            if inc is None or tgt is None:
+                continue
+            i_sec = len(inc.lane_sections) - 1
+            ends_here = inc.successor is not None and inc.successor.element_id == junction.id
+            starts_here = inc.predecessor is not None and inc.predecessor.element_id == junction.id
+            if starts_here and not ends_here:
+                i_sec = 0
+            t_sec = 0 if c.contact_point == "start" else len(tgt.lane_sections) - 1
+            for ll in c.lane_links:
+                g.add_edge((inc.id, i_sec, ll.from_lane), (tgt.id, t_sec, ll.to_lane))
+    return g

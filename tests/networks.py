@@ -1,0 +1,345 @@
+"""Hand-built RoadNetworks for tests: a 300 m mainline with an exit ramp.
+
+Right-hand traffic, the shared lane convention: reference line = left (median-side) road
+edge, lanes -1 inner shoulder (1.0 m), -2/-3 driving (3.5 m), then a deceleration lane
+and the hard shoulder (2.5 m). The mainline runs along +x from the origin.
+
+``mainline_exit_network("default")``:
+
+* road ``"1"`` (mainline, 0..150 m): section at 0 with -1, -2, -3, -4 hard shoulder;
+  section at 100 m where the deceleration lane -4 tapers in from 0 to 3.5 m (cubic, no
+  predecessor) and the hard shoulder becomes -5. Successor: junction ``"100"``.
+* junction ``"100"`` (default) at x = 150 m with two connecting roads (``name="connector"``):
+  ``"101"`` straight 20 m (lanes -1..-3 continue; the hard shoulder -4 re-appears from
+  zero width) and ``"102"`` a normalized ParamPoly3 (cubic Hermite) starting on the
+  border between lanes -3 and -4 of road 1 (t = -8 m), carrying the deceleration lane as
+  its lane -1 and the hard shoulder as -2. Lane links in both directions on the connectors,
+  and in the junction's ``laneLink`` elements.
+* road ``"2"`` (mainline, 130 m) from the end of ``"101"``; road ``"3"`` (exit, one
+  driving lane + shoulder), an arc from the end of ``"102"``.
+
+``mainline_exit_network("direct")``: the same without connecting roads: road ``"2"``
+starts at x = 150 m (150 m long, hard shoulder re-appearing over its first 20 m) and road
+``"3"`` starts with the Hermite piece; junction ``"200"`` is ``direct`` with
+``linkedRoad`` connections.
+
+Every joint is computed so that positions and headings meet exactly.
+"""
+
+from __future__ import annotations
+
+import math
+
+from scipy.integrate import quad
+
+from roadtwin.model import (
+    Arc,
+    Connection,
+    CubicPiece,
+    CubicProfile,
+    Header,
+    Junction,
+    Lane,
+    LaneLink,
+    LaneSection,
+    Line,
+    ParamPoly3,
+    Road,
+    RoadLink,
+    RoadMark,
+    RoadNetwork,
+    constant_lane,
+)
+
+GEO_REFERENCE = "+proj=tmerc +lat_0=59.3293 +lon_0=18.0686 +k=1 +x_0=0 +y_0=0 +ellps=WGS84 +units=m"
+SHOULDER_IN_M = 1.0
+LANE_M = 3.5
+SHOULDER_OUT_M = 2.5
+GORE_X_M = 150.0
+CONNECTOR_M = 20.0
+RAMP_T_M = -(SHOULDER_IN_M + 2 * LANE_M)  # border between lanes -3 and -4 of road 1
+
+
+def taper(width_m: float, length_m: float, *, grow: bool = True) -> CubicProfile:
+    """Cubic width taper from 0 to ``width_m`` (or back) over ``length_m``, then constant."""
+    c = 3.0 * width_m / length_m**2
+    d = -2.0 * width_m / length_m**3
+    if grow:
+        return CubicProfile((CubicPiece(0.0, 0.0, 0.0, c, d), CubicPiece(length_m, width_m)))
+    return CubicProfile((CubicPiece(0.0, width_m, 0.0, -c, -d), CubicPiece(length_m, 0.0)))
+
+
+def _lane(lane_id, width, lane_type="driving", mark="broken", pred=None, succ=None) -> Lane:
+    prof = width if isinstance(width, CubicProfile) else CubicProfile.constant(width)
+    return Lane(lane_id, lane_type, prof, (RoadMark(0.0, mark),), pred, succ)
+
+
+def _center() -> Lane:
+    return Lane(0, "none", CubicProfile(), (RoadMark(0.0, "none"),))
+
+
+def hermite_parampoly3(
+    x0: float,
+    y0: float,
+    hdg: float,
+    end_u: float,
+    end_v: float,
+    end_hdg_local: float,
+    *,
+    s0: float = 0.0,
+) -> ParamPoly3:
+    """Normalized ParamPoly3 from the local origin (heading 0) to ``(end_u, end_v)`` with
+    local end heading ``end_hdg_local``; tangent lengths = chord length. Its length is the
+    true arc length (adaptive quadrature)."""
+    chord = math.hypot(end_u, end_v)
+    m0 = (chord, 0.0)
+    m1 = (chord * math.cos(end_hdg_local), chord * math.sin(end_hdg_local))
+    coef = []
+    for p1, t0, t1 in ((end_u, m0[0], m1[0]), (end_v, m0[1], m1[1])):
+        coef.append((0.0, t0, 3.0 * p1 - 2.0 * t0 - t1, -2.0 * p1 + t0 + t1))
+    (au, bu, cu, du), (av, bv, cv, dv) = coef
+
+    def speed(p: float) -> float:
+        return math.hypot(bu + 2 * cu * p + 3 * du * p * p, bv + 2 * cv * p + 3 * dv * p * p)
+
+    length = quad(speed, 0.0, 1.0, epsabs=1e-13, epsrel=1e-13, limit=200)[0]
+    return ParamPoly3(s0, x0, y0, hdg, length, au, bu, cu, du, av, bv, cv, dv, "normalized")
+
+
+def _ramp_lanes(pred_drive=None, pred_sh=None, succ_drive=None, succ_sh=None):
+    return (
+        _lane(-1, LANE_M, mark="solid", pred=pred_drive, succ=succ_drive),
+        _lane(-2, SHOULDER_OUT_M, "shoulder", "none", pred_sh, succ_sh),
+    )
+
+
+def _road1(successor: RoadLink) -> Road:
+    sec0 = LaneSection(
+        0.0,
+        center=_center(),
+        right=(
+            _lane(-1, SHOULDER_IN_M, "shoulder", "solid", succ=-1),
+            _lane(-2, LANE_M, pred=None, succ=-2),
+            _lane(-3, LANE_M, mark="solid", succ=-3),
+            _lane(-4, SHOULDER_OUT_M, "shoulder", "none", succ=-5),
+        ),
+    )
+    sec1 = LaneSection(
+        100.0,
+        center=_center(),
+        right=(
+            _lane(-1, SHOULDER_IN_M, "shoulder", "solid", pred=-1),
+            _lane(-2, LANE_M, pred=-2),
+            _lane(-3, LANE_M, mark="broken", pred=-3),
+            _lane(-4, taper(LANE_M, 50.0), mark="solid"),
+            _lane(-5, SHOULDER_OUT_M, "shoulder", "none", pred=-4),
+        ),
+    )
+    return Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, GORE_X_M),),
+        (sec0, sec1),
+        name="mainline",
+        elevation=CubicProfile((CubicPiece(0.0, 10.0, 0.001),)),
+        successor=successor,
+        speed_limit_mps=120 / 3.6,
+    )
+
+
+def _road2(x0: float, length: float, predecessor: RoadLink, *, shoulder_taper: bool) -> Road:
+    lanes = (
+        _lane(-1, SHOULDER_IN_M, "shoulder", "solid"),
+        _lane(-2, LANE_M),
+        _lane(-3, LANE_M, mark="solid"),
+    )
+    if shoulder_taper:
+        sec0 = LaneSection(
+            0.0,
+            center=_center(),
+            right=(
+                *(Lane(ln.id, ln.type, ln.width, ln.road_marks, None, ln.id) for ln in lanes),
+                _lane(-4, taper(SHOULDER_OUT_M, CONNECTOR_M), "shoulder", "none", succ=-4),
+            ),
+        )
+        sec1 = LaneSection(
+            CONNECTOR_M,
+            center=_center(),
+            right=(
+                *(Lane(ln.id, ln.type, ln.width, ln.road_marks, ln.id, None) for ln in lanes),
+                _lane(-4, SHOULDER_OUT_M, "shoulder", "none", pred=-4),
+            ),
+        )
+        sections = (sec0, sec1)
+    else:
+        sections = (
+            LaneSection(
+                0.0,
+                center=_center(),
+                right=(*lanes, _lane(-4, SHOULDER_OUT_M, "shoulder", "none")),
+            ),
+        )
+    z0 = 10.0 + 0.001 * x0
+    return Road(
+        "2",
+        (Line(0.0, x0, 0.0, 0.0, length),),
+        sections,
+        name="mainline",
+        elevation=CubicProfile((CubicPiece(0.0, z0, 0.001),)),
+        predecessor=predecessor,
+        speed_limit_mps=120 / 3.6,
+    )
+
+
+def _header() -> Header:
+    return Header(
+        name="mainline_exit",
+        geo_reference=GEO_REFERENCE,
+        data_quality={
+            "xy_absolute": 0.1,
+            "xy_relative": 0.02,
+            "z_absolute": 0.2,
+            "z_relative": 0.05,
+        },
+    )
+
+
+def _diverge() -> ParamPoly3:
+    return hermite_parampoly3(GORE_X_M, RAMP_T_M, 0.0, 40.0, -4.0, -0.18)
+
+
+def mainline_exit_network(junction_type: str = "default") -> RoadNetwork:
+    """Mainline (roads 1, 2) + exit ramp (road 3); ``junction_type`` default or direct."""
+    if junction_type not in ("default", "direct"):
+        raise ValueError(junction_type)
+    diverge = _diverge()
+    if junction_type == "default":
+        jid = "100"
+        road1 = _road1(RoadLink("junction", jid))
+        c101 = Road(
+            "101",
+            (Line(0.0, GORE_X_M, 0.0, 0.0, CONNECTOR_M),),
+            (
+                LaneSection(
+                    0.0,
+                    center=_center(),
+                    right=(
+                        _lane(-1, SHOULDER_IN_M, "shoulder", "solid", pred=-1, succ=-1),
+                        _lane(-2, LANE_M, pred=-2, succ=-2),
+                        _lane(-3, LANE_M, mark="solid", pred=-3, succ=-3),
+                        _lane(-4, taper(SHOULDER_OUT_M, CONNECTOR_M), "shoulder", "none", succ=-4),
+                    ),
+                ),
+            ),
+            name="connector",
+            elevation=CubicProfile((CubicPiece(0.0, 10.0 + 0.001 * GORE_X_M, 0.001),)),
+            predecessor=RoadLink("road", "1", "end"),
+            successor=RoadLink("road", "2", "start"),
+            junction=jid,
+        )
+        x_end, y_end, h_end = diverge.end_pose()
+        z_gore = 10.0 + 0.001 * GORE_X_M
+        c102 = Road(
+            "102",
+            (diverge,),
+            (
+                LaneSection(
+                    0.0,
+                    center=_center(),
+                    right=_ramp_lanes(-4, -5, -1, -2),
+                ),
+            ),
+            name="connector",
+            elevation=CubicProfile((CubicPiece(0.0, z_gore, 0.001),)),
+            predecessor=RoadLink("road", "1", "end"),
+            successor=RoadLink("road", "3", "start"),
+            junction=jid,
+        )
+        road2 = _road2(
+            GORE_X_M + CONNECTOR_M,
+            300.0 - GORE_X_M - CONNECTOR_M,
+            RoadLink("junction", jid),
+            shoulder_taper=False,
+        )
+        road2 = Road(
+            road2.id,
+            road2.geometry,
+            tuple(
+                LaneSection(
+                    sec.s0,
+                    center=sec.center,
+                    right=tuple(
+                        Lane(ln.id, ln.type, ln.width, ln.road_marks, ln.id, None)
+                        for ln in sec.right
+                    ),
+                )
+                for sec in road2.lane_sections
+            ),
+            name=road2.name,
+            elevation=road2.elevation,
+            predecessor=road2.predecessor,
+            speed_limit_mps=road2.speed_limit_mps,
+        )
+        road3 = Road(
+            "3",
+            (Arc(0.0, x_end, y_end, h_end, 100.0, -1.0 / 250.0),),
+            (LaneSection(0.0, center=_center(), right=_ramp_lanes(-1, -2)),),
+            name="exit",
+            elevation=CubicProfile((CubicPiece(0.0, z_gore + 0.001 * diverge.length, 0.001),)),
+            predecessor=RoadLink("junction", jid),
+            speed_limit_mps=80 / 3.6,
+        )
+        junction = Junction(
+            jid,
+            (
+                Connection("0", "1", "101", "start", tuple(LaneLink(i, i) for i in (-1, -2, -3))),
+                Connection("1", "1", "102", "start", (LaneLink(-4, -1), LaneLink(-5, -2))),
+            ),
+            name="exit junction",
+        )
+        return RoadNetwork(_header(), (road1, c101, c102, road2, road3), (junction,))
+
+    jid = "200"
+    road1 = _road1(RoadLink("junction", jid))
+    road2 = _road2(GORE_X_M, 300.0 - GORE_X_M, RoadLink("junction", jid), shoulder_taper=True)
+    x_end, _, _ = diverge.end_pose()
+    arc = Arc(diverge.length, *diverge.end_pose(), 100.0, -1.0 / 250.0)
+    del x_end
+    road3 = Road(
+        "3",
+        (diverge, arc),
+        (LaneSection(0.0, center=_center(), right=_ramp_lanes()),),
+        name="exit",
+        elevation=CubicProfile((CubicPiece(0.0, 10.0 + 0.001 * GORE_X_M, 0.001),)),
+        predecessor=RoadLink("junction", jid),
+        speed_limit_mps=80 / 3.6,
+    )
+    junction = Junction(
+        jid,
+        (
+            Connection("0", "1", "2", "start", tuple(LaneLink(i, i) for i in (-1, -2, -3))),
+            Connection("1", "1", "3", "start", (LaneLink(-4, -1), LaneLink(-5, -2))),
+        ),
+        name="exit junction",
+        type="direct",
+    )
+    return RoadNetwork(_header(), (road1, road2, road3), (junction,))
+
+
+def straight_road(road_id: str = "1", length_m: float = 100.0) -> Road:
+    """A single straight road with the mainline lane layout (for small unit tests)."""
+    return Road(
+        road_id,
+        (Line(0.0, 0.0, 0.0, 0.0, length_m),),
+        (
+            LaneSection(
+                0.0,
+                right=(
+                    constant_lane(-1, SHOULDER_IN_M, lane_type="shoulder"),
+                    constant_lane(-2, LANE_M, mark="broken"),
+                    constant_lane(-3, LANE_M),
+                    constant_lane(-4, SHOULDER_OUT_M, lane_type="shoulder", mark="none"),
+                ),
+            ),
+        ),
+        name="mainline",
+    )
