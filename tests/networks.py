@@ -29,6 +29,7 @@ Every joint is computed so that positions and headings meet exactly.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from scipy.integrate import quad
 
@@ -254,31 +255,16 @@ def mainline_exit_network(junction_type: str = "default") -> RoadNetwork:
             successor=RoadLink("road", "3", "start"),
             junction=jid,
         )
+        # road 2 starts in the junction: its lanes name the lanes of connector 101
         road2 = _road2(
             GORE_X_M + CONNECTOR_M,
             300.0 - GORE_X_M - CONNECTOR_M,
             RoadLink("junction", jid),
             shoulder_taper=False,
         )
-        road2 = Road(
-            road2.id,
-            road2.geometry,
-            tuple(
-                LaneSection(
-                    sec.s0,
-                    center=sec.center,
-                    right=tuple(
-                        Lane(ln.id, ln.type, ln.width, ln.road_marks, ln.id, None)
-                        for ln in sec.right
-                    ),
-                )
-                for sec in road2.lane_sections
-            ),
-            name=road2.name,
-            elevation=road2.elevation,
-            predecessor=road2.predecessor,
-            speed_limit_mps=road2.speed_limit_mps,
-        )
+        sec = road2.lane_sections[0]
+        right = tuple(replace(ln, predecessor=ln.id) for ln in sec.right)
+        road2 = replace(road2, lane_sections=(replace(sec, right=right),))
         road3 = Road(
             "3",
             (Arc(0.0, x_end, y_end, h_end, 100.0, -1.0 / 250.0),),
@@ -301,9 +287,7 @@ def mainline_exit_network(junction_type: str = "default") -> RoadNetwork:
     jid = "200"
     road1 = _road1(RoadLink("junction", jid))
     road2 = _road2(GORE_X_M, 300.0 - GORE_X_M, RoadLink("junction", jid), shoulder_taper=True)
-    x_end, _, _ = diverge.end_pose()
     arc = Arc(diverge.length, *diverge.end_pose(), 100.0, -1.0 / 250.0)
-    del x_end
     road3 = Road(
         "3",
         (diverge, arc),

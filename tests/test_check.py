@@ -319,3 +319,15 @@ def test_cli_subprocess_json(checked):
     assert data["stats"]["direct_junctions"] == 1
     assert data["stats"]["max_link_gap_mm"] < 1e-6
     assert read_xodr(path).junctions[0].type == "direct"
+
+
+def test_missing_consumers_are_reported_and_own_checks_still_run(checked, monkeypatch):
+    import roadtwin.consumers as consumers_module
+
+    monkeypatch.setattr(consumers_module, "find_tool", lambda name: None)
+    path, _ = checked["default"]
+    report = check_file(path, external=True)
+    assert [c.status for c in report.consumers] == ["not installed", "not installed"]
+    assert report.ok
+    assert report.stats["links_checked"] == 4
+    assert "sumo netconvert: not installed" in report.format_text()

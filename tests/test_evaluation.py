@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from roadtwin.config import EvaluationConfig
 from roadtwin.evaluation import (
     EvaluationReport,
     combine_reports,
@@ -290,9 +291,30 @@ def test_self_consistency_equals_injected_noise(truth):
 
 def test_self_consistency_of_shifted_map(truth):
     run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=2)
-    sc = self_consistency(shifted(truth, 0.3), run)
+    cfg = EvaluationConfig(self_consistency_scope="mainline")
+    sc = self_consistency(shifted(truth, 0.3), run, config=cfg)
     for key in ("road_edge_rmse_m", "lane_boundary_rmse_m", "overall_rmse_m"):
         assert sc[key] == pytest.approx(0.3, abs=1e-6)
+    # with ramps in scope, the unshifted ramp connectors explain a few junction points
+    sc_all = self_consistency(shifted(truth, 0.3), run)
+    assert 0 < sc_all["ramp_points"] < 0.02 * (sc_all["road_edge_points"] + sc_all["lane_samples"])
+    assert 0.29 < sc_all["overall_rmse_m"] <= 0.3
+
+
+def test_self_consistency_points_on_ramps(truth):
+    """Edge points measured along a ramp belong to the ramp road, not to the mainline."""
+    ramp = truth.road("10")
+    s = np.arange(0.0, 60.0, 0.5)
+    ramp_edges = np.column_stack([ramp.to_xy(s, ramp.lane_border_t(s, -3)), np.zeros(s.size)])
+    run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=6)
+    run = replace(run, edges=np.vstack([run.edges, ramp_edges]))
+    sc_all = self_consistency(truth, run)
+    assert sc_all["road_edge_rmse_m"] == pytest.approx(0.0, abs=1e-6)
+    assert sc_all["ramp_points"] >= s.size
+    sc_main = self_consistency(
+        truth, run, config=EvaluationConfig(self_consistency_scope="mainline")
+    )
+    assert sc_main["road_edge_rmse_m"] > 0.5
 
 
 def test_shifted_map_against_truth_reports_shift(truth):

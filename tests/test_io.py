@@ -191,3 +191,25 @@ def test_input_error_is_a_value_error(tmp_path):
         load_run(tmp_path)
     with pytest.raises(ValueError, match=r"run\.toml"):
         load_run(tmp_path)
+
+
+@pytest.mark.parametrize(("yaw0", "radius"), [(0.01, 5000.0), (-2.0, 800.0)])
+def test_yaw_in_degrees_detected_even_for_small_angles(tmp_path, yaw0, radius):
+    write_run(tmp_path, yaw0=yaw0, radius_m=radius, n_frames=60)
+    df = pd.read_csv(tmp_path / "trajectory.csv")
+    df["yaw"] = np.degrees(df["yaw"])
+    df.to_csv(tmp_path / "trajectory.csv", index=False)
+    with pytest.raises(InputError, match=r"trajectory\.csv: column 'yaw' is in degrees"):
+        load_run(tmp_path)
+
+
+def test_noisy_radian_yaw_is_accepted(tmp_path):
+    """Realistic pose noise (3 cm, 0.5 deg) must not trip the yaw or jump checks."""
+    write_run(tmp_path, yaw0=0.003, radius_m=5000.0, n_frames=300)
+    df = pd.read_csv(tmp_path / "trajectory.csv")
+    rng = np.random.default_rng(7)
+    df[["x", "y"]] += rng.normal(0.0, 0.03, size=(len(df), 2))
+    df["yaw"] += rng.normal(0.0, np.radians(0.5), size=len(df))
+    df.to_csv(tmp_path / "trajectory.csv", index=False)
+    run = load_run(tmp_path)
+    assert run.trajectory.frame.size == 300

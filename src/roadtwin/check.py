@@ -28,12 +28,13 @@ Thresholds (:class:`CheckConfig`): gaps above 1 mm are warnings, above 1 cm erro
 heading jumps above 0.01 deg are warnings, above 0.1 deg errors; width jumps above 1 mm are
 warnings, above 1 cm errors; widths below -1 mm are errors (below -1 um, warnings).
 
-External consumers (:func:`check_file`): SUMO ``netconvert --opendrive-files`` (errors on
-stderr, exit code 1 on fatal ones; skipped for maps with ``direct`` junctions, which SUMO
-cannot read) and the ASAM quality checker ``qc_opendrive`` (XQAR result read with
-qc_baselib; issues counted per rule; a schema failure skips the later rules). Each is looked
-up next to ``sys.executable`` first, then on ``PATH``; a missing one is reported as
-``not installed`` and the own checks still run.
+External consumers (:func:`check_file`, run by :mod:`roadtwin.consumers`): SUMO
+``netconvert --opendrive-files`` (errors on stderr, exit code 1 on fatal ones; skipped for
+maps with ``direct`` junctions, which SUMO cannot read) and the ASAM quality checker
+``qc_opendrive`` (XQAR result read with qc_baselib; issues counted per rule, level ERROR as
+errors, WARNING and crashed checkers as warnings; a schema failure skips the later rules).
+Each is looked up next to ``sys.executable`` first, then on ``PATH``; a missing one is
+reported as ``not installed`` and the own checks still run.
 """
 
 from __future__ import annotations
@@ -41,18 +42,15 @@ from __future__ import annotations
 import logging
 import math
 import os
-import shutil
-import subprocess
-import sys
-import tempfile
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
 import numpy as np
 
 from ._errors import InputError
+from .consumers import ConsumerResult, find_tool, run_asam, run_sumo
 from .model import Lane, LaneSection, Road, RoadNetwork
 from .xodr import read_xodr
 
@@ -65,7 +63,10 @@ __all__ = [
     "Finding",
     "check_file",
     "check_network",
+    "find_tool",
     "network_stats",
+    "run_asam",
+    "run_sumo",
 ]
 
 Severity = Literal["error", "warning"]
@@ -138,33 +139,6 @@ class Finding:
             "s": self.s,
             "value": self.value,
             "message": self.message,
-        }
-
-
-@dataclass(frozen=True)
-class ConsumerResult:
-    """Outcome of one external consumer.
-
-    ``status`` is ``passed``, ``failed``, ``skipped`` or ``not installed``; ``errors`` and
-    ``warnings`` count its messages; ``issues_per_rule`` (ASAM checker) maps rule UIDs to
-    issue counts; ``messages`` are one line each.
-    """
-
-    name: str
-    status: Literal["passed", "failed", "skipped", "not installed"]
-    errors: int = 0
-    warnings: int = 0
-    messages: tuple[str, ...] = ()
-    issues_per_rule: dict[str, int] = field(default_factory=dict)
-
-    def to_dict(self) -> dict:
-        return {
-            "name": self.name,
-            "status": self.status,
-            "errors": self.errors,
-            "warnings": self.warnings,
-            "issues_per_rule": dict(sorted(self.issues_per_rule.items())),
-            "messages": list(self.messages),
         }
 
 
@@ -495,8 +469,6 @@ class _Checker:
                 for la, lb in valid:
                     pa = _lane_border_points(road, s_a, la)
                     pb = _lane_border_points(other, s_b, lb)
-                    if not same_direction:
-                        pb = pb  # inner/outer borders coincide pairwise either way
                     gaps.append(float(np.max(np.hypot(*(pa - pb).T))))
                 gap_mm = 1000.0 * max(gaps)
                 basis = "linked lane borders"
@@ -825,146 +797,6 @@ def network_stats(
     return dict(_analyse(network, config).stats)
 
 
-# ---------------------------------------------------------------------------
-# external consumers
-# ---------------------------------------------------------------------------
-
-
-def find_tool(name: str) -> str | None:
-    """Path of a console script: next to ``sys.executable`` first, then ``PATH``."""
-    here = Path(sys.executable).parent / name
-    if here.is_file() and os.access(here, os.X_OK):
-        return str(here)
-    return shutil.which(name)
-
-
-def run_sumo(
-    path: Path, network: RoadNetwork, *, config: CheckConfig | None = None
-) -> ConsumerResult:
-    """Load the map with SUMO ``netconvert --opendrive-files`` and collect its messages."""
-    cfg = config or CheckConfig()
-    name = "sumo netconvert"
-    if any(j.type == "direct" for j in network.junctions):
-        return ConsumerResult(
-            name, "skipped", messages=("skipped: SUMO cannot read direct junctions",)
-        )
-    exe = find_tool("netconvert")
-    if exe is None:
-        return ConsumerResult(name, "not installed", messages=("netconvert not found",))
-    with tempfile.TemporaryDirectory(prefix="roadtwin-sumo-") as tmp:
-        cmd = [
-            exe,
-            "--opendrive-files",
-            str(path.resolve()),
-            "-o",
-            str(Path(tmp) / "net.net.xml"),
-        ]
-        try:
-            proc = subprocess.run(
-                cmd, capture_output=True, text=True, timeout=cfg.consumer_timeout_s, check=False
-            )
-        except subprocess.TimeoutExpired:
-            return ConsumerResult(
-                name, "failed", errors=1, messages=(f"timed out after {cfg.consumer_timeout_s} s",)
-            )
-        produced = (Path(tmp) / "net.net.xml").is_file()
-    lines = [ln.strip() for ln in (proc.stderr + "\n" + proc.stdout).splitlines() if ln.strip()]
-    errors = [ln for ln in lines if ln.startswith("Error")]
-    warns = [ln for ln in lines if ln.startswith("Warning")]
-    n_err = len(errors)
-    if proc.returncode != 0 and n_err == 0:
-        errors.append(f"netconvert exited with code {proc.returncode}")
-        n_err = 1
-    if proc.returncode == 0 and not produced:
-        errors.append("netconvert wrote no network")
-        n_err += 1
-    status = "passed" if n_err == 0 else "failed"
-    return ConsumerResult(name, status, n_err, len(warns), tuple(errors + warns))
-
-
-_QC_CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
-<Config>
-  <Param name="InputFile" value="{input}"/>
-  <CheckerBundle application="xodrBundle">
-    <Param name="resultFile" value="{result}"/>
-  </CheckerBundle>
-</Config>
-"""
-
-
-def run_asam(path: Path, *, config: CheckConfig | None = None) -> ConsumerResult:
-    """Run the ASAM quality checker's OpenDRIVE bundle and count its issues per rule."""
-    from xml.sax.saxutils import quoteattr
-
-    cfg = config or CheckConfig()
-    name = "asam qc_opendrive"
-    exe = find_tool("qc_opendrive")
-    try:
-        from qc_baselib import IssueSeverity, Result, StatusType
-    except ImportError:
-        exe = None
-    if exe is None:
-        return ConsumerResult(name, "not installed", messages=("qc_opendrive not found",))
-    with tempfile.TemporaryDirectory(prefix="roadtwin-qc-") as tmp:
-        result_file = Path(tmp) / "result.xqar"
-        config_file = Path(tmp) / "config.xml"
-        config_file.write_text(
-            _QC_CONFIG.format(
-                input=quoteattr(str(path.resolve()))[1:-1],
-                result=quoteattr(str(result_file))[1:-1],
-            ),
-            encoding="utf-8",
-        )
-        try:
-            proc = subprocess.run(
-                [exe, "-c", str(config_file)],
-                capture_output=True,
-                text=True,
-                timeout=cfg.consumer_timeout_s,
-                check=False,
-                cwd=tmp,
-            )
-        except subprocess.TimeoutExpired:
-            return ConsumerResult(
-                name, "failed", errors=1, messages=(f"timed out after {cfg.consumer_timeout_s} s",)
-            )
-        if not result_file.is_file():
-            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
-            return ConsumerResult(
-                name,
-                "failed",
-                errors=1,
-                messages=(f"qc_opendrive wrote no result (exit {proc.returncode})", *tail),
-            )
-        result = Result()
-        result.load_from_file(str(result_file))
-    per_rule: Counter[str] = Counter()
-    messages: list[str] = []
-    n_err = n_warn = 0
-    skipped = []
-    for bundle in result.get_checker_bundle_results():
-        for checker in bundle.checkers:
-            if checker.status == StatusType.SKIPPED:
-                skipped.append(checker.checker_id)
-            if checker.status == StatusType.ERROR:
-                n_err += 1
-                messages.append(f"checker {checker.checker_id} failed to run")
-            for issue in checker.issues:
-                per_rule[issue.rule_uid] += 1
-                if issue.level == IssueSeverity.ERROR:
-                    n_err += 1
-                elif issue.level == IssueSeverity.WARNING:
-                    n_warn += 1
-                rule = issue.rule_uid.split(":")[-1]
-                messages.append(f"{issue.level.name} {rule}: {issue.description}")
-    if any("valid_schema" in c for c in skipped) or per_rule.get(
-        "asam.net:xodr:1.0.0:xml.valid_schema"
-    ):
-        messages.append("schema check failed or skipped: later rules were skipped")
-    status = "passed" if n_err == 0 else "failed"
-    return ConsumerResult(name, status, n_err, n_warn, tuple(messages), dict(per_rule))
-
-
 def check_file(
     path: str | os.PathLike, *, external: bool = True, config: CheckConfig | None = None
 ) -> CheckReport:
@@ -980,7 +812,11 @@ def check_file(
     checker = _analyse(network, config)
     consumers: tuple[ConsumerResult, ...] = ()
     if external:
-        consumers = (run_sumo(path, network, config=config), run_asam(path, config=config))
+        timeout_s = (config or CheckConfig()).consumer_timeout_s
+        consumers = (
+            run_sumo(path, network, timeout_s=timeout_s),
+            run_asam(path, timeout_s=timeout_s),
+        )
     report = CheckReport(str(path), tuple(checker.findings), dict(checker.stats), consumers)
     log.info(
         "checked %s: %d errors, %d warnings, max gap %.3f mm",

@@ -79,6 +79,9 @@ class MainlineConfig:
     """A lane birth/end is extrapolated to zero width at most this far (metres)."""
     lane_split_m: float = 1.6
     """A marking that starts/ends within this of a neighbour opens/closes a tapering lane."""
+    hidden_lane_min_m: float = 2.0
+    """An outer shoulder wider than the run's typical one by more than this hides a lane
+    whose outer marking was not observed (metres)."""
     broken_gap_m: float = 3.0
     """Gaps between samples longer than this count towards a broken marking (metres)."""
     broken_gap_fraction: float = 0.3
@@ -184,6 +187,9 @@ class EvaluationConfig:
     ramp_match_distance_m: float = 60.0
     """Largest distance (metres) between a true and a built ramp's attachment points for
     them to be the same ramp."""
+    self_consistency_scope: Literal["all", "mainline"] = "all"
+    """Roads the run's points are compared with: ``all`` (mainline and ramp roads, the
+    nearest boundary wins; gore points belong to the ramp) or ``mainline`` only."""
 
     def __post_init__(self) -> None:
         for name in ("max_lateral_m", "truth_step_m", "ramp_match_distance_m"):

@@ -595,13 +595,14 @@ def fit_outer_edge(
     d_edge : (G,) offsets, metres (NaN only if there are no points at all).
     breaks : stations of the steps, metres.
     used : (N,) mask of the points that belong to the mainline edge.
+    covered : (G,) grid stations with edge points within 3 m (False in occlusion gaps).
     """
     cfg = config or MainlineConfig()
     step = float(grid[1] - grid[0])
     used = np.zeros(s.size, dtype=bool)
     ok = np.isfinite(s) & np.isfinite(d) & (d > 0.5)
     if np.count_nonzero(ok) < 10:
-        return np.full(grid.size, np.nan), np.zeros(0), used
+        return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
     bin_m = 2.0
     cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
     cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
@@ -609,10 +610,27 @@ def fit_outer_edge(
     q = moving_median(q, window=5)
     have = np.isfinite(q)
     if not np.any(have):
-        return np.full(grid.size, np.nan), np.zeros(0), used
+        return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
     qi = np.nonzero(have)[0]
     jumps = np.nonzero(np.abs(np.diff(q[qi])) > 1.0)[0]
     breaks = 0.5 * (cgrid[qi[jumps]] + cgrid[qi[jumps + 1]])
+    # refine each step with the points: the low level starts (step down, an exit gore)
+    # or ends (step up, an entry gore) exactly where the edge jumps
+    sv, dv = s[ok], d[ok]
+    for n, j in enumerate(jumps):
+        q0, q1 = q[qi[j]], q[qi[j + 1]]
+        low = min(q0, q1)
+        win = (np.abs(sv - breaks[n]) < 10.0) & (np.abs(dv - low) < 0.5)
+        if np.count_nonzero(win) >= 4:
+            ss = np.sort(sv[win])
+            breaks[n] = float(ss[1] if q1 < q0 else ss[-2])
+    # a real step has edge points right before and after it; an occlusion gap has none
+    real = [
+        np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
+        and np.count_nonzero((sv > b) & (sv <= b + 5.0)) >= 3
+        for b in breaks
+    ]
+    breaks = breaks[np.asarray(real, dtype=bool)] if breaks.size else breaks
     qf = _fill_nan(cgrid, q)
     # piecewise-constant lower-cluster reference (no interpolation across steps)
     ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
@@ -634,6 +652,13 @@ def fit_outer_edge(
             min_threshold_m=cfg.edge_outlier_min_m,
         )
         out[gsel] = fit
+    su = np.sort(s[used])
+    if su.size:
+        pos = np.clip(np.searchsorted(su, grid), 1, su.size - 1)
+        near = np.minimum(np.abs(grid - su[pos - 1]), np.abs(su[pos] - grid))
+        covered = near < 3.0
+    else:
+        covered = np.zeros(grid.size, dtype=bool)
     if np.all(np.isnan(out)):
         out = _fill_nan(grid, np.interp(grid, cgrid, qf))
     else:
@@ -641,7 +666,7 @@ def fit_outer_edge(
         idx = np.nonzero(np.isfinite(out))[0]
         nearest = idx[np.clip(np.searchsorted(idx, np.arange(grid.size)), 0, idx.size - 1)]
         out = np.where(np.isfinite(out), out, out[nearest])
-    return out, breaks, used
+    return out, breaks, used, covered
 
 
 def fit_lanes(
@@ -674,7 +699,7 @@ def fit_lanes(
     """
     cfg = config or MainlineConfig()
     grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
-    d_edge, breaks, used = fit_outer_edge(s_outer, d_outer, grid, config=cfg)
+    d_edge, breaks, used, covered = fit_outer_edge(s_outer, d_outer, grid, config=cfg)
     keep = (s_lane >= 0) & (s_lane <= length) & (d_lane > -0.5)
     if np.all(np.isfinite(d_edge)):
         keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
@@ -684,6 +709,9 @@ def fit_lanes(
         last = max((float(np.max(tr.d)) for tr in tracks), default=3.0)
         d_edge = np.full(grid.size, last + 2.5)
         breaks = np.zeros(0)
+    else:
+        d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
     sections, events, out_tracks = _sections_from_tracks(tracks, grid, d_edge, breaks, sign, cfg)
     return sections, events, out_tracks, used
 
@@ -749,6 +777,69 @@ def _tracks_from_samples(
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), np.sort(ss)))
     return _merge_collinear(final, cfg)
+
+
+def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
+    """Offset of the outermost marking track at each grid station (-inf where none)."""
+    d_last = np.full(grid.size, -np.inf)
+    for tr in tracks:
+        sel = (grid >= tr.lo) & (grid <= tr.hi)
+        d_last[sel] = np.maximum(d_last[sel], np.interp(grid[sel], tr.s, tr.d))
+    return d_last
+
+
+def _bridge_edge_gaps(
+    d_edge: FloatArray, covered: NDArray[np.bool_], tracks: list[_Track], grid: FloatArray
+) -> FloatArray:
+    """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
+    outermost marking) linear between the gap ends instead of the edge offset itself, so
+    the edge follows markings that were seen (tapers, gores inside the gap)."""
+    d_last = _last_marking(tracks, grid)
+    out = d_edge.copy()
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if a == 0 or b >= grid.size or b - a < 5:
+            continue
+        i0, i1 = a - 1, b
+        if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
+            continue
+        hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
+        x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
+        inner = d_last[a:b]
+        ok = np.isfinite(inner)
+        out[a:b][ok] = inner[ok] + (1 - x[ok]) * hw0 + x[ok] * hw1
+    return out
+
+
+def _add_hidden_lanes(
+    tracks: list[_Track], grid: FloatArray, d_edge: FloatArray, cfg: MainlineConfig
+) -> list[_Track]:
+    """Infer an unobserved outer marking where the outer shoulder is a lane too wide.
+
+    Markings far from the car may not be sampled (e.g. the outer line of a two-lane
+    deceleration lane). Where the outermost marking is more than
+    ``hidden_lane_min_m`` farther from the observed outer edge than the run's typical
+    hard-shoulder width, a marking is placed that typical width inside the edge.
+    """
+    if not tracks:
+        return tracks
+    d_last = _last_marking(tracks, grid)
+    gap = np.where(np.isfinite(d_last), d_edge - d_last, np.nan)
+    if not np.any(np.isfinite(gap)):
+        return tracks
+    hw = float(np.nanmedian(gap))
+    wide = np.isfinite(gap) & (gap > hw + cfg.hidden_lane_min_m)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], wide.astype(np.int8), [0]])))
+    out = list(tracks)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if (b - a) * cfg.grid_step_m < cfg.lane_min_track_m:
+            continue
+        g = grid[a:b]
+        out.append(
+            _Track(len(out), float(g[0]), float(g[-1]), g, d_edge[a:b] - hw, "solid", 0, g[:0])
+        )
+        log.info("mainline: unobserved marking inferred at s=%.0f..%.0f m", g[0], g[-1])
+    return out
 
 
 def _merge_collinear(tracks: list[_Track], cfg: MainlineConfig) -> list[_Track]:
@@ -867,7 +958,10 @@ def _sections_from_tracks(
                 continue
             info = _taper(dmat, k, grid, end, cfg)
             if info is None:
-                raw_events.append((k, end, float(grid[i_edge]), 0.0, None))
+                s_ev = float(grid[i_edge])
+                if breaks.size and np.min(np.abs(breaks - s_ev)) < 20.0:
+                    s_ev = float(breaks[np.argmin(np.abs(breaks - s_ev))])
+                raw_events.append((k, end, s_ev, 0.0, None))
             else:
                 raw_events.append((k, end, info[0], info[1], info[2]))
     # sections: runs of a constant set of tracks
@@ -879,10 +973,10 @@ def _sections_from_tracks(
     starts = [0, *change.tolist()]
     # edge steps that do not coincide with a track change start a section too
     for b in breaks:
-        i_b = int(np.clip(np.searchsorted(grid, b), 1, n_g - 1))
-        near = [i for i in starts if abs(i - i_b) * cfg.grid_step_m < 20.0]
-        if near:
-            continue
+        i_b = int(np.clip(np.rint((b - grid[0]) / cfg.grid_step_m), 1, n_g - 1))
+        near = [i for i in starts if 0 < i and abs(i - i_b) * cfg.grid_step_m < 20.0]
+        if near:  # the track change belongs to the gore: move it onto the edge step
+            starts.remove(min(near, key=lambda i: abs(i - i_b)))
         starts.append(i_b)
     starts = sorted(set(starts))
     min_n = max(1, int(cfg.min_section_m / cfg.grid_step_m))
@@ -1016,7 +1110,7 @@ def _events(
     """Lane events: the lane between a track that starts/ends and its nearest neighbour."""
     s0s = np.array([sec.s0 for sec in sections])
     events = []
-    for k, end, s_zero, taper, _jn in raw_events:
+    for k, end, s_zero, taper, jn in raw_events:
         # the section where the lane exists: just after a birth, just before an end
         probe = s_zero + (1.0 + taper if end == "start" else -(1.0 + taper))
         probe = float(np.clip(probe, grid[0], grid[-1]))
@@ -1028,7 +1122,11 @@ def _events(
         i_p = int(np.clip(np.searchsorted(grid, probe), 0, grid.size - 1))
         # neighbour: the adjacent member nearer in offset
         cand = [p for p in (pos - 1, pos + 1) if 0 <= p < len(members)]
-        if cand:
+        if taper == 0.0:  # abrupt (gore): the lane whose outer border is the track
+            outer_pos = pos
+        elif jn is not None and jn in members:
+            outer_pos = max(pos, members.index(jn))
+        elif cand:
             p_nb = min(cand, key=lambda p: abs(dmat[members[p], i_p] - dmat[k, i_p]))
             outer_pos = max(pos, p_nb)
         else:

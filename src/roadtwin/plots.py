@@ -68,8 +68,14 @@ def plot_overview(
     rng = np.random.default_rng(seed)
     summary = run.summary()
     xmin, ymin, xmax, ymax = summary.bbox_m
-    aspect = (ymax - ymin + 1.0) / (xmax - xmin + 1.0)
-    fig, ax = plt.subplots(figsize=(10, float(np.clip(9.0 * aspect + 1.5, 4.5, 11.0))), dpi=110)
+    pad = max(0.12 * max(xmax - xmin, ymax - ymin), 120.0)  # metres of OSM context
+    xmin, ymin, xmax, ymax = xmin - pad, ymin - pad, xmax + pad, ymax + pad
+    aspect = (ymax - ymin) / (xmax - xmin)
+    if aspect >= 1.0:
+        size = (float(np.clip(9.0 / aspect + 1.5, 5.0, 11.0)), 10.0)
+    else:
+        size = (11.0, float(np.clip(9.5 * aspect + 1.5, 5.0, 10.0)))
+    fig, ax = plt.subplots(figsize=size, dpi=110)
     try:
         if osm_graph is not None and osm_graph.number_of_edges():
             by_class: dict[str, list[np.ndarray]] = {}
@@ -116,9 +122,8 @@ def plot_overview(
         )
         ax.plot(*xy[0], marker="o", color="#111111", ms=5, zorder=5)
         ax.annotate("start", xy[0], xytext=(4, 4), textcoords="offset points", fontsize=8)
-        pad = max(xmax - xmin, ymax - ymin) * 0.05 + 20.0
-        ax.set_xlim(xmin - pad, xmax + pad)
-        ax.set_ylim(ymin - pad, ymax + pad)
+        ax.set_xlim(xmin, xmax)
+        ax.set_ylim(ymin, ymax)
         ax.set_aspect("equal", adjustable="box")
         ax.set_xlabel("x east (m, mapping frame)")
         ax.set_ylabel("y north (m, mapping frame)")
@@ -131,7 +136,7 @@ def plot_overview(
             fontsize=9,
         )
         ax.legend(loc="best", fontsize=7, markerscale=8, framealpha=0.85)
-        fig.tight_layout()
+        fig.subplots_adjust(left=0.1, right=0.97, bottom=0.07, top=0.92)
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
         os.close(fd)

@@ -820,10 +820,19 @@ def build_ramp_road(
         s_i = np.concatenate([s_ext, s_i])
         t_i = np.concatenate([t_ext, t_i])
     # keep the ramp outside the measured carriageway until it has clearly left it
-    inside_road = (s_i > 0.0) & (s_i < mainline_road.length)
     t_edge = _outer_border_t(mainline_road, np.clip(s_i, 0.0, mainline_road.length), traffic_side)
     t_edge = np.where(np.isfinite(t_edge), t_edge, t_i)
     separation = (t_i - t_edge) * outward
+    # points near the carriageway on the wrong side of the gore (a ramp folding back
+    # across the mainline, or an offset curve folding) are dropped
+    wrong = ((s_i - s_att) * direction < -1e-6) & (separation < 2.0 * lanes * width)
+    if np.any(wrong):
+        ref, s_i, t_i = ref[~wrong], s_i[~wrong], t_i[~wrong]
+        t_edge, separation = t_edge[~wrong], separation[~wrong]
+    if ref.shape[0] < 4:
+        msg = f"{road_id}: nothing of the OSM ramp lies beyond the gore at s={s_att:.1f} m"
+        raise FitError(msg)
+    inside_road = (s_i > 0.0) & (s_i < mainline_road.length)
     clear = separation > lanes * width
     stop = int(np.argmax(clear)) if np.any(clear) else len(ref)
     clamp = inside_road & (np.arange(len(ref)) < stop) & (separation < 0.0)

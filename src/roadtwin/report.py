@@ -48,9 +48,6 @@ def _fig_png(fig: Figure) -> bytes:
     import io
 
     buf = io.BytesIO()
-    n_rows = max(1, len(fig.axes))
-    fig.subplots_adjust(left=0.07, right=0.97, bottom=0.35 / fig.get_figheight() + 0.02,
-                        top=1.0 - 0.35 / fig.get_figheight(), hspace=0.9 / max(1, n_rows) + 0.25)
     fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
     return buf.getvalue()
 
@@ -65,8 +62,12 @@ def plot_map(run: RunEvaluation) -> bytes:
     panels = [("self", "Measurements vs map (self-consistency)")]
     if any(k.startswith("truth/") for k in run.details):
         panels.append(("truth", "Truth boundaries vs map"))
-    fig = Figure(figsize=(11, 4.2 * len(panels)))
+    height = 4.2 * len(panels)
+    fig = Figure(figsize=(11, height))
     axes = fig.subplots(len(panels), 1, squeeze=False)[:, 0]
+    fig.subplots_adjust(
+        left=0.08, right=0.98, bottom=0.6 / height, top=1 - 0.4 / height, hspace=0.35
+    )
     for ax, (prefix, title) in zip(axes, panels, strict=True):
         if run.map_lines:
             ax.add_collection(LineCollection(run.map_lines, colors="0.65", lw=0.6, zorder=1))
@@ -114,8 +115,12 @@ def plot_error_along_s(run: RunEvaluation) -> bytes:
         )
         if k in run.details and run.details[k].error_m.size
     ]
-    fig = Figure(figsize=(11, 2.6 * max(1, len(keys))))
+    height = 2.6 * max(1, len(keys))
+    fig = Figure(figsize=(11, height))
     axes = fig.subplots(max(1, len(keys)), 1, squeeze=False, sharex=True)[:, 0]
+    fig.subplots_adjust(
+        left=0.08, right=0.98, bottom=0.6 / height, top=1 - 0.35 / height, hspace=0.45
+    )
     for ax, key in zip(axes, keys, strict=False):
         d: PointErrors = run.details[key]
         for lane_id in np.unique(d.boundary):
@@ -145,25 +150,28 @@ def plot_error_along_s(run: RunEvaluation) -> bytes:
 
 
 def plot_histogram(run: RunEvaluation) -> bytes:
-    """Histogram of |lateral error| per metric (PNG bytes)."""
+    """Histograms of |lateral error|: self-consistency and (if any) against truth (PNG)."""
+    groups = [("self", "self-consistency")]
+    if any(k.startswith("truth/") for k in run.details):
+        groups.append(("truth", "against truth"))
     fig = Figure(figsize=(11, 3.8))
-    ax = fig.subplots()
-    series = [
-        (k, np.abs(d.error_m))
-        for k, d in run.details.items()
-        if k != "truth/elevation" and d.error_m.size
-    ]
-    if series:
-        top = max(float(np.percentile(e, 99.5)) for _, e in series)
-        bins = np.linspace(0.0, max(top, 1e-3), 60)
-        for key, e in series:
-            ax.hist(
-                np.clip(e, 0, bins[-1]), bins=bins, histtype="step", lw=1.4, label=key, density=True
-            )
-        ax.legend(fontsize=8)
-    ax.set_xlabel("|lateral error| (m)")
-    ax.set_ylabel("density")
-    ax.set_title(f"{run.label}: error distribution")
+    axes = fig.subplots(1, len(groups), squeeze=False)[0]
+    fig.subplots_adjust(left=0.07, right=0.98, bottom=0.14, top=0.9, wspace=0.2)
+    for ax, (prefix, title) in zip(axes, groups, strict=True):
+        series = [
+            (k, np.abs(d.error_m))
+            for k, d in run.details.items()
+            if k.startswith(prefix + "/") and k != "truth/elevation" and d.error_m.size
+        ]
+        if series:
+            top = max(float(np.percentile(e, 99.5)) for _, e in series)
+            bins = np.linspace(0.0, max(top * 1.05, 1e-2), 50)
+            for key, e in series:
+                ax.hist(np.clip(e, 0, bins[-1]), bins=bins, histtype="step", lw=1.4, label=key)
+            ax.legend(fontsize=8)
+        ax.set_xlabel("|lateral error| (m)")
+        ax.set_ylabel("points")
+        ax.set_title(f"{run.label}: {title}")
     return _fig_png(fig)
 
 

@@ -43,10 +43,12 @@ from .model import (
     Lane,
     LaneLink,
     LaneSection,
+    ParamPoly3,
     Road,
     RoadLink,
     RoadMark,
     RoadNetwork,
+    chain_geometry,
 )
 from .ramps import Ramp, hermite_piece
 
@@ -54,7 +56,14 @@ log = logging.getLogger(__name__)
 
 TrafficSide = Literal["right", "left"]
 
-__all__ = ["Topology", "build_topology", "hermite_road", "lane_graph", "match_lanes"]
+__all__ = [
+    "Topology",
+    "build_topology",
+    "hermite_road",
+    "lane_graph",
+    "match_lanes",
+    "true_lengths",
+]
 
 
 @dataclass(frozen=True)
@@ -201,6 +210,39 @@ def hermite_road(
         elevation=CubicProfile((CubicPiece(0.0, float(z0), (float(z1) - float(z0)) / length),)),
         junction=junction,
     )
+
+
+def _curve_length(g: ParamPoly3) -> float:
+    """True arc length of a ``normalized`` ParamPoly3 (Gauss-Legendre, 8 sub-intervals)."""
+    nodes, weights = np.polynomial.legendre.leggauss(16)
+    total = 0.0
+    for k in range(8):
+        p = (2 * k + 1 + nodes) / 16.0
+        du = g.bU + p * (2.0 * g.cU + 3.0 * g.dU * p)
+        dv = g.bV + p * (2.0 * g.cV + 3.0 * g.dV * p)
+        total += float(np.hypot(du, dv) @ weights) / 16.0
+    return total
+
+
+def true_lengths(road: Road, *, tolerance_m: float = 1e-5) -> Road:
+    """``road`` with every ``normalized`` ParamPoly3 declaring its true arc length.
+
+    A cut of a normalized piece (:func:`roadtwin.mainline.cut_road`) keeps the station
+    span as its length, which differs from the curve's arc length by millimetres; the
+    ASAM checker compares the two (1 mm tolerance). The curves are unchanged; stations
+    after a corrected piece move by that difference.
+    """
+    pieces = list(road.geometry)
+    changed = False
+    for i, g in enumerate(pieces):
+        if isinstance(g, ParamPoly3) and g.p_range == "normalized":
+            length = _curve_length(g)
+            if abs(length - g.length) > tolerance_m:
+                pieces[i] = replace(g, length=length)
+                changed = True
+    if not changed:
+        return road
+    return replace(road, geometry=chain_geometry(pieces))
 
 
 def _widths(road: Road, s: float, lane_ids: Sequence[int]) -> list[float]:
@@ -469,7 +511,7 @@ def build_topology(
         main_roads[k], main_roads[k + 1] = up, down
         ramp_roads.append(road)
 
-    roads = (*main_roads, *ramp_roads, *connectors)
+    roads = tuple(true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors))
     log.info(
         "topology: %d mainline roads, %d ramps, %d connecting roads, %d %s junctions",
         len(main_roads),

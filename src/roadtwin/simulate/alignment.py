@@ -42,7 +42,9 @@ def _curvatures(piece: Geometry) -> tuple[float, float]:
 
 
 def _kind(piece: Geometry) -> str:
-    return "clothoid" if isinstance(piece, Spiral) else "arc" if isinstance(piece, Arc) else "straight"
+    return (
+        "clothoid" if isinstance(piece, Spiral) else "arc" if isinstance(piece, Arc) else "straight"
+    )
 
 
 def build_pieces(

@@ -15,6 +15,7 @@ deterministic.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +42,7 @@ class _Osm:
     def add_nodes(self, xy: NDArray) -> list[int]:
         first = NODE_ID0 + len(self.nodes)
         ids = list(range(first, first + len(xy)))
-        self.nodes.extend((i, float(p[0]), float(p[1]), {}) for i, p in zip(ids, xy))
+        self.nodes.extend((i, float(p[0]), float(p[1]), {}) for i, p in zip(ids, xy, strict=False))
         return ids
 
     def add_way(self, node_ids: list[int], tags: dict[str, str]) -> int:
@@ -120,7 +121,7 @@ def _carriageway(
     ids = osm.add_nodes(xy)
     bounds = [0.0, *forced, road.length]
     lanes = [sc.lanes.count, *[c[1] for c in cuts]]
-    for j, (a, b) in enumerate(zip(bounds, bounds[1:])):
+    for j, (a, b) in enumerate(itertools.pairwise(bounds)):
         sel = [i for i, v in enumerate(s) if a - 1e-6 <= v <= b + 1e-6]
         tags = {"highway": "motorway", "oneway": "yes", "ref": sc.osm.motorway_ref}
         if j == 0 or rng.random() >= sc.osm.missing_lanes_fraction:
@@ -150,7 +151,9 @@ def _ramp_way(
     return osm.add_way(node_ids, tags)
 
 
-def _ramp_centre(road: Road, lanes: int, lane_w: float, ris: float, sign: float, truth: Truth, kind: str):
+def _ramp_centre(
+    road: Road, lanes: int, lane_w: float, ris: float, sign: float, truth: Truth, kind: str
+):
     """Sparse centreline points of a ramp road, leaving out ~30 m next to the gore."""
     gap = 30.0
     a, b = (gap, road.length) if kind == "exit" else (0.0, road.length - gap)
@@ -179,7 +182,9 @@ def build_osm(truth: Truth, rng: np.random.Generator) -> tuple[_Osm, dict[int, l
         gore = ids[int(np.argmin(np.abs(stations - r.station_m)))]
         if r.type == "exit":
             osm.tag_node(gore, {"highway": "motorway_junction", "ref": str(i + 1)})
-        centre = _ramp_centre(rt.road, r.lanes, r.lane_width_m, r.inner_shoulder_m, sign, truth, r.type)
+        centre = _ramp_centre(
+            rt.road, r.lanes, r.lane_width_m, r.inner_shoulder_m, sign, truth, r.type
+        )
         way = _ramp_way(osm, r.type, centre, gore, r.lanes, i, rng, truth, name=r.name)
         ramp_ways[i] = [way]
     if truth.opposite is not None:
@@ -196,7 +201,7 @@ def build_osm(truth: Truth, rng: np.random.Generator) -> tuple[_Osm, dict[int, l
         o_ids, o_st = _carriageway(osm, opp, t_c, opp_cuts, rng, truth)
         for j, (u, kind, r) in enumerate(sorted(mirrored, key=lambda m: m[0])):
             t_b = sign * (ln.inner_shoulder_m + ln.count * ln.width_m)
-            x, y, h, k = (float(v[0]) for v in opp.evaluate(np.array([u])))
+            _x, _y, h, k = (float(v[0]) for v in opp.evaluate(np.array([u])))
             p = opp.to_xy(np.array([u]), np.array([t_b]))[0]
             pieces = ramp_pieces(
                 x=float(p[0]), y=float(p[1]), hdg=h, curvature_start=k / (1.0 - t_b * k),
@@ -204,12 +209,16 @@ def build_osm(truth: Truth, rng: np.random.Generator) -> tuple[_Osm, dict[int, l
                 curve_length_m=r.curve_length_m, tail_length_m=r.tail_length_m, kind=kind,
             )  # fmt: skip
             ramp_road = Road("opp-ramp", pieces, truth.ramps[0].road.lane_sections)
-            centre = _ramp_centre(ramp_road, r.lanes, r.lane_width_m, r.inner_shoulder_m, sign, truth, kind)
+            centre = _ramp_centre(
+                ramp_road, r.lanes, r.lane_width_m, r.inner_shoulder_m, sign, truth, kind
+            )
             gore = o_ids[int(np.argmin(np.abs(o_st - u)))]
             if kind == "exit":
                 osm.tag_node(gore, {"highway": "motorway_junction"})
             _ramp_way(osm, kind, centre, gore, r.lanes, j + 1, rng, truth, name="")
-    for road, o in zip(truth.others[1 if truth.opposite is not None else 0 :], sc.other_roads):
+    for road, o in zip(
+        truth.others[1 if truth.opposite is not None else 0 :], sc.other_roads, strict=False
+    ):
         s = np.linspace(0.0, road.length, 3 if o.length_m < 400 else 5)
         xy = _mapper_xy(road.xy(s), rng, truth)
         tags = {"highway": o.highway, "lanes": "2"}
@@ -233,7 +242,7 @@ def osm_xml(osm: _Osm, truth: Truth) -> bytes:
         f'  <bounds minlat="{lat.min():.7f}" minlon="{lon.min():.7f}" '
         f'maxlat="{lat.max():.7f}" maxlon="{lon.max():.7f}"/>',
     ]
-    for (node_id, _, _, tags), la, lo in zip(osm.nodes, lat, lon):
+    for (node_id, _, _, tags), la, lo in zip(osm.nodes, lat, lon, strict=False):
         head = f'  <node id="{node_id}" version="1" lat="{la:.7f}" lon="{lo:.7f}"'
         if not tags:
             lines.append(head + "/>")
@@ -255,4 +264,3 @@ def write_osm(truth: Truth, path: Path, rng: np.random.Generator) -> dict[int, l
     osm, ramp_ways = build_osm(truth, rng)
     Path(path).write_bytes(osm_xml(osm, truth))
     return ramp_ways
-

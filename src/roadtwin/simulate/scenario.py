@@ -25,6 +25,7 @@ taper_length, radius, clothoid_length, curve_length, tail_length, ...
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field, fields
 from importlib import resources
@@ -308,7 +309,11 @@ def _num(table: dict[str, Any], key: str, default: float, where: str, *, lo=None
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise InputError(f"[{where}] {key}: expected a number, got {value!r}")
     value = float(value)
-    if not math.isfinite(value) or (lo is not None and value < lo) or (hi is not None and value > hi):
+    if (
+        not math.isfinite(value)
+        or (lo is not None and value < lo)
+        or (hi is not None and value > hi)
+    ):
         raise InputError(f"[{where}] {key} = {value}: expected a value in [{lo}, {hi}]")
     return value
 
@@ -415,7 +420,7 @@ def _parse_grades(vertical: dict[str, Any], length: float) -> tuple[GradeChange,
         )
     if grades[0].station_m != 0.0:
         grades.insert(0, GradeChange(0.0, 0.0))
-    for a, b in zip(grades, grades[1:]):
+    for a, b in itertools.pairwise(grades):
         if b.station_m - b.curve_length_m / 2 < a.station_m + a.curve_length_m / 2:
             msg = (
                 f"[vertical.grades] vertical curves at stations {a.station_m} and "
@@ -448,7 +453,9 @@ def _parse_ramps(items: list[dict[str, Any]], traffic_side: str) -> tuple[Ramp, 
         where = f"ramps {i + 1}"
         unknown = set(item) - set(_RAMP_KEYS)
         if unknown:
-            raise InputError(f"[{where}]: unknown keys {sorted(unknown)}; known: {sorted(_RAMP_KEYS)}")
+            raise InputError(
+                f"[{where}]: unknown keys {sorted(unknown)}; known: {sorted(_RAMP_KEYS)}"
+            )
         kind = item.get("type")
         if kind not in ("exit", "entry"):
             raise InputError(f"[{where}] type: expected exit or entry, got {kind!r}")
@@ -468,10 +475,14 @@ def _parse_ramps(items: list[dict[str, Any]], traffic_side: str) -> tuple[Ramp, 
                 type=kind,
                 station_m=_num(item, "station", -1.0, where, lo=0.0),
                 lanes=int(lanes),
-                parallel_length_m=_num(item, "parallel_length", d.parallel_length_m, where, lo=10.0),
+                parallel_length_m=_num(
+                    item, "parallel_length", d.parallel_length_m, where, lo=10.0
+                ),
                 taper_length_m=_num(item, "taper_length", d.taper_length_m, where, lo=10.0),
                 radius_m=_num(item, "radius", d.radius_m, where, lo=40.0),
-                clothoid_length_m=_num(item, "clothoid_length", d.clothoid_length_m, where, lo=10.0),
+                clothoid_length_m=_num(
+                    item, "clothoid_length", d.clothoid_length_m, where, lo=10.0
+                ),
                 curve_length_m=_num(item, "curve_length", d.curve_length_m, where, lo=1.0),
                 tail_length_m=_num(item, "tail_length", d.tail_length_m, where, lo=1.0),
                 lane_width_m=_num(item, "lane_width", d.lane_width_m, where, lo=2.5, hi=5.0),
@@ -521,7 +532,7 @@ def _validate(sc: Scenario) -> None:
         if d.station_m - d.taper_m < 20.0 or d.station_m > length - 20.0:
             raise InputError(f"[lanes.drops] station {d.station_m}: taper outside the mainline")
     zones.sort()
-    for za, zb in zip(zones, zones[1:]):
+    for za, zb in itertools.pairwise(zones):
         if zb[0] < za[1]:
             raise InputError(f"[ramps]/[lanes.drops]: {za[2]} overlaps {zb[2]}")
     if not 1 <= sc.car_lane <= lanes.count - len(lanes.drops):
@@ -648,7 +659,9 @@ def scenario_from_dict(data: dict[str, Any], *, name: str = "scenario", base_dir
     output = _table(data, "output", {"road_edges_format", "real_osm"}, "output")
     fmt = output.get("road_edges_format", "laz")
     if fmt not in ("laz", "las", "csv", "ply", "npy", "parquet"):
-        raise InputError(f"[output] road_edges_format: expected laz/las/csv/ply/npy/parquet, got {fmt!r}")
+        raise InputError(
+            f"[output] road_edges_format: expected laz/las/csv/ply/npy/parquet, got {fmt!r}"
+        )
     real_osm = str(output.get("real_osm", ""))
     if real_osm and base_dir is not None:
         real_osm = str((Path(base_dir) / real_osm).resolve())

@@ -87,9 +87,7 @@ def measured_poses(poses: Poses, truth: Truth, rng: np.random.Generator) -> Pose
     return Poses(poses.frame, poses.t, poses.xyz + err, poses.yaw + yaw_err, poses.station)
 
 
-def _to_measured(
-    pts: NDArray, frame_idx: NDArray, true: Poses, meas: Poses
-) -> NDArray:
+def _to_measured(pts: NDArray, frame_idx: NDArray, true: Poses, meas: Poses) -> NDArray:
     """Re-place mapping-frame points seen from the true pose with the measured pose."""
     d = pts - true.xyz[frame_idx]
     dyaw = meas.yaw[frame_idx] - true.yaw[frame_idx]
@@ -136,7 +134,9 @@ def true_edges(truth: Truth, spacing_m: float, rng: np.random.Generator):
         t = r.lane_border_t(rs, int(sign * n_lanes))
         xyz, h = _edge_curve(r, rs, t)
         normal = sign * np.column_stack([-np.sin(h), np.cos(h)])
-        parts.append((xyz, np.full(rs.size, outer_side, np.uint8), normal, np.full(rs.size, np.nan)))
+        parts.append(
+            (xyz, np.full(rs.size, outer_side, np.uint8), normal, np.full(rs.size, np.nan))
+        )
     xyz = np.vstack([p[0] for p in parts])
     side = np.concatenate([p[1] for p in parts])
     normal = np.vstack([p[2] for p in parts])
@@ -183,7 +183,7 @@ def edge_points(
     sides = rng.choice(np.array([SIDE_LEFT, SIDE_RIGHT], np.uint8), n_trucks)
     occluded = np.zeros(side.size, bool)
     t_pt = true.t[frame_idx]
-    for t0, dt, sd in zip(starts, lengths, sides):
+    for t0, dt, sd in zip(starts, lengths, sides, strict=False):
         occluded |= (t_pt >= t0) & (t_pt < t0 + dt) & (side == sd)
     counts["occluded"] = int((occluded & keep).sum())
     counts["truck_events"] = int(n_trucks)

@@ -14,6 +14,7 @@ The opposite carriageway and unrelated roads are ``name="other"`` roads (ids fro
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, replace
 
@@ -143,14 +144,14 @@ def mainline_sections(sc: Scenario) -> tuple[SectionSpec, ...]:
             breaks |= {g - SHOULDER_TAPER_M, g, b - r.taper_length_m, b}
     stations = sorted(breaks)
     sections = []
-    for a, b in zip(stations, stations[1:]):
+    for a, b in itertools.pairwise(stations):
         m = 0.5 * (a + b)
-        lanes: list[LaneSpec] = [LaneSpec(("inner",), "inner", _const(ln.inner_shoulder_m), "solid")]
+        lanes: list[LaneSpec] = [
+            LaneSpec(("inner",), "inner", _const(ln.inner_shoulder_m), "solid")
+        ]
         n_active = ln.count - sum(1 for d in ln.drops if d.station_m <= m)
         dropping = [d for d in ln.drops if d.station_m - d.taper_m <= m < d.station_m]
-        aux_ramp = [
-            (i, r) for i, r in enumerate(sc.ramps) if aux_zone(r)[0] <= m < aux_zone(r)[1]
-        ]
+        aux_ramp = [(i, r) for i, r in enumerate(sc.ramps) if aux_zone(r)[0] <= m < aux_zone(r)[1]]
         for j in range(1, n_active + 1):
             width = _const(ln.width_m)
             if dropping and j == n_active:
@@ -181,7 +182,9 @@ def mainline_sections(sc: Scenario) -> tuple[SectionSpec, ...]:
             if r.type == "exit" and g <= m < g + SHOULDER_TAPER_M:
                 hard = smoothstep_cubic(g, SHOULDER_TAPER_M, 0.0, ln.hard_shoulder_m)
             if r.type == "entry" and g - SHOULDER_TAPER_M <= m < g:
-                hard = smoothstep_cubic(g - SHOULDER_TAPER_M, SHOULDER_TAPER_M, ln.hard_shoulder_m, 0.0)
+                hard = smoothstep_cubic(
+                    g - SHOULDER_TAPER_M, SHOULDER_TAPER_M, ln.hard_shoulder_m, 0.0
+                )
         lanes.append(LaneSpec(("hard",), "hard", hard, "none"))
         sections.append(SectionSpec(a, b, tuple(lanes)))
     return tuple(sections)
@@ -192,7 +195,12 @@ def ramp_sections(ramp: Ramp, length_m: float, hard_shoulder_m: float) -> tuple[
     (exit) or shrinks to zero before it (entry) over the clothoid length."""
     tr = min(ramp.clothoid_length_m, 0.5 * length_m)
     drive = [
-        LaneSpec(("drive", j), "driving", _const(ramp.lane_width_m), "solid" if j == ramp.lanes else "lane")
+        LaneSpec(
+            ("drive", j),
+            "driving",
+            _const(ramp.lane_width_m),
+            "solid" if j == ramp.lanes else "lane",
+        )
         for j in range(1, ramp.lanes + 1)
     ]
     hard = LaneSpec(("hard",), "hard", _const(hard_shoulder_m), "none")
@@ -305,9 +313,7 @@ def lanes_width_at(spec: SectionSpec, s: float, upto_kind: str | None = None) ->
 
 
 def _two_way_road(road_id: str, pieces, z: CubicProfile, width: float, road_type: str) -> Road:
-    lane = Lane(
-        1, "driving", CubicProfile.constant(width), (RoadMark(0.0, "solid", 0.15),)
-    )
+    lane = Lane(1, "driving", CubicProfile.constant(width), (RoadMark(0.0, "solid", 0.15),))
     section = LaneSection(
         0.0,
         left=(lane,),
@@ -356,7 +362,7 @@ def build_truth(sc: Scenario) -> Truth:
         g = r.station_m
         spec = section_at(specs, g - 1e-6 if r.type == "exit" else g + 1e-6)
         t_b = sign * lanes_width_at(spec, g, "driving")
-        x, y, h, k = (float(v[0]) for v in full.evaluate(np.array([g])))
+        _, _, h, k = (float(v[0]) for v in full.evaluate(np.array([g])))
         xy = full.to_xy(np.array([g]), np.array([t_b]))[0]
         rp = ramp_pieces(
             x=float(xy[0]),
@@ -395,9 +401,17 @@ def build_truth(sc: Scenario) -> Truth:
         succ = RoadLink("junction", junction_ids[j]) if j < n_main - 1 else None
         main_roads.append(
             _sub_road(
-                str(j + 1), "mainline", pieces, elevation, specs, sc, cuts[j], cuts[j + 1],
-                predecessor=pred, successor=succ,
-            )  # fmt: skip
+                str(j + 1),
+                "mainline",
+                pieces,
+                elevation,
+                specs,
+                sc,
+                cuts[j],
+                cuts[j + 1],
+                predecessor=pred,
+                successor=succ,
+            )
         )
 
     # junctions with lane links
@@ -413,11 +427,15 @@ def build_truth(sc: Scenario) -> Truth:
         )
         conns = [Connection("1", main_roads[i].id, main_roads[i + 1].id, "start", through)]
         if r.type == "exit":
-            links = [LaneLink(ids_b[("aux", i, j)], ids_r[("drive", j)]) for j in range(1, r.lanes + 1)]
+            links = [
+                LaneLink(ids_b[("aux", i, j)], ids_r[("drive", j)]) for j in range(1, r.lanes + 1)
+            ]
             links.append(LaneLink(ids_b[("hard",)], ids_r[("hard",)]))
             conns.append(Connection("2", main_roads[i].id, ramp_ids[i], "start", tuple(links)))
         else:
-            links = [LaneLink(ids_r[("drive", j)], ids_a[("aux", i, j)]) for j in range(1, r.lanes + 1)]
+            links = [
+                LaneLink(ids_r[("drive", j)], ids_a[("aux", i, j)]) for j in range(1, r.lanes + 1)
+            ]
             links.append(LaneLink(ids_r[("hard",)], ids_a[("hard",)]))
             conns.append(Connection("2", ramp_ids[i], main_roads[i + 1].id, "start", tuple(links)))
         name = r.name or f"{r.type} at {r.station_m:.0f} m"
@@ -437,7 +455,12 @@ def build_truth(sc: Scenario) -> Truth:
             (
                 LaneSpec(("inner",), "inner", _const(ln.inner_shoulder_m), "solid"),
                 *(
-                    LaneSpec(("drive", j), "driving", _const(ln.width_m), "solid" if j == ln.count else "lane")
+                    LaneSpec(
+                        ("drive", j),
+                        "driving",
+                        _const(ln.width_m),
+                        "solid" if j == ln.count else "lane",
+                    )
                     for j in range(1, ln.count + 1)
                 ),
                 LaneSpec(("hard",), "hard", _const(ln.hard_shoulder_m), "none"),
@@ -453,7 +476,7 @@ def build_truth(sc: Scenario) -> Truth:
         others.append(opposite)
     for i, o in enumerate(sc.other_roads):
         s = o.station_m
-        x, y, h, _ = (float(v[0]) for v in full.evaluate(np.array([s])))
+        _x, _y, h, _ = (float(v[0]) for v in full.evaluate(np.array([s])))
         if o.kind == "overpass":
             t_c = -sign * sc.opposite.median_m / 2.0
             c = full.to_xy(np.array([s]), np.array([t_c]))[0]

@@ -31,7 +31,7 @@ from .sensor import (
     measured_poses,
     true_poses,
 )
-from .truth import Truth, _lane_ids, build_truth
+from .truth import Truth, _lane_ids, build_truth, section_at
 
 log = logging.getLogger(__name__)
 
@@ -133,12 +133,19 @@ def _run_toml(sc: Scenario, edges_name: str, osm_name: str) -> str:
     )
 
 
+def _aux_lane_ids(truth: Truth, station_m: float, kind: str) -> list[int]:
+    """Lane ids of a ramp's deceleration (before the gore) / acceleration (after) lanes."""
+    probe = station_m - 1e-3 if kind == "exit" else station_m + 1e-3
+    spec = section_at(truth.sections, probe)
+    return [v for k, v in _lane_ids(spec, truth.sign).items() if k[0] == "aux"]
+
+
 def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> dict:
     sc = truth.scenario
     roads = [r for r in truth.network.roads if r.name == "mainline"]
     starts = truth.mainline_road_starts
     sections = []
-    for road, start in zip(roads, starts):
+    for road, start in zip(roads, starts, strict=False):
         for ls in road.lane_sections:
             lanes = ls.right if truth.sign < 0 else ls.left
             spec = next(x for x in truth.sections if abs(x.s0 - (start + ls.s0)) < 1e-6)
@@ -166,18 +173,7 @@ def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> 
                 "junction_id": str(1001 + i),
                 "mainline_road_before": roads[i].id,
                 "mainline_road_after": roads[i + 1].id,
-                "aux_lane_ids": [
-                    v
-                    for k, v in _lane_ids(
-                        truth.sections[
-                            [j for j, x in enumerate(truth.sections) if x.s1 <= rt.station_m + 1e-6][-1]
-                            if rt.ramp.type == "exit"
-                            else [j for j, x in enumerate(truth.sections) if x.s0 >= rt.station_m - 1e-6][0]
-                        ],
-                        truth.sign,
-                    ).items()
-                    if k[0] == "aux"
-                ],
+                "aux_lane_ids": _aux_lane_ids(truth, rt.station_m, rt.ramp.type),
                 "length_m": round(rt.road.length, 6),
                 "name": rt.ramp.name,
             }
@@ -191,7 +187,7 @@ def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> 
         "lane_width_m": sc.lanes.width_m,
         "mainline_roads": [
             {"road_id": r.id, "station_m": s, "length_m": round(r.length, 6)}
-            for r, s in zip(roads, starts)
+            for r, s in zip(roads, starts, strict=False)
         ],
         "ramps": ramps,
         "lane_drops": [dataclasses.asdict(d) for d in sc.lanes.drops],
@@ -274,7 +270,8 @@ def simulate_run(
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     log.info(
-        "simulated %s (seed %d): %.0f m, %d frames, %d edge points, %d lane samples, %d ramps -> %s",
+        "simulated %s (seed %d): %.0f m, %d frames, %d edge points, %d lane samples, "
+        "%d ramps -> %s",
         sc.name, sc.seed, truth.mainline.length, poses.frame.size, side.size, frames.size,
         len(truth.ramps), out,
     )  # fmt: skip

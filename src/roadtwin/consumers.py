@@ -1,0 +1,187 @@
+"""External OpenDRIVE consumers run by ``roadtwin check``.
+
+* SUMO ``netconvert --opendrive-files MAP.xodr -o net.net.xml`` (eclipse-sumo wheel): its
+  ``Error:`` lines and a non-zero exit code count as errors, ``Warning:`` lines as
+  warnings. SUMO cannot read ``direct`` junctions: such maps are skipped with that reason.
+* The ASAM quality checker's OpenDRIVE bundle ``qc_opendrive -c config.xml``
+  (asam-qc-opendrive): it exits 0 even when it finds issues, so its XQAR result is loaded
+  with ``qc_baselib.Result`` and the issues are counted per rule (level ERROR as errors,
+  WARNING and crashed checkers as warnings). A schema failure skips all later rules.
+
+Each tool is looked up next to ``sys.executable`` first, then on ``PATH``
+(:func:`find_tool`); a missing one gives status ``not installed``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from .model import RoadNetwork
+
+__all__ = ["ConsumerResult", "find_tool", "run_asam", "run_sumo"]
+
+
+@dataclass(frozen=True)
+class ConsumerResult:
+    """Outcome of one external consumer.
+
+    ``status`` is ``passed``, ``failed``, ``skipped`` or ``not installed``; ``errors`` and
+    ``warnings`` count its messages; ``issues_per_rule`` (ASAM checker) maps rule UIDs to
+    issue counts; ``messages`` are one line each.
+    """
+
+    name: str
+    status: Literal["passed", "failed", "skipped", "not installed"]
+    errors: int = 0
+    warnings: int = 0
+    messages: tuple[str, ...] = ()
+    issues_per_rule: dict[str, int] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "status": self.status,
+            "errors": self.errors,
+            "warnings": self.warnings,
+            "issues_per_rule": dict(sorted(self.issues_per_rule.items())),
+            "messages": list(self.messages),
+        }
+
+
+def find_tool(name: str) -> str | None:
+    """Path of a console script: next to ``sys.executable`` first, then ``PATH``."""
+    here = Path(sys.executable).parent / name
+    if here.is_file() and os.access(here, os.X_OK):
+        return str(here)
+    return shutil.which(name)
+
+
+def run_sumo(path: Path, network: RoadNetwork, *, timeout_s: float = 600.0) -> ConsumerResult:
+    """Load the map with SUMO ``netconvert --opendrive-files`` and collect its messages."""
+    name = "sumo netconvert"
+    if any(j.type == "direct" for j in network.junctions):
+        return ConsumerResult(
+            name, "skipped", messages=("skipped: SUMO cannot read direct junctions",)
+        )
+    exe = find_tool("netconvert")
+    if exe is None:
+        return ConsumerResult(name, "not installed", messages=("netconvert not found",))
+    with tempfile.TemporaryDirectory(prefix="roadtwin-sumo-") as tmp:
+        cmd = [
+            exe,
+            "--opendrive-files",
+            str(path.resolve()),
+            "-o",
+            str(Path(tmp) / "net.net.xml"),
+        ]
+        try:
+            proc = subprocess.run(
+                cmd, capture_output=True, text=True, timeout=timeout_s, check=False
+            )
+        except subprocess.TimeoutExpired:
+            return ConsumerResult(
+                name, "failed", errors=1, messages=(f"timed out after {timeout_s} s",)
+            )
+        produced = (Path(tmp) / "net.net.xml").is_file()
+    lines = [ln.strip() for ln in (proc.stderr + "\n" + proc.stdout).splitlines() if ln.strip()]
+    errors = [ln for ln in lines if ln.startswith("Error")]
+    warns = [ln for ln in lines if ln.startswith("Warning")]
+    n_err = len(errors)
+    if proc.returncode != 0 and n_err == 0:
+        errors.append(f"netconvert exited with code {proc.returncode}")
+        n_err = 1
+    if proc.returncode == 0 and not produced:
+        errors.append("netconvert wrote no network")
+        n_err += 1
+    status = "passed" if n_err == 0 else "failed"
+    return ConsumerResult(name, status, n_err, len(warns), tuple(errors + warns))
+
+
+_QC_CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
+<Config>
+  <Param name="InputFile" value="{input}"/>
+  <CheckerBundle application="xodrBundle">
+    <Param name="resultFile" value="{result}"/>
+  </CheckerBundle>
+</Config>
+"""
+
+
+def run_asam(path: Path, *, timeout_s: float = 600.0) -> ConsumerResult:
+    """Run the ASAM quality checker's OpenDRIVE bundle and count its issues per rule."""
+    from xml.sax.saxutils import quoteattr
+
+    name = "asam qc_opendrive"
+    exe = find_tool("qc_opendrive")
+    try:
+        from qc_baselib import IssueSeverity, Result, StatusType
+    except ImportError:
+        exe = None
+    if exe is None:
+        return ConsumerResult(name, "not installed", messages=("qc_opendrive not found",))
+    with tempfile.TemporaryDirectory(prefix="roadtwin-qc-") as tmp:
+        result_file = Path(tmp) / "result.xqar"
+        config_file = Path(tmp) / "config.xml"
+        config_file.write_text(
+            _QC_CONFIG.format(
+                input=quoteattr(str(path.resolve()))[1:-1],
+                result=quoteattr(str(result_file))[1:-1],
+            ),
+            encoding="utf-8",
+        )
+        try:
+            proc = subprocess.run(
+                [exe, "-c", str(config_file)],
+                capture_output=True,
+                text=True,
+                timeout=timeout_s,
+                check=False,
+                cwd=tmp,
+            )
+        except subprocess.TimeoutExpired:
+            return ConsumerResult(
+                name, "failed", errors=1, messages=(f"timed out after {timeout_s} s",)
+            )
+        if not result_file.is_file():
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-3:]
+            return ConsumerResult(
+                name,
+                "failed",
+                errors=1,
+                messages=(f"qc_opendrive wrote no result (exit {proc.returncode})", *tail),
+            )
+        result = Result()
+        result.load_from_file(str(result_file))
+    per_rule: Counter[str] = Counter()
+    messages: list[str] = []
+    n_err = n_warn = 0
+    skipped = []
+    for bundle in result.get_checker_bundle_results():
+        for checker in bundle.checkers:
+            if checker.status == StatusType.SKIPPED:
+                skipped.append(checker.checker_id)
+            if checker.status == StatusType.ERROR:  # the checker crashed: a tool problem
+                n_warn += 1
+                messages.append(f"WARNING checker {checker.checker_id} failed to run")
+            for issue in checker.issues:
+                per_rule[issue.rule_uid] += 1
+                if issue.level == IssueSeverity.ERROR:
+                    n_err += 1
+                elif issue.level == IssueSeverity.WARNING:
+                    n_warn += 1
+                rule = issue.rule_uid.split(":")[-1]
+                messages.append(f"{issue.level.name} {rule}: {issue.description}")
+    if any("valid_schema" in c for c in skipped) or per_rule.get(
+        "asam.net:xodr:1.0.0:xml.valid_schema"
+    ):
+        messages.append("schema check failed or skipped: later rules were skipped")
+    status = "passed" if n_err == 0 else "failed"
+    return ConsumerResult(name, status, n_err, n_warn, tuple(messages), dict(per_rule))
