@@ -59,7 +59,7 @@ def borders(road: Road, s: np.ndarray):
 def compare_road(built: Road, truth: Road, *, step_m: float = 1.0, s_lo=0.0, s_hi=None):
     """Errors (metres) of ``built`` against one truth road, sampled every ``step_m``."""
     s_hi = truth.length if s_hi is None else s_hi
-    s_t = np.arange(s_lo, s_hi, step_m)
+    s_t = np.arange(s_lo + 0.5 * step_m, s_hi, step_m)  # off section boundaries
     if s_t.size == 0:
         return None
     ref_t, out_t, marks_t, count_t = borders(truth, s_t)
@@ -171,6 +171,7 @@ COLUMNS = (
     ("kink_deg", "{:.2g}"),
     ("sc_edge", "{:.3f}"),
     ("sc_lane", "{:.3f}"),
+    ("sc_overall", "{:.3f}"),
     ("time_s", "{:.2f}"),
 )
 

@@ -152,6 +152,14 @@ def _osm(content: bytes, name: str = "map.osm"):
     return apply
 
 
+def _lane_t_outside(root: Path) -> None:
+    traj = pd.read_csv(root / "trajectory.csv")
+    lanes = pd.read_csv(root / "lane_samples.csv").rename(columns={"frame": "t"})
+    lanes["t"] = traj["t"].iloc[0] + 0.05 * np.arange(len(lanes))
+    lanes.loc[len(lanes) - 1, "t"] = traj["t"].iloc[-1] + 30.0
+    lanes.to_csv(root / "lane_samples.csv", index=False)
+
+
 BAD = {
     # id: (mutation, exit code, regex on stderr)
     "no run.toml": (_remove("run.toml"), 2, r"run\.toml: file not found"),
@@ -224,6 +232,11 @@ BAD = {
         _csv_edit("lane_samples.csv", _lane_frame_missing),
         2,
         r"lane_samples\.csv: data row 6, column 'frame': frame 99999 has no pose",
+    ),
+    "lane t outside the trajectory": (
+        _lane_t_outside,
+        2,
+        r"lane_samples\.csv: data row \d+, column 't': .* outside the trajectory's time span",
     ),
     "duplicate frames": (
         _csv_edit("trajectory.csv", _dup_frame),

@@ -14,6 +14,7 @@ from roadtwin.config import EvaluationConfig
 from roadtwin.evaluation import (
     EvaluationReport,
     combine_reports,
+    data_quality,
     evaluate,
     format_table,
     lane_graph,
@@ -273,7 +274,7 @@ def test_projection_excludes_points_beyond_ends_and_far_away(truth):
 
 def test_self_consistency_equals_injected_noise(truth):
     run = make_run(truth, edge_sigma=0.05, lane_sigma=0.10, seed=1)
-    far = np.array([[-50.0, -3.0, 0.0], [-80.0, -6.0, 0.0], [300.0, 300.0, 0.0]])
+    far = np.array([[-20.0, -3.0, 0.0], [-30.0, -6.0, 0.0], [300.0, 300.0, 0.0]])
     run = replace(run, edges=np.vstack([run.edges, far]))
     sc = self_consistency(truth, run)
     # measured RMS of the injected noise itself (n ~ 5000 edge, 7700 lane points)
@@ -464,3 +465,34 @@ def test_multi_run_table_reproducible_from_json(truth, tmp_path):
     )
     assert json.dumps(again.to_dict(), sort_keys=True) == path.read_text()
     assert isinstance(combined, EvaluationReport)
+
+
+def test_height_residual_and_data_quality(truth):
+    run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=7)
+    main_ids = {r.id for r in mainline_roads(truth)}
+    raised = replace(
+        truth,
+        roads=tuple(
+            replace(r, elevation=CubicProfile.constant(0.25)) if r.id in main_ids else r
+            for r in truth.roads
+        ),
+    )
+    sc = self_consistency(raised, run)
+    assert sc["height_rmse_m"] == pytest.approx(0.25, abs=1e-9)
+    assert sc["overall_rmse_m"] == pytest.approx(0.0, abs=1e-6)
+    dq = data_quality(raised, run)
+    assert dq == {"xy_relative": sc["overall_rmse_m"], "z_relative": sc["height_rmse_m"]}
+
+
+def test_projection_prefers_the_road_a_point_lies_in_the_middle_of():
+    lanes = (LaneSection(0.0, right=_lanes(((-1, "driving", 3.5),))),)
+    road_a = Road("a", (Line(0.0, 0.0, 0.0, 0.0, 100.0),), lanes, name="exit")
+    road_b = Road("b", (Line(0.0, 48.25, -50.0, math.pi / 2, 100.0),), lanes, name="entry")
+    x = np.arange(1.0, 100.0, 1.0)
+    pts = np.column_stack([x, np.full(x.size, -1.75)])  # centre line of a, crossing b
+    proj = project_points([road_b, road_a], pts)
+    assert np.all(proj.road_index == 1)
+    np.testing.assert_allclose(proj.t, -1.75, atol=1e-9)
+    # a point on b's centre line at the crossing goes to b
+    proj_b = project_points([road_a, road_b], np.array([[50.0, -1.0], [50.0, 30.0]]))
+    assert proj_b.road_index.tolist() == [1, 1]

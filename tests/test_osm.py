@@ -217,3 +217,51 @@ def test_missing_osm_file(tmp_path):
     frame = MappingFrame(Origin(50.0, 11.6, 0.0))
     with pytest.raises(InputError, match="OSM file not found"):
         load_osm(tmp_path / "nope.osm.pbf", frame=frame, around_xy=None)
+
+
+def test_online_path_postprocessing_without_network(monkeypatch):
+    """``load_osm_online`` with OSMnx's Overpass download replaced by the same data from a
+    file (no network): area polygon around the trajectory in lon/lat, motorways one-way,
+    projection identical to the file loader."""
+    import osmnx as ox
+    from shapely.geometry import MultiPoint
+
+    from roadtwin.osm import load_osm_online
+
+    path = FILES["osm"]
+    frame, heading = frame_for(path)
+    traj = np.c_[
+        np.linspace(0, 300, 31) * np.cos(heading), np.linspace(0, 300, 31) * np.sin(heading)
+    ]
+    seen = {}
+
+    def overpass_from_file(polygon, **kwargs):
+        seen.update(kwargs, polygon=polygon)
+        return ox.graph_from_xml(path, simplify=False, retain_all=True)
+
+    monkeypatch.setattr(ox, "graph_from_polygon", overpass_from_file)
+    graph = load_osm_online(frame=frame, around_xy=traj, config=LoadConfig(osm_buffer_m=200.0))
+    lon, lat = frame.to_lonlat(traj[:, 0], traj[:, 1])
+    assert seen["polygon"].contains(MultiPoint(np.c_[lon, lat]))
+    assert seen["network_type"] == "drive"
+    assert graph.graph["crs"] == frame.geo_reference
+
+    def motorway_edges(g):
+        raw = raw_ways(path)
+        return {
+            (u, v, d["osmid"])
+            for u, v, d in g.edges(data=True)
+            if d["highway"] in ("motorway", "motorway_link")
+            and raw[d["osmid"]][0].get("oneway") != "no"
+        }
+
+    online = motorway_edges(graph)
+    assert online
+    assert online == motorway_edges(full_graph(path))
+    for u, v, d in graph.edges(data=True):
+        np.testing.assert_allclose(
+            d["geometry"].coords[0], (graph.nodes[u]["x"], graph.nodes[u]["y"])
+        )
+        np.testing.assert_allclose(
+            d["geometry"].coords[-1], (graph.nodes[v]["x"], graph.nodes[v]["y"])
+        )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import re
 import shutil
@@ -14,8 +16,8 @@ from matplotlib.image import imread
 from scipy.spatial import cKDTree
 
 from roadtwin.cli import main
-from roadtwin.evaluation import combine_reports, evaluate, mainline_roads
-from roadtwin.report import write_report
+from roadtwin.evaluation import evaluate, mainline_roads
+from roadtwin.report import render_html
 from roadtwin.xodr import write_xodr
 from test_evaluation import TRUTH_INFO, make_run, make_truth, shifted
 
@@ -23,28 +25,33 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
 @pytest.fixture(scope="module")
-def report_dir(tmp_path_factory) -> Path:
+def cli_report(tmp_path_factory) -> tuple[Path, str]:
+    """``roadtwin evaluate`` on a map shifted 0.3 m, over two run folders with truth."""
+    tmp = tmp_path_factory.mktemp("cli")
     truth = make_truth()
-    reports = [
-        evaluate(
-            shifted(truth, 0.3),
-            make_run(truth, edge_sigma=0.05, lane_sigma=0.08, seed=seed),
-            truth=truth,
-            truth_info=TRUTH_INFO,
-            method=method,
-        )
-        for seed, method in ((11, "default"), (12, "paper"))
-    ]
-    out = tmp_path_factory.mktemp("report")
-    write_report(combine_reports(reports), out)
-    return out
+    runs = [tmp / "run_a", tmp / "run_b"]
+    _write_run_folder(truth, make_run(truth, edge_sigma=0.03, lane_sigma=0.05, seed=21), runs[0])
+    _write_run_folder(truth, make_run(truth, edge_sigma=0.06, lane_sigma=0.10, seed=22), runs[1])
+    map_path = tmp / "map.xodr"
+    write_xodr(shifted(truth, 0.3), map_path)
+    out = tmp / "report"
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        code = main(["-q", "evaluate", str(map_path), *map(str, runs), "-o", str(out)])
+    assert code == 0
+    return out, buf.getvalue()
+
+
+@pytest.fixture(scope="module")
+def report_dir(cli_report) -> Path:
+    return cli_report[0]
 
 
 def test_report_files(report_dir):
     doc = json.loads((report_dir / "report.json").read_text())
     assert doc["schema"] == "roadtwin-evaluation/1"
     assert sorted(doc) == ["runs", "schema", "table"]
-    assert list(doc["table"]) == ["default", "paper"]
+    assert list(doc["table"]) == ["map"]
     run = doc["runs"][0]
     assert sorted(run) == [
         "label",
@@ -68,7 +75,7 @@ def test_report_files(report_dir):
     assert not re.search(r'(src|href)="(?!data:)', html)
     assert html.count('src="data:image/png;base64,') == 6
     paper_row = re.search(r"<td[^>]*>Road edge</td>(.*?)</tr>", html).group(1)
-    mean = doc["table"]["default"]["road_edge"]["mean_rmse_m"]
+    mean = doc["table"]["map"]["road_edge"]["mean_rmse_m"]
     assert f"{mean:.3f}" in paper_row
 
 
@@ -128,7 +135,7 @@ def test_html_renders_in_headless_chromium(report_dir, tmp_path):
     doc = json.loads((report_dir / "report.json").read_text())
     for target in ("Road edge", "Lane boundary", "Overall"):
         assert f">{target}</td>" in dom.stdout
-    overall = doc["table"]["paper"]["overall"]["median_rmse_m"]
+    overall = doc["table"]["map"]["overall"]["median_rmse_m"]
     assert f"{overall:.3f}" in dom.stdout
     assert dom.stdout.count("data:image/png;base64,") == 6
 
@@ -177,18 +184,8 @@ def _write_run_folder(truth, run, root: Path) -> None:
     (root / "truth.json").write_text(json.dumps(TRUTH_INFO))
 
 
-def test_cli_evaluate_shifted_map_against_truth(tmp_path, capsys):
-    truth = make_truth()
-    run_a = tmp_path / "run_a"
-    run_b = tmp_path / "run_b"
-    _write_run_folder(truth, make_run(truth, edge_sigma=0.03, lane_sigma=0.05, seed=21), run_a)
-    _write_run_folder(truth, make_run(truth, edge_sigma=0.06, lane_sigma=0.10, seed=22), run_b)
-    map_path = tmp_path / "map.xodr"
-    write_xodr(shifted(truth, 0.3), map_path)
-    out = tmp_path / "report"
-    code = main(["-q", "evaluate", str(map_path), str(run_a), str(run_b), "-o", str(out)])
-    assert code == 0
-    text = capsys.readouterr().out
+def test_cli_evaluate_shifted_map_against_truth(cli_report):
+    out, text = cli_report
     doc = json.loads((out / "report.json").read_text())
     assert [r["label"] for r in doc["runs"]] == ["run_a", "run_b"]
     for r in doc["runs"]:
@@ -213,3 +210,75 @@ def test_cli_evaluate_bad_input(tmp_path, capsys):
     code = main(["evaluate", str(map_path), str(tmp_path / "nope")])
     assert code == 2
     assert "no run.toml" in capsys.readouterr().err
+
+
+SHORT_SCENARIO = """
+name = "short_exit"
+seed = 3
+[origin]
+lat = 49.98
+lon = 11.62
+alt = 420.0
+[traffic]
+side = "right"
+[[alignment]]
+type = "straight"
+length = 400
+[[alignment]]
+type = "arc"
+radius = 1500
+length = 500
+direction = "left"
+[lanes]
+count = 2
+width = 3.75
+inner_shoulder = 0.75
+hard_shoulder = 2.5
+[[ramps]]
+type = "exit"
+station = 450
+lanes = 1
+parallel_length = 150
+taper_length = 60
+radius = 300
+curve_length = 140
+[output]
+road_edges_format = "csv"
+"""
+
+
+@pytest.mark.slow
+def test_simulated_run_truth_and_both_methods(tmp_path):
+    """Simulator files end to end: the truth scores perfectly against itself, and both
+    build methods are reported side by side."""
+    from roadtwin.evaluation import compare_methods, load_truth
+    from roadtwin.io import load_run
+    from roadtwin.simulate import load_scenario, simulate_run
+
+    scenario_path = tmp_path / "short.toml"
+    scenario_path.write_text(SHORT_SCENARIO)
+    run_dir = simulate_run(load_scenario(scenario_path), tmp_path / "run", seed=3)
+    run = load_run(run_dir)
+    truth, info = load_truth(run_dir / "truth.xodr")
+
+    own = evaluate(truth, run, truth=truth, truth_info=info).runs[0]
+    for key in ("road_edge", "lane_boundary", "elevation", "ramp_centre", "ramp_boundary"):
+        assert own.truth[key]["max_m"] == pytest.approx(0.0, abs=1e-6), key
+    assert own.truth["covered_fraction"] == 1.0
+    assert own.truth["lane_count"]["matched_fraction"] == 1.0
+    assert own.topology["matched"] == len(info["ramps"]) == 1
+    assert own.topology["type_correct"] == 1
+    assert own.topology["all_connected"] is True  # direct junction lane links, as written
+    # the run's own noise and outliers against the true map: well under the paper's 0.74 m
+    assert own.self_consistency["overall_rmse_m"] < 0.4
+
+    report = compare_methods(run, truth=truth, truth_info=info)
+    assert [r.method for r in report.runs] == ["default", "paper", "truth"]
+    assert list(report.table()) == ["default", "paper", "truth"]
+    assert report.runs[2].self_consistency == own.self_consistency
+    for r in report.runs:
+        assert r.truth["lane_boundary"]["rmse_m"] < 1.0
+        assert r.topology["true_ramps"] == 1
+    html = render_html(report, {})
+    head = html[html.index('<table class="paper">') : html.index("</thead>")]
+    assert re.findall(r'<th colspan="3">(\w+)</th>', head) == ["default", "paper", "truth"]

@@ -4,6 +4,7 @@ determinism, bundled scenarios and the CLI."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import time
 from pathlib import Path
@@ -232,7 +233,7 @@ def test_same_seed_same_bytes_other_seed_differs(tmp_path):
     assert (a / "truth.xodr").read_bytes() == (c / "truth.xodr").read_bytes()
 
 
-@pytest.mark.parametrize("name", ["interchange_5km", "left_hand_2km", "long_20km"])
+@pytest.mark.parametrize("name", ["interchange_5km", "left_hand_2km", "long_20km", "real_a9"])
 def test_bundled_scenarios_simulate_in_seconds(name, tmp_path):
     from roadtwin.check import check_network
     from roadtwin.io import load_run
@@ -260,9 +261,60 @@ def test_bundled_scenarios_simulate_in_seconds(name, tmp_path):
 
 
 def test_every_bundled_scenario_is_tested():
-    assert {"straight_curve_2km", "interchange_5km", "left_hand_2km", "long_20km"} <= set(
-        bundled_scenarios()
+    tested = {"straight_curve_2km", "interchange_5km", "left_hand_2km", "long_20km", "real_a9"}
+    assert set(bundled_scenarios()) == tested
+
+
+def _densify(xy: np.ndarray) -> np.ndarray:
+    """Points every ~0.5 m along a polyline (OSM ways have sparse nodes)."""
+    return np.vstack([np.linspace(a, b, 200) for a, b in itertools.pairwise(xy)])
+
+
+def test_real_a9_follows_the_real_osm_ways(tmp_path):
+    from roadtwin.io import load_run
+    from roadtwin.osm import load_osm
+    from roadtwin.xodr import read_xodr
+
+    out = simulate_run("real_a9", tmp_path / "a9")
+    assert (out / "map.osm.gz").is_file()
+    run = load_run(out)
+    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    network = read_xodr(out / "truth.xodr")
+    info = json.loads((out / "truth.json").read_text())
+    assert [r["type"] for r in info["ramps"]] == ["exit", "entry"]
+    motorway = [d["geometry"] for _, _, d in graph.edges(data=True) if d["highway"] == "motorway"]
+    for ramp in info["ramps"]:
+        edges = [
+            (u, v, d)
+            for u, v, d in graph.edges(data=True)
+            if d["highway"] == "motorway_link" and d["osmid"] in ramp["osm_way_ids"]
+        ]
+        assert edges, ramp
+        road = network.road(ramp["road_id"])
+        # the true ramp's centre stays within a few metres of the real link way
+        lanes = road.lane_sections[-1].right
+        s = (
+            np.linspace(30.0, road.length - 5.0, 50)
+            if ramp["type"] == "exit"
+            else np.linspace(5.0, road.length - 30.0, 50)
+        )
+        t = 0.5 * (road.lane_border_t(s, lanes[0].id) + road.lane_border_t(s, lanes[-2].id))
+        centre = road.to_xy(s, t)
+        link = np.vstack([np.asarray(d["geometry"].coords) for _, _, d in edges])
+        dense = _densify(link)
+        dist, _ = cKDTree(dense).query(centre)
+        assert np.median(dist) < 4.0
+    # and the mainline's carriageway centre stays within ~2 m of the real motorway way
+    main = [r for r in network.roads if r.name == "mainline"]
+    pts = np.vstack(
+        [
+            r.to_xy(np.arange(0, r.length, 10.0), np.full(int(np.ceil(r.length / 10)), -4.5))
+            for r in main
+        ]
     )
+    dense = np.vstack([_densify(np.asarray(g.coords)) for g in motorway])
+    dist, _ = cKDTree(dense).query(pts)
+    assert np.median(dist) < 2.0
 
 
 def test_interchange_has_lane_drop_and_two_lane_exit():
@@ -304,3 +356,33 @@ def test_cli_simulate_and_unknown_scenario(tmp_path, capsys):
     assert "exit at 650 m" in capsys.readouterr().out
     assert main(["simulate", "no_such_scenario", "-o", str(tmp_path / "x")]) == 2
     assert "bundled" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("fmt", ["laz", "las", "csv", "ply", "npy", "parquet"])
+def test_every_road_edge_format_loads_with_the_run_loader(fmt, tmp_path):
+    from roadtwin.io import load_run
+
+    doc = {
+        "seed": 3,
+        "alignment": [
+            {"type": "straight", "length": 300},
+            {"type": "arc", "radius": 600, "length": 200, "direction": "right"},
+        ],
+        "opposite": {"enabled": False},
+        "output": {"road_edges_format": fmt},
+    }
+    out = simulate_run(scenario_from_dict(doc, name=f"fmt_{fmt}"), tmp_path / fmt)
+    run = load_run(out)
+    counts = json.loads((out / "truth.json").read_text())["counts"]
+    assert run.edges.shape == (counts["edge_points"], 3)
+    assert run.dropped_edge_points == 0
+    # left edge (median side, t = 0) and right edge (3 lanes + shoulders = 14.5 m away)
+    left, right = run.edges[run.edge_side == 1], run.edges[run.edge_side == -1]
+    assert left.shape[0] > 1000
+    assert right.shape[0] > 1000
+    traj = run.trajectory.xy
+    d_left = cKDTree(traj).query(left[:, :2])[0]
+    d_right = cKDTree(traj).query(right[:, :2])[0]
+    # car in lane 3 (centre 0.75 + 2.5 * 3.75 = 10.125 m from the left edge)
+    assert np.median(d_left) == pytest.approx(10.125, abs=0.1)
+    assert np.median(d_right) == pytest.approx(0.75 + 3 * 3.75 + 2.5 - 10.125, abs=0.1)

@@ -140,7 +140,9 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     out = simulate_run(scenario, args.output, seed=args.seed)
     truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
     counts = truth["counts"]
-    ramps = ", ".join(f"{r['type']} at {r['station_m']:g} m ({r['lanes']} lane)" for r in truth["ramps"])
+    ramps = ", ".join(
+        f"{r['type']} at {r['station_m']:.0f} m ({r['lanes']} lane)" for r in truth["ramps"]
+    )
     files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
     print(
         "\n".join(
@@ -571,7 +573,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     stages = [("simulate", simulate, True), ("inspect", inspect, has("io", "load_run"))]
     stages.append(("build", build, has("pipeline", "build_map")))
     stages.append(("check", check, has("check", "check_file")))
-    stages.append(("evaluate", evaluate, has("pipeline", "build_map") and has("evaluation", "evaluate_paths")))
+    can_evaluate = has("pipeline", "build_map") and has("evaluation", "evaluate_paths")
+    stages.append(("evaluate", evaluate, can_evaluate))
     bar = tqdm(stages, desc="demo", unit="stage", disable=args.quiet, file=sys.stderr, leave=False)
     for name, stage, available in bar:
         bar.set_postfix_str(name)

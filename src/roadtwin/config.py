@@ -79,6 +79,9 @@ class MainlineConfig:
     """A lane birth/end is extrapolated to zero width at most this far (metres)."""
     lane_split_m: float = 1.6
     """A marking that starts/ends within this of a neighbour opens/closes a tapering lane."""
+    ramp_line_slope: float = 0.03
+    """A marking whose offset changes faster than this (m/m) where it starts (inward) or
+    ends (outward) is a ramp line crossing the corridor near a gore, not the mainline's."""
     hidden_lane_min_m: float = 2.0
     """An outer shoulder wider than the run's typical one by more than this hides a lane
     whose outer marking was not observed (metres)."""
@@ -127,6 +130,9 @@ class RampConfig:
     """... or at most this far downstream of it (metres) (entries: mirrored)."""
     fit_tolerance_m: float = 0.02
     """Max deviation of the ramp's ParamPoly3 pieces from the smoothed polyline (metres)."""
+    snap_to_section_m: float = 5.0
+    """Without a measured gore, an OSM attachment this close to a mainline lane-section
+    boundary (metres) moves onto it (no sliver sections in the junction)."""
 
 
 @dataclass(frozen=True)

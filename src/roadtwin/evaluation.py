@@ -275,6 +275,23 @@ def _project_one(road: Road, pts: FloatArray, end_tol: float):
     return s, t, beyond
 
 
+def road_band(road: Road, s: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Lateral extent ``(t_low, t_high)`` (metres) between the road edges at stations ``s``."""
+    s = np.asarray(s, dtype=float)
+    lo = np.zeros(s.shape)
+    hi = np.zeros(s.shape)
+    sec_idx = road.section_index(s)
+    for k in np.unique(sec_idx):
+        sel = sec_idx == k
+        edges = [
+            lid for kind, lid in section_boundaries(road.lane_sections[int(k)]) if kind == EDGE
+        ]
+        ts = np.stack([road.lane_border_t(s[sel], lid) for lid in edges])
+        lo[sel] = np.nanmin(ts, axis=0)
+        hi[sel] = np.nanmax(ts, axis=0)
+    return lo, hi
+
+
 def project_points(
     roads: Sequence[Road],
     points: FloatArray,
@@ -282,14 +299,17 @@ def project_points(
     max_lateral_m: float = 40.0,
     end_tolerance_m: float = 0.1,
 ) -> Projection:
-    """Project mapping-frame points onto the nearest of several roads.
+    """Project mapping-frame points onto the best of several (possibly overlapping) roads.
 
-    Each point is first assigned to the road owning the nearest reference-line sample (one
-    KD-tree over all roads), projected there, and re-tried on the other roads if it falls
-    beyond that road's ends; among the roads it projects inside, the smallest ``|t|`` wins.
-    Points beyond every road's ends or farther than ``max_lateral_m`` from every reference
-    line are excluded (status 1 where the point lies beyond a road's end within
-    ``max_lateral_m`` of its end line, else 2).
+    Every point is projected onto every road whose bounding box (grown by
+    ``max_lateral_m``) holds it; the loop runs over roads, vectorised over points. Among
+    the roads a point projects inside (not beyond an end by more than ``end_tolerance_m``)
+    the best is, in order: the smallest distance outside the road's edges (0 inside); a
+    road the point is not within 1 m of an end of; the smallest distance from the middle
+    between the edges; the largest distance from the road ends (ties: 5 cm). Points beyond
+    every road's ends or farther than ``max_lateral_m`` outside every road are excluded
+    (status 1 where the point lies beyond a road's end, within ``max_lateral_m`` of its
+    edges and inside its grown bounding box, else 2).
 
     Parameters
     ----------
@@ -307,31 +327,49 @@ def project_points(
     if n == 0 or not roads:
         return Projection(road_index, s_out, t_out, status, np.full(n, np.nan))
     offsets = np.concatenate([[0.0], np.cumsum([r.length for r in roads])])
-    grids = [np.linspace(0.0, r.length, max(2, math.ceil(r.length / 1.0) + 1)) for r in roads]
-    owner = np.concatenate([np.full(g.size, i) for i, g in enumerate(grids)])
-    tree = cKDTree(np.vstack([r.xy(g) for r, g in zip(roads, grids, strict=True)]))
-    _, nearest = tree.query(pts)
-    first = owner[nearest]
-    best_abs_t = np.full(n, np.inf)
+    best_out = np.full(n, np.inf)
+    best_near = np.ones(n, dtype=bool)
+    best_centre = np.full(n, np.inf)
+    best_margin = np.full(n, -np.inf)
     tried_beyond = np.zeros(n, dtype=bool)
+    tol = 0.05
 
-    def accept(ri: int, idx: NDArray[np.int64]) -> None:
-        s, t, beyond = _project_one(roads[ri], pts[idx], end_tolerance_m)
-        inside = ~beyond & (np.abs(t) <= max_lateral_m)
-        better = inside & (np.abs(t) < best_abs_t[idx])
+    for ri, road in enumerate(roads):  # loop over roads, vectorised over points
+        grid = np.linspace(0.0, road.length, max(2, math.ceil(road.length / 2.0) + 1))
+        xy = road.xy(grid)
+        lo_grid, hi_grid = road_band(road, grid)
+        grow = max_lateral_m + float(np.nanmax(np.abs(np.concatenate([lo_grid, hi_grid]))))
+        box_lo = xy.min(axis=0) - grow
+        box_hi = xy.max(axis=0) + grow
+        idx = np.nonzero(np.all((pts >= box_lo) & (pts <= box_hi), axis=1))[0]
+        if idx.size == 0:
+            continue
+        s, t, beyond = _project_one(road, pts[idx], end_tolerance_m)
+        lo, hi = road_band(road, s)
+        out_d = np.maximum(np.maximum(lo - t, t - hi), 0.0)
+        centre = np.abs(t - 0.5 * (lo + hi))
+        margin = np.minimum(s, road.length - s)
+        near = margin < 1.0
+        reach = out_d <= max_lateral_m
+        tried_beyond[idx[beyond & reach]] = True
+        inside = ~beyond & reach
+        o_out, o_near, o_c, o_m = best_out[idx], best_near[idx], best_centre[idx], best_margin[idx]
+        better = out_d < o_out - tol
+        eq = np.abs(out_d - o_out) <= tol
+        better |= eq & (~near & o_near)
+        eq &= near == o_near
+        better |= eq & (centre < o_c - tol)
+        eq &= np.abs(centre - o_c) <= tol
+        better |= eq & (margin > o_m)
+        better &= inside
         tgt = idx[better]
         road_index[tgt] = ri
         s_out[tgt] = s[better]
         t_out[tgt] = t[better]
-        best_abs_t[tgt] = np.abs(t[better])
-        tried_beyond[idx[beyond & (np.abs(t) <= max_lateral_m)]] = True
-
-    for ri in range(len(roads)):  # grouped by road, vectorised over points
-        accept(ri, np.nonzero(first == ri)[0])
-    retry = np.nonzero(road_index < 0)[0]
-    if retry.size and len(roads) > 1:
-        for ri in range(len(roads)):
-            accept(ri, retry[first[retry] != ri])
+        best_out[tgt] = out_d[better]
+        best_near[tgt] = near[better]
+        best_centre[tgt] = centre[better]
+        best_margin[tgt] = margin[better]
     status[road_index >= 0] = _OK
     status[(road_index < 0) & tried_beyond] = _BEYOND_ENDS
     station = np.full(n, np.nan)
@@ -427,21 +465,24 @@ def self_consistency_errors(
     -------
     edge_errors, lane_errors, counts
         Errors of road-edge points against the nearest road edge and of lane samples
-        against the nearest lane boundary, and counts: ``excluded_beyond_ends``,
+        against the nearest lane boundary, and extras: ``excluded_beyond_ends``,
         ``excluded_no_road`` (points on no road), ``ramp_points`` (points whose nearest
-        boundary is on a ramp road).
+        boundary is on a ramp road), ``height_rmse_m`` (RMS of measured z minus the map's
+        surface height at the points on mainline roads, metres).
     """
     cfg = config or EvaluationConfig()
     main = mainline_roads(network)
     ramps = ramp_roads(network) if cfg.self_consistency_scope == "all" else []
-    counts = {"excluded_beyond_ends": 0, "excluded_no_road": 0, "ramp_points": 0}
+    counts: dict[str, Any] = {"excluded_beyond_ends": 0, "excluded_no_road": 0, "ramp_points": 0}
     out = []
+    dz_all = []
     for pts, kind in ((run.edges, EDGE), (run.lane_samples, LANE)):
         pts = np.asarray(pts, dtype=float).reshape(-1, 3)
         kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
         proj = project_points(main, pts, **kw)
         err, lane = _errors_full(main, proj, kind)
         status = proj.status
+        use_r = np.zeros(err.size, dtype=bool)
         if ramps:
             proj_r = project_points(ramps, pts, **kw)
             err_r, lane_r = _errors_full(ramps, proj_r, kind)
@@ -456,10 +497,15 @@ def self_consistency_errors(
         out.append(
             PointErrors(f"self/{kind}", pts[good, :2], proj.station_m[good], err[good], lane[good])
         )
+        on_main = proj.ok & ~use_r
+        for r in np.unique(proj.road_index[on_main]):  # measured height - map surface
+            sel = on_main & (proj.road_index == r)
+            dz_all.append(pts[sel, 2] - _height(main[int(r)], proj.s[sel], proj.t[sel]))
+    counts["height_rmse_m"] = _rmse(np.concatenate(dz_all)) if dz_all else math.nan
     return out[0], out[1], counts
 
 
-def _self_summary(edge: PointErrors, lane: PointErrors, counts: dict[str, int]) -> dict:
+def _self_summary(edge: PointErrors, lane: PointErrors, counts: dict[str, Any]) -> dict:
     both = np.concatenate([edge.error_m, lane.error_m])
     return {
         "road_edge_rmse_m": _rmse(edge.error_m),
@@ -469,6 +515,23 @@ def _self_summary(edge: PointErrors, lane: PointErrors, counts: dict[str, int]) 
         "lane_samples": int(lane.error_m.size),
         **counts,
     }
+
+
+def data_quality(
+    network: RoadNetwork, run: Any, *, config: EvaluationConfig | None = None
+) -> dict[str, float]:
+    """Relative accuracy of a map for the OpenDRIVE header's ``<dataQuality><error>``.
+
+    Returns
+    -------
+    dict
+        ``xy_relative`` (overall self-consistency RMSE) and ``z_relative`` (height RMSE of
+        the measured points against the map surface), metres; keys of
+        :class:`~roadtwin.model.Header` ``data_quality``. The absolute errors need the
+        GNSS accuracy of the run, which a run folder does not state, so they are absent.
+    """
+    sc = self_consistency(network, run, config=config)
+    return {"xy_relative": sc["overall_rmse_m"], "z_relative": sc["height_rmse_m"]}
 
 
 def self_consistency(
@@ -486,7 +549,8 @@ def self_consistency(
         ``road_edge_rmse_m``, ``lane_boundary_rmse_m``, ``overall_rmse_m`` (all points
         pooled), metres (NaN where no point was evaluated); ``road_edge_points``,
         ``lane_samples`` (evaluated counts), ``excluded_beyond_ends``, ``excluded_no_road``,
-        ``ramp_points`` (see :func:`self_consistency_errors` for which roads count).
+        ``ramp_points`` (see :func:`self_consistency_errors` for which roads count),
+        ``height_rmse_m`` (measured z against the map surface, metres).
     """
     edge, lane, counts = self_consistency_errors(network, run, config=config)
     return _self_summary(edge, lane, counts)
@@ -497,6 +561,12 @@ def self_consistency(
 # ---------------------------------------------------------------------------
 
 
+def _stations(length_m: float, step_m: float) -> FloatArray:
+    """Stations every ``step_m`` at the middle of each step (never exactly on a road end,
+    where consecutive roads meet and lane layouts may change)."""
+    return np.arange(0.5 * step_m, length_m, step_m)
+
+
 def _sample_boundaries(
     road: Road, step_m: float
 ) -> tuple[FloatArray, FloatArray, list[str], NDArray[np.int64], FloatArray]:
@@ -504,7 +574,7 @@ def _sample_boundaries(
 
     Returns ``s, t, kinds, lane_ids, z`` (flat arrays over boundaries and stations).
     """
-    s_all = np.arange(0.0, road.length, step_m)
+    s_all = _stations(road.length, step_m)
     s_list, t_list, kinds, ids = [], [], [], []
     sec_idx = road.section_index(s_all)
     for k in np.unique(sec_idx):
@@ -583,7 +653,7 @@ def _lane_count(
     sections = []
     all_match: list[NDArray[np.bool_]] = []
     for i, road in enumerate(true_roads):
-        s = np.arange(0.0, road.length, cfg.truth_step_m)
+        s = _stations(road.length, cfg.truth_step_m)
         sec_idx = road.section_index(s)
         centre = np.empty(s.size)
         for k in np.unique(sec_idx):
@@ -640,8 +710,10 @@ def _truth_ramps(
 ) -> tuple[dict[str, Any], dict[str, PointErrors]]:
     """True ramp centre lines and boundaries against the nearest built ramp road.
 
-    Centre: the middle between a section's road edges, against the same on the built road.
-    Boundaries: against the nearest built boundary of the same kind.
+    Centre: the middle between a section's road edges, against the same on the built road
+    the centre point projects onto (:func:`project_points`). Boundaries: against the
+    nearest boundary of the same kind on the built road their station's centre point went
+    to (so a boundary point where two ramps overlap stays with its own ramp).
     """
     true_roads = ramp_roads(truth)
     built = ramp_roads(network)
@@ -650,7 +722,7 @@ def _truth_ramps(
     n_true = 0
     n_centre_points = 0
     for road in true_roads:
-        s = np.arange(0.0, road.length, cfg.truth_step_m)
+        s = _stations(road.length, cfg.truth_step_m)
         sec_idx = road.section_index(s)
         t_c = np.empty(s.size)
         for k in np.unique(sec_idx):
@@ -664,32 +736,35 @@ def _truth_ramps(
         n_true += sb.size
         if not built:
             continue
-        for pts, s_along, errs, xys, sts, kinds in (
-            (pts_c, s, centre_err, xy_c, st_c, None),
-            (pts_b, sb, bound_err, xy_b, st_b, kinds_b_arr),
-        ):
-            proj = project_points(
-                built, pts, max_lateral_m=cfg.max_lateral_m, end_tolerance_m=cfg.end_tolerance_m
-            )
-            for r in np.unique(proj.road_index[proj.ok]):
-                sel = np.nonzero(proj.road_index == r)[0]
-                broad = built[int(r)]
-                if kinds is None:
-                    t_ref = np.empty(sel.size)
-                    sidx = broad.section_index(proj.s[sel])
-                    for k in np.unique(sidx):
-                        m = sidx == k
-                        t_ref[m] = _section_centre_t(
-                            broad, proj.s[sel][m], broad.lane_sections[int(k)]
-                        )
-                else:
-                    t_ref = np.empty(sel.size)
-                    for kind in (EDGE, LANE):
-                        m = kinds[sel] == kind
-                        t_ref[m], _ = nearest_boundary(broad, proj.s[sel][m], proj.t[sel][m], kind)
-                errs.append(proj.t[sel] - t_ref)
-                xys.append(pts[sel])
-                sts.append(s_along[sel])
+        kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
+        proj_c = project_points(built, pts_c, **kw)
+        # a boundary point goes to the built road its station's centre point went to
+        station_idx = np.clip(
+            np.rint((sb - 0.5 * cfg.truth_step_m) / cfg.truth_step_m), 0, s.size - 1
+        )
+        owner_b = proj_c.road_index[station_idx.astype(np.int64)]
+        for r in np.unique(proj_c.road_index[proj_c.ok]):
+            broad = built[int(r)]
+            sel = np.nonzero(proj_c.road_index == r)[0]
+            sc_, tc_ = proj_c.s[sel], proj_c.t[sel]
+            t_ref = np.empty(sel.size)
+            sidx = broad.section_index(sc_)
+            for k in np.unique(sidx):
+                m = sidx == k
+                t_ref[m] = _section_centre_t(broad, sc_[m], broad.lane_sections[int(k)])
+            centre_err.append(tc_ - t_ref)
+            xy_c.append(pts_c[sel])
+            st_c.append(s[sel])
+            selb = np.nonzero(owner_b == r)[0]
+            s_b, t_b, beyond = _project_one(broad, pts_b[selb], cfg.end_tolerance_m)
+            selb, s_b, t_b = selb[~beyond], s_b[~beyond], t_b[~beyond]
+            t_ref = np.full(selb.size, np.nan)
+            for kind in (EDGE, LANE):
+                m = kinds_b_arr[selb] == kind
+                t_ref[m], _ = nearest_boundary(broad, s_b[m], t_b[m], kind)
+            bound_err.append(t_b - t_ref)
+            xy_b.append(pts_b[selb])
+            st_b.append(sb[selb])
     details = {}
     result: dict[str, Any] = {"true_ramp_roads": len(true_roads), "built_ramp_roads": len(built)}
     for key, errs, xys, sts, total in (
@@ -698,7 +773,8 @@ def _truth_ramps(
     ):
         e = np.concatenate(errs) if errs else np.zeros(0)
         result[key] = error_stats(e)
-        result[key]["covered_fraction"] = float(e.size / total) if total else None
+        covered = int(np.isfinite(e).sum())  # NaN: the built ramp has no such boundary
+        result[key]["covered_fraction"] = float(covered / total) if total else None
         details[f"truth/{key}"] = PointErrors(
             f"truth/{key}",
             np.vstack(xys) if xys else np.zeros((0, 2)),
@@ -1203,6 +1279,7 @@ def compare_methods(
     methods: Sequence[str] = ("default", "paper"),
     config: Any = None,
     eval_config: EvaluationConfig | None = None,
+    include_truth: bool = True,
 ) -> EvaluationReport:
     """Build a run's map with each mainline method and evaluate them side by side.
 
@@ -1219,10 +1296,15 @@ def compare_methods(
         :class:`~roadtwin.config.PipelineConfig` (defaults if ``None``); only the mainline
         method is changed per build.
 
+    include_truth
+        With a truth network, also evaluate the truth itself against the run (method
+        ``"truth"``): the floor of the self-consistency metric set by the measurement noise.
+
     Returns
     -------
     EvaluationReport
-        One :class:`RunEvaluation` per method (``method`` set), in the order given.
+        One :class:`RunEvaluation` per method (``method`` set), in the order given, then
+        the truth's.
     """
     from dataclasses import replace
 
@@ -1248,6 +1330,18 @@ def compare_methods(
                 truth_info=truth_info,
                 method=method,
                 map_name=f"{method} build",
+                config=eval_config,
+            )
+        )
+    if truth is not None and include_truth:
+        reports.append(
+            evaluate(
+                truth,
+                run,
+                truth=truth,
+                truth_info=truth_info,
+                method="truth",
+                map_name="truth",
                 config=eval_config,
             )
         )

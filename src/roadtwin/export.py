@@ -263,7 +263,13 @@ def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike = "map.
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(10, 10), dpi=110)
+    pts = [xy for _, _, lane_id, xy in network_lines(network, step_m=25.0) if lane_id == 0]
+    if run is not None:
+        pts.append(np.asarray(run.trajectory.xy))
+    allxy = np.vstack(pts) if pts else np.zeros((2, 2))
+    span = np.ptp(allxy, axis=0) + 40.0
+    aspect = float(np.clip(span[1] / span[0], 0.3, 1.5))
+    fig, ax = plt.subplots(figsize=(12, 1.5 + 10.5 * aspect), dpi=110)
     if run is not None:
         edges = np.asarray(run.edges)
         if edges.size:

@@ -1,30 +1,38 @@
 """Mapping-run loading and validation (DESIGN.md section 3).
 
 A run folder holds ``run.toml`` and the files it names. :func:`load_run` reads them into
-one :class:`MappingRun` of NumPy arrays in the mapping frame. Every reader is vectorised
-(pandas / pyarrow / laspy / ``np.fromfile``); bad input raises
+one :class:`MappingRun` of NumPy arrays in the mapping frame. File formats (CSV tables,
+road-edge point clouds) are parsed in :mod:`roadtwin.pointfiles`; this module checks the
+manifest, the trajectory and the lane samples, and transforms the samples into the
+mapping frame. Everything is vectorised; bad input raises
 :class:`~roadtwin._errors.InputError` with one line naming the file, row or field and what
-was expected; suspicious but usable input warns with
-:class:`~roadtwin._errors.InputWarning`.
+was expected; suspicious but usable input warns with :class:`~roadtwin._errors.InputWarning`.
 """
 
 from __future__ import annotations
 
 import logging
 import warnings
-from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from ._errors import InputError, InputWarning
 from .config import LoadConfig
 from .frames import MappingFrame, Origin
+from .pointfiles import (
+    EDGE_SUFFIXES,
+    float_column,
+    int_column,
+    one_line,
+    read_road_edges,
+    read_table,
+    require_columns,
+)
 
 try:
     import tomllib
@@ -140,13 +148,9 @@ class MappingRun:
 # ---------------------------------------------------------------------------
 
 TRAJECTORY_COLUMNS = ("frame", "t", "x", "y", "z", "yaw")
-EDGE_SUFFIXES = (".las", ".laz", ".ply", ".csv", ".npy", ".parquet")
 OSM_SUFFIXES = (".osm", ".osm.gz", ".osm.bz2", ".osm.pbf")
-SIDE_LEFT = 1
-"""Internal edge side code of a left road-edge point (``MappingRun.edge_side``)."""
-SIDE_RIGHT = -1
-"""Internal edge side code of a right road-edge point."""
 _MIN_MOTION_STEP_M = 0.2
+_MOTION_BASELINE_M = 2.0
 
 
 def load_run(run_dir: str | Path, *, config: LoadConfig | None = None) -> MappingRun:
@@ -239,7 +243,7 @@ def _read_manifest(path: Path) -> dict[str, Any]:
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        msg = f"{path}: cannot read the run manifest ({exc})"
+        msg = f"{path}: cannot read the run manifest ({one_line(exc)})"
         raise InputError(msg) from None
     if not text.strip():
         msg = f"{path}: file is empty (expected [origin], [frame] and [files] tables)"
@@ -247,7 +251,7 @@ def _read_manifest(path: Path) -> dict[str, Any]:
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        msg = f"{path}: not valid TOML: {exc}"
+        msg = f"{path}: not valid TOML: {one_line(exc)}"
         raise InputError(msg) from None
 
 
@@ -297,7 +301,7 @@ def _frame_from_manifest(manifest: dict[str, Any], path: Path) -> MappingFrame:
         origin = Origin(lat, lon, alt)
         return MappingFrame(origin, crs=crs.strip())
     except InputError as exc:
-        msg = f"{path}: {exc}"
+        msg = f"{path}: {one_line(exc)}"
         raise InputError(msg) from None
 
 
@@ -346,79 +350,6 @@ def _files_from_manifest(manifest: dict[str, Any], path: Path, root: Path) -> di
 
 
 # ---------------------------------------------------------------------------
-# tables (CSV / Parquet) -> validated float columns
-# ---------------------------------------------------------------------------
-
-
-def _read_csv(path: Path, what: str) -> pd.DataFrame:
-    """Read a CSV with a header row; column names stripped and lower-cased."""
-    if path.stat().st_size == 0:
-        msg = f"{path}: file is empty (expected {what})"
-        raise InputError(msg)
-    try:
-        df = pd.read_csv(path, skipinitialspace=True, comment=None, low_memory=False)
-    except pd.errors.EmptyDataError:
-        msg = f"{path}: file is empty (expected {what})"
-        raise InputError(msg) from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        msg = f"{path}: not a readable CSV file ({exc}); expected {what}"
-        raise InputError(msg) from None
-    df.columns = [str(c).strip().lower() for c in df.columns]
-    if df.shape[0] == 0:
-        msg = f"{path}: file has a header but no data rows (expected {what})"
-        raise InputError(msg)
-    return df
-
-
-def _require(columns: Iterable[str], needed: Iterable[str], path: Path, what: str) -> None:
-    have = set(columns)
-    for name in needed:
-        if name not in have:
-            msg = (
-                f"{path}: missing column '{name}' (expected {what}; "
-                f"found: {', '.join(map(str, columns))})"
-            )
-            raise InputError(msg)
-
-
-def _float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
-    """A column as float64; non-numbers, NaN and inf name the first bad data row."""
-    series = values if isinstance(values, pd.Series) else pd.Series(np.asarray(values))
-    if series.dtype.kind in "fiub":
-        arr = series.to_numpy(dtype=np.float64)
-    else:
-        arr = pd.to_numeric(series, errors="coerce").to_numpy(dtype=np.float64)
-        bad_text = np.isnan(arr) & series.notna().to_numpy()
-        if bad_text.any():
-            row = int(np.argmax(bad_text))
-            msg = (
-                f"{path}: data row {row + 1}, column '{name}': {series.iloc[row]!r} is not a number"
-            )
-            raise InputError(msg)
-    finite = np.isfinite(arr)
-    if not finite.all():
-        row = int(np.argmin(finite))
-        count = int(finite.size - np.count_nonzero(finite))
-        msg = (
-            f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not a finite number "
-            f"({count} NaN/inf value(s) in this column; expected finite numbers)"
-        )
-        raise InputError(msg)
-    return arr
-
-
-def _int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
-    arr = _float_column(values, path, name)
-    rounded = np.round(arr)
-    bad = np.abs(arr - rounded) > 1e-9
-    if bad.any():
-        row = int(np.argmax(bad))
-        msg = f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not an integer"
-        raise InputError(msg)
-    return rounded.astype(np.int64)
-
-
-# ---------------------------------------------------------------------------
 # trajectory
 # ---------------------------------------------------------------------------
 
@@ -447,15 +378,15 @@ def read_trajectory(path: str | Path, *, config: LoadConfig | None = None) -> Tr
     cfg = config if config is not None else LoadConfig()
     path = Path(path)
     what = "columns frame,t,x,y,z,yaw[,pitch,roll]"
-    df = _read_csv(path, what)
-    _require(df.columns, TRAJECTORY_COLUMNS, path, what)
-    frame = _int_column(df["frame"], path, "frame")
-    t = _float_column(df["t"], path, "t")
-    xyz = np.column_stack([_float_column(df[c], path, c) for c in ("x", "y", "z")])
-    yaw = _float_column(df["yaw"], path, "yaw")
+    df = read_table(path, what)
+    require_columns(df.columns, TRAJECTORY_COLUMNS, path, what)
+    frame = int_column(df["frame"], path, "frame")
+    t = float_column(df["t"], path, "t")
+    xyz = np.column_stack([float_column(df[c], path, c) for c in ("x", "y", "z")])
+    yaw = float_column(df["yaw"], path, "yaw")
     n = t.size
-    pitch = _float_column(df["pitch"], path, "pitch") if "pitch" in df else np.zeros(n)
-    roll = _float_column(df["roll"], path, "roll") if "roll" in df else np.zeros(n)
+    pitch = float_column(df["pitch"], path, "pitch") if "pitch" in df else np.zeros(n)
+    roll = float_column(df["roll"], path, "roll") if "roll" in df else np.zeros(n)
 
     order = np.argsort(frame, kind="stable")
     dup = np.flatnonzero(np.diff(frame[order]) == 0)
@@ -494,14 +425,21 @@ def _wrap(angle: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def _check_yaw(path: Path, xy: NDArray[np.float64], yaw: NDArray[np.float64]) -> None:
-    """Yaw must be radians, CCW from +x, along the direction of travel."""
-    step = np.diff(xy, axis=0)
+    """Yaw must be radians, CCW from +x, along the direction of travel.
+
+    The direction of travel is taken over a baseline of about ``_MOTION_BASELINE_M`` (several
+    poses at high pose rates) so that position noise does not dominate it.
+    """
+    seg = np.hypot(*np.diff(xy, axis=0).T)
+    typical = float(np.median(seg))
+    k = int(min(max(1, np.ceil(_MOTION_BASELINE_M / typical)) if typical > 0 else 1, len(xy) - 1))
+    step = xy[k:] - xy[:-k]
     dist = np.hypot(step[:, 0], step[:, 1])
     moving = dist > _MIN_MOTION_STEP_M
     max_abs = float(np.max(np.abs(yaw)))
     if np.count_nonzero(moving) >= 3:
         motion = np.arctan2(step[moving, 1], step[moving, 0])
-        y_mid = yaw[:-1][moving]
+        y_mid = yaw[:-k][moving]
         err_rad = np.degrees(np.median(np.abs(_wrap(y_mid - motion))))
         err_deg = np.degrees(np.median(np.abs(_wrap(np.radians(y_mid) - motion))))
         if err_deg < 10.0 and err_rad > max(3.0 * err_deg, 8.0):
@@ -548,256 +486,6 @@ def _check_jumps(
 
 
 # ---------------------------------------------------------------------------
-# road edges
-# ---------------------------------------------------------------------------
-
-
-def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
-    """Read road-edge points from LAS/LAZ, PLY, CSV, NPY or Parquet.
-
-    Parameters
-    ----------
-    path
-        Point file; ``x, y, z`` in the mapping frame (metres), optional ``side``
-        (strings ``left``/``right``, or integers 1 = left, 2 = right, 0 = unknown;
-        -1 is accepted for right).
-
-    Returns
-    -------
-    edges : (N, 3) float64 points, mapping frame, metres.
-    edge_side : (N,) int8, +1 left, -1 right, 0 unknown.
-    """
-    path = Path(path)
-    name = path.name.lower()
-    if path.stat().st_size == 0:
-        msg = f"{path}: file is empty (expected road-edge points x,y,z)"
-        raise InputError(msg)
-    if name.endswith((".las", ".laz")):
-        cols, side = _read_las(path)
-    elif name.endswith(".ply"):
-        cols, side = _read_ply(path)
-    elif name.endswith(".csv"):
-        df = _read_csv(path, "columns x,y,z[,side]")
-        _require(df.columns, "xyz", path, "columns x,y,z[,side]")
-        cols = {c: df[c] for c in "xyz"}
-        side = df.get("side")
-    elif name.endswith(".npy"):
-        cols, side = _read_npy(path)
-    elif name.endswith(".parquet"):
-        cols, side = _read_parquet(path)
-    else:
-        msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
-        raise InputError(msg)
-    xyz = np.column_stack([_float_column(cols[c], path, c) for c in "xyz"])
-    if xyz.shape[0] == 0:
-        msg = f"{path}: no points (expected road-edge points x,y,z)"
-        raise InputError(msg)
-    codes = _side_codes(side, path, xyz.shape[0])
-    return xyz, codes
-
-
-def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
-    """Map a ``side`` column (strings or integer codes) to +1 left / -1 right / 0."""
-    if side is None:
-        return np.zeros(n, np.int8)
-    series = side if isinstance(side, pd.Series) else pd.Series(np.asarray(side))
-    out = np.zeros(n, np.int8)
-    if series.dtype.kind in "iuf":
-        vals = series.to_numpy(dtype=np.float64)
-        vals = np.where(np.isnan(vals), 0.0, vals)
-        ok = np.isin(vals, (0.0, 1.0, 2.0, -1.0))
-        if not ok.all():
-            row = int(np.argmin(ok))
-            msg = (
-                f"{path}: data row {row + 1}, field 'side': {vals[row]:g} is not a side code "
-                "(expected 1 = left, 2 = right, 0 = unknown)"
-            )
-            raise InputError(msg)
-        out[vals == 1.0] = SIDE_LEFT
-        out[(vals == 2.0) | (vals == -1.0)] = SIDE_RIGHT
-        return out
-    text = series.astype("string").str.strip().str.lower().fillna("")
-    left = text.isin(["left", "l"]).to_numpy(dtype=bool)
-    right = text.isin(["right", "r"]).to_numpy(dtype=bool)
-    unknown = text.isin(["", "unknown", "none"]).to_numpy(dtype=bool)
-    ok = left | right | unknown
-    if not ok.all():
-        row = int(np.argmin(ok))
-        msg = (
-            f"{path}: data row {row + 1}, column 'side': {series.iloc[row]!r} is not a side "
-            "(expected 'left' or 'right')"
-        )
-        raise InputError(msg)
-    out[left] = SIDE_LEFT
-    out[right] = SIDE_RIGHT
-    return out
-
-
-def _read_las(path: Path) -> tuple[dict[str, Any], Any]:
-    import laspy
-
-    try:
-        las = laspy.read(path)
-    except Exception as exc:  # laspy raises many kinds on corrupt files
-        msg = f"{path}: not a readable LAS/LAZ file ({exc})"
-        raise InputError(msg) from None
-    cols = {"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z)}
-    names = {d.lower(): d for d in las.point_format.dimension_names}
-    side = np.asarray(las[names["side"]]) if "side" in names else None
-    return cols, side
-
-
-def _read_npy(path: Path) -> tuple[dict[str, Any], Any]:
-    try:
-        arr = np.load(path, allow_pickle=False)
-    except (ValueError, OSError) as exc:
-        msg = f"{path}: not a readable .npy array ({exc})"
-        raise InputError(msg) from None
-    if arr.dtype.names:
-        names = {n.lower(): n for n in arr.dtype.names}
-        _require(names, "xyz", path, "fields x,y,z[,side]")
-        cols = {c: arr[names[c]] for c in "xyz"}
-        side = arr[names["side"]] if "side" in names else None
-        return cols, side
-    if arr.ndim != 2 or arr.shape[1] not in (3, 4):
-        msg = (
-            f"{path}: array of shape {arr.shape}; expected (N, 3) x,y,z, (N, 4) x,y,z,side "
-            "or a structured array with fields x,y,z[,side]"
-        )
-        raise InputError(msg)
-    cols = {c: arr[:, i] for i, c in enumerate("xyz")}
-    return cols, (arr[:, 3] if arr.shape[1] == 4 else None)
-
-
-def _read_parquet(path: Path) -> tuple[dict[str, Any], Any]:
-    import pyarrow.parquet as pq
-
-    try:
-        schema = pq.read_schema(path)
-    except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
-        msg = f"{path}: not a readable Parquet file ({exc})"
-        raise InputError(msg) from None
-    names = {n.lower(): n for n in schema.names}
-    _require(names, "xyz", path, "columns x,y,z[,side]")
-    wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
-    table = pq.read_table(path, columns=wanted)
-    cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
-    side = table.column(names["side"]).to_pandas() if "side" in names else None
-    return cols, side
-
-
-_PLY_TYPES = {
-    "char": "i1",
-    "int8": "i1",
-    "uchar": "u1",
-    "uint8": "u1",
-    "short": "i2",
-    "int16": "i2",
-    "ushort": "u2",
-    "uint16": "u2",
-    "int": "i4",
-    "int32": "i4",
-    "uint": "u4",
-    "uint32": "u4",
-    "float": "f4",
-    "float32": "f4",
-    "double": "f8",
-    "float64": "f8",
-}
-
-
-def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
-    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
-    with path.open("rb") as fh:
-        head = fh.read(65536)
-    end = head.find(b"end_header")
-    if not head.startswith(b"ply") or end < 0:
-        msg = f"{path}: not a PLY file (expected a 'ply' header ending in 'end_header')"
-        raise InputError(msg)
-    nl = head.find(b"\n", end)
-    body_offset = nl + 1
-    lines = head[:end].decode("ascii", errors="replace").splitlines()
-    fmt = None
-    elements: list[tuple[str, int, list[tuple[str, str | None]]]] = []
-    for raw in lines[1:]:
-        tok = raw.split()
-        if not tok or tok[0] in ("comment", "obj_info"):
-            continue
-        if tok[0] == "format" and len(tok) >= 2:
-            fmt = tok[1]
-        elif tok[0] == "element" and len(tok) == 3:
-            elements.append((tok[1], int(tok[2]), []))
-        elif tok[0] == "property" and elements:
-            if tok[1] == "list":
-                elements[-1][2].append((tok[-1], None))
-            elif len(tok) == 3 and tok[1] in _PLY_TYPES:
-                elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]]))
-            else:
-                msg = f"{path}: PLY header line {raw.strip()!r}: unknown property type"
-                raise InputError(msg)
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        msg = f"{path}: PLY format {fmt!r}; expected ascii or binary_little/big_endian"
-        raise InputError(msg)
-    skip_rows = 0
-    skip_bytes = 0
-    vertex = None
-    for name, count, props in elements:
-        if name == "vertex":
-            vertex = (count, props)
-            break
-        if any(t is None for _, t in props) and fmt != "ascii":
-            msg = f"{path}: PLY element {name!r} with list properties before 'vertex'"
-            raise InputError(msg)
-        skip_rows += count
-        skip_bytes += count * sum(np.dtype(t).itemsize for _, t in props if t is not None)
-    if vertex is None:
-        msg = f"{path}: PLY file has no 'vertex' element (expected x,y,z vertices)"
-        raise InputError(msg)
-    count, props = vertex
-    if any(t is None for _, t in props):
-        msg = f"{path}: PLY 'vertex' element has list properties; expected scalar x,y,z[,side]"
-        raise InputError(msg)
-    names = [p.lower() for p, _ in props]
-    _require(names, "xyz", path, "vertex properties x,y,z[,side]")
-    if count == 0:
-        msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
-        raise InputError(msg)
-    if fmt == "ascii":
-        try:
-            df = pd.read_csv(
-                path,
-                sep=r"\s+",
-                header=None,
-                skiprows=len(head[:body_offset].splitlines()) + skip_rows,
-                nrows=count,
-                names=names,
-                usecols=range(len(names)),
-                engine="c",
-            )
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
-            msg = f"{path}: PLY ascii body not readable ({exc})"
-            raise InputError(msg) from None
-        if df.shape[0] != count:
-            msg = f"{path}: PLY header says {count} vertices, body has {df.shape[0]}"
-            raise InputError(msg)
-        cols = {c: df[c] for c in "xyz"}
-        return cols, df.get("side")
-    endian = "<" if fmt == "binary_little_endian" else ">"
-    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])
-    size = path.stat().st_size
-    need = body_offset + skip_bytes + count * dtype.itemsize
-    if size < need:
-        msg = (
-            f"{path}: PLY body too short: header says {count} vertices of {dtype.itemsize} "
-            f"bytes, file has {size - body_offset - skip_bytes} bytes of vertex data"
-        )
-        raise InputError(msg)
-    data = np.fromfile(path, dtype=dtype, count=count, offset=body_offset + skip_bytes)
-    cols = {c: data[c].astype(np.float64) for c in "xyz"}
-    return cols, (data["side"] if "side" in names else None)
-
-
-# ---------------------------------------------------------------------------
 # lane samples
 # ---------------------------------------------------------------------------
 
@@ -829,15 +517,15 @@ def read_lane_samples(
     """
     path = Path(path)
     what = "columns frame,x,y[,z] or t,x,y[,z]"
-    df = _read_csv(path, what)
-    _require(df.columns, ("x", "y"), path, what)
-    ex = _float_column(df["x"], path, "x")
-    ey = _float_column(df["y"], path, "y")
-    ez = _float_column(df["z"], path, "z") if "z" in df else None
+    df = read_table(path, what)
+    require_columns(df.columns, ("x", "y"), path, what)
+    ex = float_column(df["x"], path, "x")
+    ey = float_column(df["y"], path, "y")
+    ez = float_column(df["z"], path, "z") if "z" in df else None
     traj_frame = trajectory.frame
     order = np.argsort(traj_frame)
     if "frame" in df:
-        frame = _int_column(df["frame"], path, "frame")
+        frame = int_column(df["frame"], path, "frame")
         pos = np.searchsorted(traj_frame[order], frame)
         pos_c = np.minimum(pos, order.size - 1)
         found = traj_frame[order][pos_c] == frame
@@ -854,7 +542,7 @@ def read_lane_samples(
         px, py, pz = trajectory.xyz[idx].T
         yaw = trajectory.yaw[idx]
     elif "t" in df:
-        t = _float_column(df["t"], path, "t")
+        t = float_column(df["t"], path, "t")
         t0, t1 = float(trajectory.t[0]), float(trajectory.t[-1])
         slack = float(np.median(np.diff(trajectory.t)))  # one frame interval at either end
         outside = (t < t0 - slack) | (t > t1 + slack)

@@ -606,8 +606,8 @@ def fit_outer_edge(
     bin_m = 2.0
     cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
     cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
-    q = binned_quantile(s[ok], d[ok], cedges, 0.25)
-    q = moving_median(q, window=5)
+    q_raw = binned_quantile(s[ok], d[ok], cedges, 0.25)
+    q = moving_median(q_raw, window=5)
     have = np.isfinite(q)
     if not np.any(have):
         return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
@@ -631,11 +631,20 @@ def fit_outer_edge(
         for b in breaks
     ]
     breaks = breaks[np.asarray(real, dtype=bool)] if breaks.size else breaks
-    qf = _fill_nan(cgrid, q)
-    # piecewise-constant lower-cluster reference (no interpolation across steps)
+    # on the grid, so that edge segments and lane sections start at the same station
+    breaks = grid[0] + step * np.rint((breaks - grid[0]) / step)
+    bounds = np.concatenate([[grid[0] - 1.0], breaks, [grid[-1] + 1.0]])
+    # lower-cluster reference per segment (the moving median must not mix the levels of
+    # two sides of a step)
+    qf = np.full(cgrid.size, np.nan)
+    seg_of_bin = np.searchsorted(bounds, cgrid, side="right") - 1
+    for k in range(bounds.size - 1):
+        sel_b = seg_of_bin == k
+        if np.any(sel_b):
+            qf[sel_b] = moving_median(q_raw[sel_b], window=5)
+    qf = _fill_nan(cgrid, qf)
     ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
     used = ok & (np.abs(d - ref) < 0.8)
-    bounds = np.concatenate([[grid[0] - 1.0], breaks, [grid[-1] + 1.0]])
     out = np.full(grid.size, np.nan)
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         gsel = (grid >= a) & (grid < b)
@@ -773,10 +782,40 @@ def _tracks_from_samples(
             mad_k=cfg.edge_outlier_mad,
             min_threshold_m=cfg.edge_outlier_min_m,
         )
+        keep_g = _trim_ramp_lines(g, fit, cfg)
+        if np.count_nonzero(keep_g) * cfg.grid_step_m < cfg.lane_min_track_m:
+            continue
+        g, fit = g[keep_g], fit[keep_g]
+        lo, hi = float(g[0]), float(g[-1])
         ss = ss_all[inl]
+        ss = ss[(ss >= lo - 1.0) & (ss <= hi + 1.0)]
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), np.sort(ss)))
     return _merge_collinear(final, cfg)
+
+
+def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
+    """Mask of the part of a marking track that belongs to the mainline.
+
+    Ramp markings cross the mainline corridor near a gore: before an entry gore they come
+    in from outside, converging steeply (d decreasing), after an exit gore they leave
+    (d increasing). A track's leading part that converges steeply and its trailing part
+    that diverges steeply are cut off. (Lane tapers of the mainline itself open outward at
+    their start and close inward at their end, so they are kept.)
+    """
+    keep = np.ones(g.size, dtype=bool)
+    if g.size < 5:
+        return keep
+    slope = np.gradient(d, g)
+    steep = cfg.ramp_line_slope
+    # leading part: converging inward steeply
+    flat = np.flatnonzero(slope > -steep)
+    if flat.size and flat[0] > 0 and (g[flat[0]] - g[0]) >= 10.0:
+        keep[: flat[0]] = False
+    flat = np.flatnonzero(slope < steep)
+    if flat.size and flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
+        keep[flat[-1] + 1 :] = False
+    return keep
 
 
 def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
@@ -971,19 +1010,24 @@ def _sections_from_tracks(
         codes = codes * 2 + present[k].astype(np.int64) if len(tracks) < 60 else codes
     change = np.nonzero(np.diff(codes) != 0)[0] + 1
     starts = [0, *change.tolist()]
-    # edge steps that do not coincide with a track change start a section too
+    # edge steps start a section too
+    forced: set[int] = set()
     for b in breaks:
         i_b = int(np.clip(np.rint((b - grid[0]) / cfg.grid_step_m), 1, n_g - 1))
-        near = [i for i in starts if 0 < i and abs(i - i_b) * cfg.grid_step_m < 20.0]
-        if near:  # the track change belongs to the gore: move it onto the edge step
-            starts.remove(min(near, key=lambda i: abs(i - i_b)))
+        # track changes next to an edge step belong to the gore: move them onto the step
+        starts = [i for i in starts if i == 0 or abs(i - i_b) * cfg.grid_step_m >= 20.0]
         starts.append(i_b)
+        forced.add(i_b)
     starts = sorted(set(starts))
     min_n = max(1, int(cfg.min_section_m / cfg.grid_step_m))
     merged_starts = [starts[0]]
     for i in starts[1:]:
-        if i - merged_starts[-1] >= min_n and n_g - i >= min_n:
+        if n_g - i < min_n:
+            continue
+        if i - merged_starts[-1] >= min_n:
             merged_starts.append(i)
+        elif i in forced and merged_starts[-1] != 0 and merged_starts[-1] not in forced:
+            merged_starts[-1] = i
     starts = [*merged_starts, n_g]
     sections: list[LaneSection] = []
     bounds_per: list[list[tuple[object, object]]] = []
@@ -1175,22 +1219,29 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
     n_win = max(1, math.ceil(traj_frame.length / win))
     pieces: list[Geometry] = []
     s0 = 0.0
+    w_start = 0.0
     for w in range(n_win):
-        sel = (s_ref >= w * win) & (s_ref < (w + 1) * win)
+        w_end = min((w + 1) * win, traj_frame.length)
+        sel = (s_ref >= w_start) & (s_ref < w_end)
+        cover = float(np.ptp(s_ref[sel])) / max(w_end - w_start, 1e-9) if np.any(sel) else 0.0
+        if (np.count_nonzero(sel) < 8 or cover < 0.6) and w < n_win - 1:
+            continue  # too few points (occlusion): the window grows into the next one
         if np.count_nonzero(sel) < 8:
-            continue
+            break
         pts = ref_pts[sel, :2]
         # window frame: the trajectory heading over the window
-        a_xy, _ = traj_frame.at(np.array([w * win]))
-        b_xy, _ = traj_frame.at(np.array([min((w + 1) * win, traj_frame.length)]))
+        a_xy, _ = traj_frame.at(np.array([w_start]))
+        b_xy, _ = traj_frame.at(np.array([w_end]))
+        w_start = w_end
         direc = b_xy[0] - a_xy[0]
         ang = math.atan2(direc[1], direc[0])
         c, sn = math.cos(ang), math.sin(ang)
         loc = (pts - a_xy[0]) @ np.array([[c, -sn], [sn, c]])
         x, y = loc[:, 0], loc[:, 1]
         coef = np.polyfit(x, y, 3)[::-1]  # y = c0 + c1 x + c2 x^2 + c3 x^3
-        xa, xb = float(x.min()), float(x.max())
-        if xb - xa < 1.0:
+        # the cubic spans the whole window (also where occlusion left no points)
+        xa, xb = 0.0, float(np.hypot(*direc))
+        if xb - xa < 1.0 or np.ptp(x) < 5.0:
             continue
         # x(p) = xa + (xb - xa) p ; y(p) = poly(x(p)) -> cubic in p
         px = np.polynomial.Polynomial([xa, xb - xa])
@@ -1256,19 +1307,33 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
     sections: list[LaneSection] = []
     for g in pieces:
         lo, hi = g.s0, g.s0 + g.length
-        sel = (s_l >= lo) & (s_l < hi) & (d_l > -1.0) & (d_l < 30.0)
-        so = (s_o >= lo) & (s_o < hi)
+        # outer edge (the paper does not say): cubic through the window's nearest outer-
+        # side edge points (ramp edges and outliers lie farther out)
+        so = (s_o >= lo) & (s_o < hi) & (d_o > 0.5)
+        edge_cf = None
+        if np.count_nonzero(so) >= 8:
+            be = np.arange(lo, hi + 5.0, 5.0)
+            q25 = binned_quantile(s_o[so], d_o[so], be, 0.25)
+            qb = np.clip(np.searchsorted(be, s_o[so], side="right") - 1, 0, q25.size - 1)
+            idx = np.flatnonzero(so)
+            so[idx[~(np.abs(d_o[so] - q25[qb]) < 0.5)]] = False
+            if np.count_nonzero(so) >= 4 and np.ptp(s_o[so]) > 0.6 * (hi - lo):
+                edge_cf = np.polyfit(s_o[so] - lo, d_o[so], 3)[::-1]
+            elif np.count_nonzero(so) >= 1:
+                edge_cf = np.array([float(np.median(d_o[so])), 0.0, 0.0, 0.0])
+        d_max = 30.0 if edge_cf is None else float(np.polyval(edge_cf[::-1], 0.5 * (hi - lo))) + 0.3
+        sel = (s_l >= lo) & (s_l < hi) & (d_l > -1.0) & (d_l < d_max)
         ds_ = s_l[sel] - lo
         dd = d_l[sel]
         bounds: list[FloatArray] = []
         if dd.size >= 20:
             X = dd[:, None]
-            sub = rng.choice(dd.size, size=min(dd.size, 1500), replace=False)
+            sub = rng.choice(dd.size, size=min(dd.size, 500), replace=False)
             best_k, best_sc, best_lab = 1, -1.0, None
             for k in range(2, cfg.paper_max_clusters + 1):
                 if k >= sub.size:
                     break
-                km = KMeans(n_clusters=k, n_init=3, random_state=cfg.seed).fit(X[sub])
+                km = KMeans(n_clusters=k, n_init=1, random_state=cfg.seed).fit(X[sub])
                 sc = silhouette_score(X[sub], km.labels_)
                 if sc > best_sc:
                     best_k, best_sc, best_lab = k, sc, km
@@ -1282,9 +1347,7 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
                     cf = np.polyfit(ds_[m], dd[m], 3)[::-1]
                     bounds.append(cf)
             del best_k
-        if np.count_nonzero(so) >= 4:
-            edge_cf = np.polyfit(s_o[so] - lo, d_o[so], 3)[::-1]
-        else:
+        if edge_cf is None:
             last = bounds[-1][0] if bounds else 3.0
             edge_cf = np.array([last + 2.5, 0.0, 0.0, 0.0])
         borders = [np.zeros(4), *bounds, edge_cf]
@@ -1319,11 +1382,14 @@ def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
 
     Edge points are compared with the nearer of the two road edges (reference line and
     the outer border of the outermost lane), lane samples with the nearest lane boundary
-    (outer borders of all lanes but the outermost) at their station.
+    (outer borders of all lanes but the outermost) at their station. Only points between
+    the two road edges (plus 1 m for edge points, 0.5 m for lane samples) count, as in the
+    paper's corridor; ``<kind>_fraction_used`` says how many did.
     """
     frame = _road_frame(road)
     out: dict[str, float] = {}
     errs = {}
+    used: dict[str, float] = {}
     for name, pts in (("road_edge", run.edges), ("lane_boundary", run.lane_samples)):
         if pts.shape[0] == 0:
             errs[name] = np.zeros(0)
@@ -1331,10 +1397,18 @@ def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
         s, t = frame.project(pts)
         ok = (s >= 0) & (s <= road.length)
         s, t = s[ok], t[ok]
+        # only points on the carriageway (+- margin): ramp edges/markings beyond a gore
+        # and points of other roads are not measurements of this road
+        edges = _border_matrix(road, s, edges=True)[:2]
+        margin = 1.0 if name == "road_edge" else 0.5
+        inside = (t >= np.nanmin(edges, axis=0) - margin) & (t <= np.nanmax(edges, axis=0) + margin)
+        s, t = s[inside], t[inside]
+        used[name] = float(np.mean(inside)) if inside.size else 0.0
         borders = _border_matrix(road, s, edges=(name == "road_edge"))
         errs[name] = np.nanmin(np.abs(borders - t[None, :]), axis=0)
     for name, e in errs.items():
         out[name] = float(np.sqrt(np.nanmean(e * e))) if e.size else math.nan
+        out[f"{name}_fraction_used"] = used[name]
     both = np.concatenate(list(errs.values()))
     out["overall"] = float(np.sqrt(np.nanmean(both * both))) if both.size else math.nan
     return out

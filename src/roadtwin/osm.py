@@ -13,11 +13,15 @@ area through OSMnx (Overpass). Both return the same projected graph:
   ``geometry`` (shapely LineString in the mapping frame from ``u`` to ``v``) on every edge;
 * ``graph.graph["crs"]``: the mapping frame's CRS (a PROJ string for ``local``).
 
+Tag values stay OSM strings (``lanes="3"``, ``turn:lanes="through|through;right"``); only
+``oneway`` is OSMnx's bool. A key missing from an edge's attributes means the way has no such tag.
+
 Edge direction is the direction of travel: OSMnx reverses ``oneway=-1`` ways, and adds a
 reverse edge (``reversed=True``) only for two-way ways. ``highway=motorway`` and
 ``motorway_link`` without an ``oneway`` tag are one-way by OSM convention, so they get
-``oneway=yes`` before the graph is built. Edges never span two OSM ways (simplification
-keeps way boundaries), so every tag is a single value.
+``oneway=yes`` before the graph is built (online, where OSMnx has already decided, every
+motorway edge is made one-way, so an explicit ``oneway=no`` motorway is lost). Edges never
+span two OSM ways (simplification keeps way boundaries), so every tag is a single value.
 """
 
 from __future__ import annotations
@@ -42,6 +46,11 @@ from .config import LoadConfig
 from .frames import MappingFrame
 
 log = logging.getLogger(__name__)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
 
 WAY_TAGS = (
     "highway",
@@ -147,6 +156,8 @@ def load_osm(
         graph = _graph_from_xml(xml_path)
     graph = _project_graph(graph, frame)
     graph.graph["source"] = str(path)
+    if graph.number_of_edges() == 0:
+        return _no_ways(path, frame, "the ways near it form no road graph")
     log.info(
         "OSM %s: kept %d of %d drivable ways within %.0f m -> %d nodes, %d edges",
         path.name,
@@ -171,13 +182,15 @@ def load_osm_online(
     as :func:`load_osm`. Needs network access.
     """
     import osmnx as ox
-    from shapely.ops import transform
+    import shapely
 
     cfg = config if config is not None else LoadConfig()
-    xy = np.asarray(around_xy, dtype=float)
+    xy = np.atleast_2d(np.asarray(around_xy, dtype=float))[:, :2]
     line = LineString(xy) if len(xy) > 1 else LineString([xy[0], xy[0] + 1e-3])
     area = line.simplify(1.0).buffer(cfg.osm_buffer_m)
-    area_lonlat = transform(lambda a, b: frame.to_lonlat(a, b), area)
+    area_lonlat = shapely.transform(
+        area, lambda c: np.column_stack(frame.to_lonlat(c[:, 0], c[:, 1]))
+    )
     with _osmnx_tags():
         try:
             graph = ox.graph_from_polygon(
@@ -188,7 +201,7 @@ def load_osm_online(
                 truncate_by_edge=True,
             )
         except Exception as exc:  # osmnx raises InsufficientResponseError, HTTP errors
-            msg = f"OSM online query around the trajectory failed: {exc}"
+            msg = f"OSM online query around the trajectory failed: {_one_line(exc)}"
             raise InputError(msg) from None
         # Overpass data has lost whether motorway oneway was implied: drop reverse copies
         drop = [
@@ -268,7 +281,7 @@ def _read_highway_ways(path: Path) -> _Ways:
             lons.append(lo)
             lats.append(la)
     except RuntimeError as exc:
-        msg = f"{path}: not a readable OSM file ({exc})"
+        msg = f"{path}: not a readable OSM file ({_one_line(exc)})"
         raise InputError(msg) from None
     if out.ids:
         sizes = np.fromiter((len(r) for r in refs), np.int64, len(refs))
@@ -285,7 +298,7 @@ def _is_empty(path: Path) -> bool:
     try:
         return next(iter(osmium.FileProcessor(str(path))), None) is None
     except RuntimeError as exc:
-        msg = f"{path}: not a readable OSM file ({exc})"
+        msg = f"{path}: not a readable OSM file ({_one_line(exc)})"
         raise InputError(msg) from None
 
 
@@ -299,7 +312,7 @@ def _ways_near(
     """Ways with at least one node within ``osm_buffer_m`` of the trajectory."""
     if around_xy is None:
         return np.ones(n_ways, bool)
-    traj = np.asarray(around_xy, dtype=float).reshape(-1, 2)
+    traj = np.atleast_2d(np.asarray(around_xy, dtype=float))[:, :2]
     dense = _densify(traj, max(cfg.osm_buffer_m / 8.0, 1.0))
     dist, _ = cKDTree(dense).query(node_xy, k=1, distance_upper_bound=cfg.osm_buffer_m)
     near = np.isfinite(dist)

@@ -58,11 +58,9 @@ def plot_overview(
     Path
         The written PNG.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
 
     path = Path(path)
     rng = np.random.default_rng(seed)
@@ -75,80 +73,100 @@ def plot_overview(
         size = (float(np.clip(9.0 / aspect + 1.5, 5.0, 11.0)), 10.0)
     else:
         size = (11.0, float(np.clip(9.5 * aspect + 1.5, 5.0, 10.0)))
-    fig, ax = plt.subplots(figsize=size, dpi=110)
+    fig = Figure(figsize=size, dpi=110)  # Agg canvas, no pyplot state
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    if osm_graph is not None and osm_graph.number_of_edges():
+        by_class: dict[str, list[np.ndarray]] = {}
+        for _, _, d in osm_graph.edges(data=True):
+            hw = str(d.get("highway"))
+            key = hw if hw in HIGHWAY_COLORS else "other"
+            by_class.setdefault(key, []).append(np.asarray(d["geometry"].coords))
+        order = [k for k in HIGHWAY_COLORS if k in by_class]
+        if "other" in by_class:
+            order.append("other")
+        for key in reversed(order):
+            lw = 2.2 if key.startswith(("motorway", "trunk")) else 1.0
+            ax.add_collection(
+                LineCollection(
+                    by_class[key],
+                    colors=HIGHWAY_COLORS.get(key, _OTHER_COLOR),
+                    linewidths=lw,
+                    alpha=0.8,
+                    label=f"OSM {key} ({len(by_class[key])} edges)",
+                    zorder=1,
+                )
+            )
+    idx = _pick(len(run.edges), max_points, rng)
+    edges, side = run.edges[idx], run.edge_side[idx]
+    for code, name, color in ((1, "left", "#1f3a93"), (-1, "right", "#6c3483"), (0, "", "k")):
+        sel = side == code
+        if sel.any():
+            label = f"road edge {name}".strip() + f" ({np.count_nonzero(run.edge_side == code):,})"
+            ax.scatter(*edges[sel, :2].T, s=0.6, color=color, label=label, zorder=2, lw=0)
+    lanes = run.lane_samples[_pick(len(run.lane_samples), max_points, rng)]
+    ax.scatter(
+        *lanes[:, :2].T,
+        s=0.6,
+        color="#27ae60",
+        label=f"lane samples ({summary.lane_samples:,})",
+        zorder=3,
+        lw=0,
+    )
+    xy = run.trajectory.xy
+    ax.plot(
+        *xy.T, color="#111111", lw=1.2, label=f"trajectory ({summary.frames:,} poses)", zorder=4
+    )
+    ax.plot(*xy[0], marker="o", color="#111111", ms=5, zorder=5)
+    ax.annotate("start", xy[0], xytext=(4, 4), textcoords="offset points", fontsize=8)
+    ax.set_xlim(xmin, xmax)
+    ax.set_ylim(ymin, ymax)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x east (m, mapping frame)")
+    ax.set_ylabel("y north (m, mapping frame)")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.set_title(
+        f"{run.root.name}: {summary.driven_length_m / 1000:.2f} km, "
+        f"{summary.duration_s:.0f} s, {summary.frames:,} frames, "
+        f"{summary.edge_points:,} edge pts, {summary.lane_samples:,} lane samples\n"
+        f"CRS {summary.crs}, {summary.traffic_side}-hand traffic",
+        fontsize=9,
+    )
+    ax.legend(
+        loc=_emptiest_corner(xy, (xmin, ymin, xmax, ymax)),
+        fontsize=7,
+        markerscale=8,
+        framealpha=0.85,
+    )
+    fig.subplots_adjust(left=0.1, right=0.97, bottom=0.07, top=0.92)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
+    os.close(fd)
     try:
-        if osm_graph is not None and osm_graph.number_of_edges():
-            by_class: dict[str, list[np.ndarray]] = {}
-            for _, _, d in osm_graph.edges(data=True):
-                hw = str(d.get("highway"))
-                key = hw if hw in HIGHWAY_COLORS else "other"
-                by_class.setdefault(key, []).append(np.asarray(d["geometry"].coords))
-            order = [k for k in HIGHWAY_COLORS if k in by_class]
-            if "other" in by_class:
-                order.append("other")
-            for key in reversed(order):
-                lw = 2.2 if key.startswith(("motorway", "trunk")) else 1.0
-                ax.add_collection(
-                    LineCollection(
-                        by_class[key],
-                        colors=HIGHWAY_COLORS.get(key, _OTHER_COLOR),
-                        linewidths=lw,
-                        alpha=0.8,
-                        label=f"OSM {key} ({len(by_class[key])} edges)",
-                        zorder=1,
-                    )
-                )
-        idx = _pick(len(run.edges), max_points, rng)
-        edges, side = run.edges[idx], run.edge_side[idx]
-        for code, name, color in ((1, "left", "#1f3a93"), (-1, "right", "#6c3483"), (0, "", "k")):
-            sel = side == code
-            if sel.any():
-                label = (
-                    f"road edge {name}".strip() + f" ({np.count_nonzero(run.edge_side == code):,})"
-                )
-                ax.scatter(*edges[sel, :2].T, s=0.6, color=color, label=label, zorder=2, lw=0)
-        lanes = run.lane_samples[_pick(len(run.lane_samples), max_points, rng)]
-        ax.scatter(
-            *lanes[:, :2].T,
-            s=0.6,
-            color="#27ae60",
-            label=f"lane samples ({summary.lane_samples:,})",
-            zorder=3,
-            lw=0,
-        )
-        xy = run.trajectory.xy
-        ax.plot(
-            *xy.T, color="#111111", lw=1.2, label=f"trajectory ({summary.frames:,} poses)", zorder=4
-        )
-        ax.plot(*xy[0], marker="o", color="#111111", ms=5, zorder=5)
-        ax.annotate("start", xy[0], xytext=(4, 4), textcoords="offset points", fontsize=8)
-        ax.set_xlim(xmin, xmax)
-        ax.set_ylim(ymin, ymax)
-        ax.set_aspect("equal", adjustable="box")
-        ax.set_xlabel("x east (m, mapping frame)")
-        ax.set_ylabel("y north (m, mapping frame)")
-        ax.grid(True, lw=0.3, alpha=0.5)
-        ax.set_title(
-            f"{run.root.name}: {summary.driven_length_m / 1000:.2f} km, "
-            f"{summary.duration_s:.0f} s, {summary.frames:,} frames, "
-            f"{summary.edge_points:,} edge pts, {summary.lane_samples:,} lane samples\n"
-            f"CRS {summary.crs}, {summary.traffic_side}-hand traffic",
-            fontsize=9,
-        )
-        ax.legend(loc="best", fontsize=7, markerscale=8, framealpha=0.85)
-        fig.subplots_adjust(left=0.1, right=0.97, bottom=0.07, top=0.92)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-        os.close(fd)
-        try:
-            fig.savefig(tmp, format="png", metadata={"Software": None})
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    finally:
-        plt.close(fig)
+        fig.savefig(tmp, format="png", metadata={"Software": None})
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a PNG is an ordinary file
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
     return path
+
+
+def _emptiest_corner(xy: np.ndarray, bbox: tuple[float, float, float, float]) -> str:
+    """Legend location: the plot corner with the fewest trajectory poses (cheaper than
+    matplotlib's ``"best"``, which scans every plotted point)."""
+    xmin, ymin, xmax, ymax = bbox
+    fx = (xy[:, 0] - xmin) / max(xmax - xmin, 1e-9)
+    fy = (xy[:, 1] - ymin) / max(ymax - ymin, 1e-9)
+    corners = {
+        "upper left": (fx < 0.4) & (fy > 0.6),
+        "upper right": (fx > 0.6) & (fy > 0.6),
+        "lower left": (fx < 0.4) & (fy < 0.4),
+        "lower right": (fx > 0.6) & (fy < 0.4),
+    }
+    return min(corners, key=lambda k: int(np.count_nonzero(corners[k])))
 
 
 def _pick(size: int, n: int, rng: np.random.Generator) -> np.ndarray:

@@ -1040,6 +1040,11 @@ def build_ramps(
                 )
         else:
             station, source = s_osm, "osm"
+            bounds = np.array([sec.s0 for sec in mainline_road.lane_sections[1:]])
+            if bounds.size:
+                near = bounds[np.argmin(np.abs(bounds - station))]
+                if abs(near - station) <= cfg.snap_to_section_m:
+                    station = float(near)
             if not cfg.min_ramp_length_m < station < mainline_road.length - 1.0:
                 reason = f"attachment at s={station:.0f} m is outside the measured mainline"
                 skipped.append((what, reason))

@@ -192,7 +192,7 @@ h1{font-size:22px}h2{font-size:18px;margin-top:28px;border-bottom:1px solid #ccc
 h3{font-size:15px}
 table{border-collapse:collapse;margin:8px 0 16px 0;font-size:13px}
 th,td{border:1px solid #bbb;padding:4px 8px;text-align:right}
-th{background:#eef2f6}td.s,th:first-child{text-align:left}
+th{background:#eef2f6;text-align:center}td.s,th:first-child{text-align:left}
 .ok{color:#17702b;font-weight:bold}.bad{color:#b3261e;font-weight:bold}
 img{max-width:100%;border:1px solid #ddd;margin:6px 0}
 .note{color:#555;font-size:12px}
@@ -223,26 +223,41 @@ def _table(head: list[str], rows: list[list[Any]], cls: str = "") -> str:
     return "".join(out)
 
 
+_METHOD_NOTES = {
+    "default": "roadtwin's default method",
+    "paper": "the seed paper's method",
+    "truth": "the true map: the floor set by the measurement noise",
+    "map": "the given map",
+}
+
+
 def _paper_table(doc: dict) -> str:
+    """Table 4 of the seed paper, one column group (mean, median, range) per method."""
     table = doc["table"]
     methods = list(table)
-    head = ["Evaluation target"]
-    for m in methods:
-        head += [f"{m}: Mean RMSE (m)", f"{m}: Median RMSE (m)", f"{m}: RMSE range (m)"]
-    rows = []
+    out = ['<table class="paper"><thead><tr><th rowspan="2">Evaluation target</th>']
+    out += [f'<th colspan="3">{html.escape(m)}</th>' for m in methods]
+    out.append("</tr><tr>")
+    out += ["<th>Mean RMSE (m)</th><th>Median RMSE (m)</th><th>RMSE range (m)</th>"] * len(methods)
+    out.append("</tr></thead><tbody>")
     for key, title in TABLE_TARGETS:
-        row: list[Any] = [title]
+        cells = [f'<td class="s">{html.escape(title)}</td>']
         for m in methods:
             st = table[m][key]
             rng = f"{st['min_rmse_m']:.3f}–{st['max_rmse_m']:.3f}" if st["runs"] else None
-            row += [st["mean_rmse_m"], st["median_rmse_m"], rng]
-        rows.append(row)
-    counts = ", ".join(f"{m}: {table[m]['overall']['runs']} run(s)" for m in methods)
-    return (
-        _table(head, rows, "paper")
-        + f'<p class="note">Frenet lateral RMSE of the run\'s own road-edge points and lane '
-        f"samples against the map (the seed paper's Table 4 layout; {counts}). "
-        "Overall pools all points of a run.</p>"
+            cells += [f"<td>{_f(v)}</td>" for v in (st["mean_rmse_m"], st["median_rmse_m"])]
+            cells.append(f"<td>{_f(rng)}</td>")
+        out.append("<tr>" + "".join(cells) + "</tr>")
+    out.append("</tbody></table>")
+    notes = "; ".join(
+        f"{html.escape(m)}: {table[m]['overall']['runs']} run(s)"
+        + (f", {_METHOD_NOTES[m]}" if m in _METHOD_NOTES else "")
+        for m in methods
+    )
+    return "".join(out) + (
+        '<p class="note">Frenet lateral RMSE of the run\'s own road-edge points and lane '
+        "samples against the nearest boundary of the map (the seed paper's Table 4 layout; "
+        f"overall pools all points of a run). {notes}.</p>"
     )
 
 
@@ -253,8 +268,10 @@ def _runs_table(doc: dict) -> str:
         "Edge RMSE (m)",
         "Lane RMSE (m)",
         "Overall RMSE (m)",
+        "Height RMSE (m)",
         "Edge points",
         "Lane samples",
+        "On ramps",
         "Excluded",
     ]
     rows = []
@@ -263,12 +280,14 @@ def _runs_table(doc: dict) -> str:
         rows.append(
             [
                 r["label"],
-                r["method"] or "–",
+                r["method"] or "map",
                 sc["road_edge_rmse_m"],
                 sc["lane_boundary_rmse_m"],
                 sc["overall_rmse_m"],
+                sc.get("height_rmse_m"),
                 sc["road_edge_points"],
                 sc["lane_samples"],
+                sc.get("ramp_points"),
                 sc["excluded_beyond_ends"] + sc["excluded_no_road"],
             ]
         )
@@ -295,7 +314,7 @@ def _truth_tables(doc: dict) -> str:
             rows.append(
                 [
                     r["label"],
-                    r["method"] or "–",
+                    r["method"] or "map",
                     title,
                     st.get("n"),
                     st.get("rmse_m"),
@@ -314,7 +333,9 @@ def _truth_tables(doc: dict) -> str:
             f"{s['built_driving_lanes'] if s['built_driving_lanes'] is not None else '–'}"
             for s in lc["sections"]
         )
-        rows.append([r["label"], r["method"] or "–", lc["stations"], lc["matched_fraction"], secs])
+        rows.append(
+            [r["label"], r["method"] or "map", lc["stations"], lc["matched_fraction"], secs]
+        )
     return out + _table(head, rows)
 
 
@@ -338,7 +359,7 @@ def _topology_tables(doc: dict) -> str:
         rows.append(
             [
                 r["label"],
-                r["method"] or "–",
+                r["method"] or "map",
                 tp.get("true_ramps"),
                 tp.get("built_ramps", len(ramps)),
                 tp.get("matched"),

@@ -257,6 +257,21 @@ def _widths(road: Road, s: float, lane_ids: Sequence[int]) -> list[float]:
     return out
 
 
+def _continuous(
+    pairs: dict[int, int], a: Road, s_a: float, b: Road, s_b: float, *, tol_m: float = 0.05
+) -> dict[int, int]:
+    """Keep the lane pairs whose widths agree within ``tol_m`` where ``a`` meets ``b``
+    (a lane whose width jumps there -- a hard shoulder ending at a gore -- ends) and are
+    not of zero width there (OpenDRIVE: a lane of zero width at a section end has no
+    link there)."""
+    out = {}
+    for la, lb in pairs.items():
+        wa, wb = _widths(a, s_a, [la])[0], _widths(b, s_b, [lb])[0]
+        if abs(wa - wb) <= tol_m and min(wa, wb) > 0.01:
+            out[la] = lb
+    return out
+
+
 def _pose(road: Road, s: float) -> tuple[float, float, float]:
     x, y, h, _ = road.evaluate(np.array([s]))
     return float(x[0]), float(y[0]), float(h[0])
@@ -385,7 +400,9 @@ def build_topology(
         up = replace(up, successor=RoadLink("junction", jid))
         down = replace(down, predecessor=RoadLink("junction", jid))
         if direct:
-            through = match_lanes(up_sec, down_sec, traffic_side=traffic_side)
+            through = _continuous(
+                match_lanes(up_sec, down_sec, traffic_side=traffic_side), up, up.length, down, 0.0
+            )
             conns = [
                 Connection(
                     "0",
@@ -422,9 +439,19 @@ def build_topology(
                 predecessor=RoadLink("road", up.id, "end"),
                 successor=RoadLink("road", down.id, "start"),
             )
-            into = match_lanes(up_sec, through_road.lane_sections[0], traffic_side=traffic_side)
-            out_of = match_lanes(
-                through_road.lane_sections[-1], down_sec, traffic_side=traffic_side
+            into = _continuous(
+                match_lanes(up_sec, through_road.lane_sections[0], traffic_side=traffic_side),
+                up,
+                up.length,
+                through_road,
+                0.0,
+            )
+            out_of = _continuous(
+                match_lanes(through_road.lane_sections[-1], down_sec, traffic_side=traffic_side),
+                through_road,
+                through_road.length,
+                down,
+                0.0,
             )
             through_road = _set_lane_links(
                 through_road,
@@ -550,16 +577,16 @@ def lane_graph(network: RoadNetwork, *, lane_changes: bool = False) -> nx.DiGrap
         for i, sec in enumerate(secs):
             for lane in (*sec.left, *sec.right):
                 g.add_node((road.id, i, lane.id))
+                if i + 1 < len(secs) and lane.successor is not None:
+                    g.add_edge((road.id, i, lane.id), (road.id, i + 1, lane.successor))
+                if i > 0 and lane.predecessor is not None:
+                    g.add_edge((road.id, i - 1, lane.predecessor), (road.id, i, lane.id))
             if lane_changes:
                 for side in (sec.left, sec.right):
                     for x, y in itertools.pairwise(side):
                         if x.type == "driving" and y.type == "driving":
                             g.add_edge((road.id, i, x.id), (road.id, i, y.id), kind="change")
                             g.add_edge((road.id, i, y.id), (road.id, i, x.id), kind="change")
-                if i + 1 < len(secs) and lane.successor is not None:
-                    g.add_edge((road.id, i, lane.id), (road.id, i + 1, lane.successor))
-                if i > 0 and lane.predecessor is not None:
-                    g.add_edge((road.id, i - 1, lane.predecessor), (road.id, i, lane.id))
         last = len(secs) - 1
         succ = road.successor
         if succ is not None and succ.element_type == "road" and succ.element_id in roads:

@@ -9,6 +9,7 @@ per concern, in pipeline order:
 - ``sensor.py``     the mapping car: noisy poses, road-edge points, lane-marking samples
 - ``osm_writer.py`` OSM XML as a mapper would draw the same place
 - ``writer.py``     the run folder (DESIGN.md section 3) plus truth.xodr/json/trajectory
+- ``from_osm.py``   clothoid-chain fits of real OSM ways and OSM cropping (``real_a9``)
 """
 
 from __future__ import annotations

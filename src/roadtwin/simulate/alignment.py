@@ -67,11 +67,16 @@ def build_pieces(
 
 
 def mainline_pieces(
-    alignment: Sequence[AlignmentElement], *, start_heading_rad: float = 0.0
+    alignment: Sequence[AlignmentElement],
+    *,
+    start_heading_rad: float = 0.0,
+    start_xy_m: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[Geometry, ...]:
-    """The driven carriageway's reference line (its median-side edge) from the origin."""
+    """The driven carriageway's reference line (its median-side edge) from its start."""
     return build_pieces(
         [(e.kind, e.length_m, e.curvature_start, e.curvature_end) for e in alignment],
+        x0=start_xy_m[0],
+        y0=start_xy_m[1],
         hdg=start_heading_rad,
     )
 
@@ -132,36 +137,35 @@ def ramp_pieces(
     curve_length_m: float,
     tail_length_m: float,
     kind: str,
+    elements: Sequence[tuple[float, float, float]] = (),
 ) -> tuple[Geometry, ...]:
     """Ramp reference line through the gore pose ``(x, y, hdg)``.
 
     An exit starts there: clothoid from ``curvature_start`` to ``turn_sign / radius``,
     arc, straight tail. An entry ends there with heading ``hdg``: built backwards from the
     gore (turning the other way) and reversed, so its last piece meets the gore exactly.
+    ``elements`` (``(length, k_start, k_end)`` clothoids in driving order) replace the
+    clothoid/arc/tail shape.
     """
     k = turn_sign / radius_m
-    if kind == "exit":
-        return build_pieces(
-            [
-                ("clothoid", clothoid_length_m, curvature_start, k),
-                ("arc", curve_length_m, k, k),
-                ("straight", tail_length_m, 0.0, 0.0),
-            ],
-            x0=x,
-            y0=y,
-            hdg=hdg,
-        )
-    backward = build_pieces(
-        [
-            ("clothoid", clothoid_length_m, -curvature_start, -k),
-            ("arc", curve_length_m, -k, -k),
+    if elements:  # a given shape, in driving order
+        forward = [("clothoid", length, k0, k1) for length, k0, k1 in elements]
+    else:
+        forward = [
+            ("clothoid", clothoid_length_m, curvature_start, k),
+            ("arc", curve_length_m, k, k),
             ("straight", tail_length_m, 0.0, 0.0),
-        ],
-        x0=x,
-        y0=y,
-        hdg=hdg + math.pi,
-    )
-    return reverse_pieces(backward)
+        ]
+        if kind == "entry":  # mirrored in time: arrive along the tail, leave along the clothoid
+            forward = [
+                ("straight", tail_length_m, 0.0, 0.0),
+                ("arc", curve_length_m, k, k),
+                ("clothoid", clothoid_length_m, k, curvature_start),
+            ]
+    if kind == "exit":
+        return build_pieces(forward, x0=x, y0=y, hdg=hdg)
+    backward = [(kd, length, -k1, -k0) for kd, length, k0, k1 in reversed(forward)]
+    return reverse_pieces(build_pieces(backward, x0=x, y0=y, hdg=hdg + math.pi))
 
 
 def shift_cubic(piece: CubicPiece, s_new: float) -> CubicPiece:

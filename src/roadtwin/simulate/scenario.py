@@ -19,7 +19,8 @@ curvature where the neighbouring element meets it).
 (``station`` where the outermost driving lane has tapered to zero, ``taper``).
 ``[[ramps]]`` type exit/entry, station (of the gore), lanes, parallel_length,
 taper_length, radius, clothoid_length, curve_length, tail_length, ...
-``[markings]``, ``[opposite]``, ``[[other_roads]]``, ``[car]``, ``[noise]``,
+``[start]`` x, y (metres) and heading_deg of the reference line's start (default 0, 0,
+20 degrees). ``[markings]``, ``[opposite]``, ``[[other_roads]]``, ``[car]``, ``[noise]``,
 ``[sensor]``, ``[osm]``, ``[output]``: see the dataclasses below for every key.
 """
 
@@ -108,6 +109,11 @@ class Ramp:
     lane_width_m: float = 3.5
     inner_shoulder_m: float = 0.5
     name: str = ""
+    elements: tuple[tuple[float, float, float], ...] = ()
+    """Optional ramp shape in driving order: ``(length_m, curvature_start, curvature_end)``
+    clothoids (1/m, left positive) replacing clothoid/arc/tail (real-geometry scenarios)."""
+    osm_way_ids: tuple[int, ...] = ()
+    """OSM link way ids of this ramp when the map input is real OSM (for truth.json)."""
 
 
 @dataclass(frozen=True)
@@ -230,7 +236,11 @@ class Scenario:
     osm: OsmStyle = field(default_factory=OsmStyle)
     road_edges_format: Literal["laz", "las", "csv", "ply", "npy", "parquet"] = "laz"
     real_osm: str = ""
-    """Bundled real OSM file used as ``map.osm`` instead of the simulated one (real_a9)."""
+    """Bundled real OSM file used as the run's map instead of the simulated one (real_a9)."""
+    start_xy_m: tuple[float, float] = (0.0, 0.0)
+    """Mapping-frame position of the reference line's start (metres)."""
+    start_heading_deg: float = 20.0
+    """Heading of the reference line at its start (degrees CCW from east)."""
 
     @property
     def length_m(self) -> float:
@@ -444,6 +454,8 @@ _RAMP_KEYS = {
     "inner_shoulder": "inner_shoulder_m",
     "name": "name",
     "side": "side",
+    "elements": "elements",
+    "osm_way_ids": "osm_way_ids",
 }
 
 
@@ -488,9 +500,23 @@ def _parse_ramps(items: list[dict[str, Any]], traffic_side: str) -> tuple[Ramp, 
                 lane_width_m=_num(item, "lane_width", d.lane_width_m, where, lo=2.5, hi=5.0),
                 inner_shoulder_m=_num(item, "inner_shoulder", d.inner_shoulder_m, where, lo=0.0),
                 name=str(item.get("name", "")),
+                elements=_ramp_elements(item.get("elements", []), where),
+                osm_way_ids=tuple(int(v) for v in item.get("osm_way_ids", [])),
             )
         )
     return tuple(sorted(ramps, key=lambda r: r.station_m))
+
+
+def _ramp_elements(items: Any, where: str) -> tuple[tuple[float, float, float], ...]:
+    out = []
+    for k, item in enumerate(items):
+        if not (isinstance(item, list) and len(item) == 3):
+            raise InputError(f"[{where}] elements[{k}]: expected [length, k_start, k_end]")
+        length, k0, k1 = (float(v) for v in item)
+        if not (length > 0 and abs(k0) < 0.1 and abs(k1) < 0.1):
+            raise InputError(f"[{where}] elements[{k}]: length > 0 and |curvature| < 0.1 1/m")
+        out.append((length, k0, k1))
+    return tuple(out)
 
 
 def aux_zone(ramp: Ramp) -> tuple[float, float]:
@@ -551,6 +577,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str = "scenario", base_dir
     top = {
         "name", "description", "seed", "origin", "traffic", "alignment", "vertical", "lanes",
         "ramps", "markings", "opposite", "other_roads", "car", "noise", "sensor", "osm", "output",
+        "start",
     }  # fmt: skip
     unknown = set(data) - top
     if unknown:
@@ -665,6 +692,7 @@ def scenario_from_dict(data: dict[str, Any], *, name: str = "scenario", base_dir
     real_osm = str(output.get("real_osm", ""))
     if real_osm and base_dir is not None:
         real_osm = str((Path(base_dir) / real_osm).resolve())
+    start = _table(data, "start", {"x", "y", "heading_deg"}, "start")
     seed = data.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool) or seed < 0:
         raise InputError(f"seed: expected a non-negative integer, got {seed!r}")
@@ -688,6 +716,8 @@ def scenario_from_dict(data: dict[str, Any], *, name: str = "scenario", base_dir
         osm=osm,
         road_edges_format=fmt,
         real_osm=real_osm,
+        start_xy_m=(_num(start, "x", 0.0, "start"), _num(start, "y", 0.0, "start")),
+        start_heading_deg=_num(start, "heading_deg", 20.0, "start", lo=-360.0, hi=360.0),
     )
     _validate(scenario)
     return scenario

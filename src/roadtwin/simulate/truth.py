@@ -9,7 +9,9 @@ roads ``"1", "2", ...`` (``name="mainline"``) at every gore; ramp roads (``"exit
 driving lane and are joined by OpenDRIVE ``direct`` junctions (ids from 1001) with lane
 links. After an exit gore the mainline hard shoulder re-appears from zero width, before
 an entry gore it tapers to zero (the ramp's hard shoulder continues the mainline's).
-The opposite carriageway and unrelated roads are ``name="other"`` roads (ids from 201).
+The opposite carriageway and unrelated roads are ``name="other"`` roads (ids from 201);
+the opposite carriageway's own ramps exist only in the simulated OSM (so the ramp stage
+has something to reject), not in the truth.
 """
 
 from __future__ import annotations
@@ -48,9 +50,6 @@ from .alignment import (
     smoothstep_cubic,
 )
 from .scenario import SHOULDER_TAPER_M, Ramp, Scenario, aux_zone
-
-MAINLINE_START_HEADING_RAD = math.radians(20.0)
-"""Heading of the mainline at the run start (a little north of east)."""
 
 
 @dataclass(frozen=True)
@@ -341,7 +340,11 @@ def build_truth(sc: Scenario) -> Truth:
     frame = MappingFrame(sc.origin, "local")
     sign = sc.side_sign
     length = sc.length_m
-    pieces = mainline_pieces(sc.alignment, start_heading_rad=MAINLINE_START_HEADING_RAD)
+    pieces = mainline_pieces(
+        sc.alignment,
+        start_heading_rad=math.radians(sc.start_heading_deg),
+        start_xy_m=sc.start_xy_m,
+    )
     elevation = elevation_profile(sc.grades, start_z_m=sc.start_z_m, length_m=length)
     specs = mainline_sections(sc)
     full = Road(
@@ -375,6 +378,7 @@ def build_truth(sc: Scenario) -> Truth:
             curve_length_m=r.curve_length_m,
             tail_length_m=r.tail_length_m,
             kind=r.type,
+            elements=r.elements,
         )
         rlen = rp[-1].s0 + rp[-1].length
         z_g = float(elevation.value(g))

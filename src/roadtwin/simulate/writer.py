@@ -242,9 +242,12 @@ def simulate_run(
             {"frame": frames, "x": ego[:, 0], "y": ego[:, 1], "z": ego[:, 2]},
         )
         if sc.real_osm:
-            osm_name = Path(sc.real_osm).name
+            real = Path(sc.real_osm)
+            osm_name = "map" + "".join(
+                real.suffixes[-2:] if real.suffix == ".gz" else real.suffixes[-1:]
+            )
             shutil.copyfile(sc.real_osm, tmp / osm_name)
-            ramp_ways: dict[int, list[int]] = {}
+            ramp_ways = {i: list(r.osm_way_ids) for i, r in enumerate(sc.ramps)}
         else:
             ramp_ways = write_osm(truth, tmp / osm_name, _rng(sc.seed, "osm"))
         (tmp / "run.toml").write_text(_run_toml(sc, edges_name, osm_name), encoding="utf-8")

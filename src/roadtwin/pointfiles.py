@@ -1,0 +1,385 @@
+"""Point and table files of a mapping run: CSV tables and road-edge point clouds.
+
+Vectorised readers for the road-edge formats of DESIGN.md section 3 -- LAS/LAZ (laspy with
+lazrs), PLY (ascii and binary, own header parser + ``np.fromfile``), CSV, NPY and Parquet
+(pyarrow) -- and the column checks shared with :mod:`roadtwin.io`. Every problem raises
+:class:`~roadtwin._errors.InputError` naming the file, the data row (1 = first row after the
+header) or field, and what was expected.
+
+Side encoding of road-edge points: text ``left`` / ``right`` (``l`` / ``r``; empty or
+``unknown`` = unknown), or integers ``1`` = left, ``2`` = right, ``0`` = unknown (``-1`` is
+read as right). The result uses :data:`SIDE_LEFT` (+1) / :data:`SIDE_RIGHT` (-1) / 0.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from ._errors import InputError, InputWarning
+
+EDGE_SUFFIXES = (".las", ".laz", ".ply", ".csv", ".npy", ".parquet")
+SIDE_LEFT = 1
+"""Edge side code of a left road-edge point (``MappingRun.edge_side``)."""
+SIDE_RIGHT = -1
+"""Edge side code of a right road-edge point."""
+
+
+def one_line(exc: BaseException | str) -> str:
+    """An exception's text on one line (CLI errors are one line)."""
+    return " ".join(str(exc).split())
+
+
+# ---------------------------------------------------------------------------
+# tables (CSV / Parquet) -> validated float columns
+# ---------------------------------------------------------------------------
+
+
+def read_table(path: Path, what: str) -> pd.DataFrame:
+    """Read a CSV file with a header row.
+
+    Parameters
+    ----------
+    path
+        CSV file (comma separated, UTF-8 with or without BOM).
+    what
+        What the file should hold, for error messages (``"columns x,y,z[,side]"``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        At least one row; column names stripped and lower-cased.
+    """
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg)
+    try:
+        df = pd.read_csv(path, skipinitialspace=True, low_memory=False, encoding="utf-8-sig")
+    except pd.errors.EmptyDataError:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg) from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        msg = f"{path}: not a readable CSV file ({one_line(exc)}); expected {what}"
+        raise InputError(msg) from None
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    if df.shape[0] == 0:
+        msg = f"{path}: file has a header but no data rows (expected {what})"
+        raise InputError(msg)
+    return df
+
+
+def require_columns(columns: Iterable[str], needed: Iterable[str], path: Path, what: str) -> None:
+    """Raise an InputError naming the first of ``needed`` missing from ``columns``."""
+    have = set(columns)
+    for name in needed:
+        if name not in have:
+            msg = (
+                f"{path}: missing column '{name}' (expected {what}; "
+                f"found: {', '.join(map(str, columns))})"
+            )
+            raise InputError(msg)
+
+
+def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
+    """A column as float64; non-numbers, NaN and inf name the first bad data row."""
+    series = values if isinstance(values, pd.Series) else pd.Series(np.asarray(values))
+    if series.dtype.kind in "fiub":
+        arr = series.to_numpy(dtype=np.float64)
+    else:
+        arr = pd.to_numeric(series, errors="coerce").to_numpy(dtype=np.float64)
+        bad_text = np.isnan(arr) & series.notna().to_numpy()
+        if bad_text.any():
+            row = int(np.argmax(bad_text))
+            msg = (
+                f"{path}: data row {row + 1}, column '{name}': {series.iloc[row]!r} is not a number"
+            )
+            raise InputError(msg)
+    finite = np.isfinite(arr)
+    if not finite.all():
+        row = int(np.argmin(finite))
+        count = int(finite.size - np.count_nonzero(finite))
+        msg = (
+            f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not a finite number "
+            f"({count} NaN/inf value(s) in this column; expected finite numbers)"
+        )
+        raise InputError(msg)
+    return arr
+
+
+def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
+    """A column of integer values (``1000`` or ``1000.0``) as int64, checked like floats."""
+    arr = float_column(values, path, name)
+    rounded = np.round(arr)
+    bad = np.abs(arr - rounded) > 1e-9
+    if bad.any():
+        row = int(np.argmax(bad))
+        msg = f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not an integer"
+        raise InputError(msg)
+    return rounded.astype(np.int64)
+
+
+# ---------------------------------------------------------------------------
+# road edges
+# ---------------------------------------------------------------------------
+
+
+def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
+    """Read road-edge points from LAS/LAZ, PLY, CSV, NPY or Parquet.
+
+    Parameters
+    ----------
+    path
+        Point file; ``x, y, z`` in the mapping frame (metres), optional ``side``
+        (strings ``left``/``right``, or integers 1 = left, 2 = right, 0 = unknown;
+        -1 is accepted for right).
+
+    Returns
+    -------
+    edges : (N, 3) float64 points, mapping frame, metres.
+    edge_side : (N,) int8, +1 left, -1 right, 0 unknown.
+    """
+    path = Path(path)
+    name = path.name.lower()
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected road-edge points x,y,z)"
+        raise InputError(msg)
+    if name.endswith((".las", ".laz")):
+        cols, side = _read_las(path)
+    elif name.endswith(".ply"):
+        cols, side = _read_ply(path)
+    elif name.endswith(".csv"):
+        df = read_table(path, "columns x,y,z[,side]")
+        require_columns(df.columns, "xyz", path, "columns x,y,z[,side]")
+        cols = {c: df[c] for c in "xyz"}
+        side = df.get("side")
+    elif name.endswith(".npy"):
+        cols, side = _read_npy(path)
+    elif name.endswith(".parquet"):
+        cols, side = _read_parquet(path)
+    else:
+        msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
+        raise InputError(msg)
+    xyz = np.column_stack([float_column(cols[c], path, c) for c in "xyz"])
+    if xyz.shape[0] == 0:
+        msg = f"{path}: no points (expected road-edge points x,y,z)"
+        raise InputError(msg)
+    codes = _side_codes(side, path, xyz.shape[0])
+    return xyz, codes
+
+
+def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
+    """Map a ``side`` column (strings or integer codes) to +1 left / -1 right / 0."""
+    if side is None:
+        return np.zeros(n, np.int8)
+    series = side if isinstance(side, pd.Series) else pd.Series(np.asarray(side))
+    out = np.zeros(n, np.int8)
+    if series.dtype.kind in "iuf":
+        vals = series.to_numpy(dtype=np.float64)
+        vals = np.where(np.isnan(vals), 0.0, vals)
+        ok = np.isin(vals, (0.0, 1.0, 2.0, -1.0))
+        if not ok.all():
+            row = int(np.argmin(ok))
+            msg = (
+                f"{path}: data row {row + 1}, field 'side': {vals[row]:g} is not a side code "
+                "(expected 1 = left, 2 = right, 0 = unknown)"
+            )
+            raise InputError(msg)
+        out[vals == 1.0] = SIDE_LEFT
+        out[(vals == 2.0) | (vals == -1.0)] = SIDE_RIGHT
+        return out
+    text = series.astype("string").str.strip().str.lower().fillna("")
+    left = text.isin(["left", "l"]).to_numpy(dtype=bool)
+    right = text.isin(["right", "r"]).to_numpy(dtype=bool)
+    unknown = text.isin(["", "unknown", "none"]).to_numpy(dtype=bool)
+    ok = left | right | unknown
+    if not ok.all():
+        row = int(np.argmin(ok))
+        msg = (
+            f"{path}: data row {row + 1}, column 'side': {series.iloc[row]!r} is not a side "
+            "(expected 'left' or 'right')"
+        )
+        raise InputError(msg)
+    out[left] = SIDE_LEFT
+    out[right] = SIDE_RIGHT
+    return out
+
+
+def _read_las(path: Path) -> tuple[dict[str, Any], Any]:
+    import laspy
+
+    try:
+        las = laspy.read(path)
+    except Exception as exc:  # laspy raises many kinds on corrupt files
+        msg = f"{path}: not a readable LAS/LAZ file ({one_line(exc)})"
+        raise InputError(msg) from None
+    cols = {"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z)}
+    names = {d.lower(): d for d in las.point_format.dimension_names}
+    side = np.asarray(las[names["side"]]) if "side" in names else None
+    return cols, side
+
+
+def _read_npy(path: Path) -> tuple[dict[str, Any], Any]:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except (ValueError, OSError) as exc:
+        msg = f"{path}: not a readable .npy array ({one_line(exc)})"
+        raise InputError(msg) from None
+    if arr.dtype.names:
+        names = {n.lower(): n for n in arr.dtype.names}
+        require_columns(names, "xyz", path, "fields x,y,z[,side]")
+        cols = {c: arr[names[c]] for c in "xyz"}
+        side = arr[names["side"]] if "side" in names else None
+        return cols, side
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4):
+        msg = (
+            f"{path}: array of shape {arr.shape}; expected (N, 3) x,y,z, (N, 4) x,y,z,side "
+            "or a structured array with fields x,y,z[,side]"
+        )
+        raise InputError(msg)
+    cols = {c: arr[:, i] for i, c in enumerate("xyz")}
+    if arr.shape[1] == 3:
+        return cols, None
+    fourth = np.asarray(arr[:, 3], dtype=float)
+    if not np.isin(fourth, (0.0, 1.0, 2.0, -1.0)).all():
+        warnings.warn(
+            f"{path}: 4th column is not a side code (expected 1 = left, 2 = right, "
+            "0 = unknown); ignored, sides unknown",
+            InputWarning,
+            stacklevel=4,
+        )
+        return cols, None
+    return cols, fourth
+
+
+def _read_parquet(path: Path) -> tuple[dict[str, Any], Any]:
+    import pyarrow.parquet as pq
+
+    try:
+        schema = pq.read_schema(path)
+    except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
+        msg = f"{path}: not a readable Parquet file ({one_line(exc)})"
+        raise InputError(msg) from None
+    names = {n.lower(): n for n in schema.names}
+    require_columns(names, "xyz", path, "columns x,y,z[,side]")
+    wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
+    table = pq.read_table(path, columns=wanted)
+    cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
+    side = table.column(names["side"]).to_pandas() if "side" in names else None
+    return cols, side
+
+
+_PLY_TYPES = {
+    "char": "i1",
+    "int8": "i1",
+    "uchar": "u1",
+    "uint8": "u1",
+    "short": "i2",
+    "int16": "i2",
+    "ushort": "u2",
+    "uint16": "u2",
+    "int": "i4",
+    "int32": "i4",
+    "uint": "u4",
+    "uint32": "u4",
+    "float": "f4",
+    "float32": "f4",
+    "double": "f8",
+    "float64": "f8",
+}
+
+
+def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
+    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
+    with path.open("rb") as fh:
+        head = fh.read(65536)
+    end = head.find(b"end_header")
+    if not head.startswith(b"ply") or end < 0:
+        msg = f"{path}: not a PLY file (expected a 'ply' header ending in 'end_header')"
+        raise InputError(msg)
+    nl = head.find(b"\n", end)
+    body_offset = nl + 1
+    lines = head[:end].decode("ascii", errors="replace").splitlines()
+    fmt = None
+    elements: list[tuple[str, int, list[tuple[str, str | None]]]] = []
+    for raw in lines[1:]:
+        tok = raw.split()
+        if not tok or tok[0] in ("comment", "obj_info"):
+            continue
+        if tok[0] == "format" and len(tok) >= 2:
+            fmt = tok[1]
+        elif tok[0] == "element" and len(tok) == 3:
+            elements.append((tok[1], int(tok[2]), []))
+        elif tok[0] == "property" and elements:
+            if tok[1] == "list":
+                elements[-1][2].append((tok[-1], None))
+            elif len(tok) == 3 and tok[1] in _PLY_TYPES:
+                elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]]))
+            else:
+                msg = f"{path}: PLY header line {raw.strip()!r}: unknown property type"
+                raise InputError(msg)
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        msg = f"{path}: PLY format {fmt!r}; expected ascii or binary_little/big_endian"
+        raise InputError(msg)
+    skip_rows = 0
+    skip_bytes = 0
+    vertex = None
+    for name, count, props in elements:
+        if name == "vertex":
+            vertex = (count, props)
+            break
+        if any(t is None for _, t in props) and fmt != "ascii":
+            msg = f"{path}: PLY element {name!r} with list properties before 'vertex'"
+            raise InputError(msg)
+        skip_rows += count
+        skip_bytes += count * sum(np.dtype(t).itemsize for _, t in props if t is not None)
+    if vertex is None:
+        msg = f"{path}: PLY file has no 'vertex' element (expected x,y,z vertices)"
+        raise InputError(msg)
+    count, props = vertex
+    if any(t is None for _, t in props):
+        msg = f"{path}: PLY 'vertex' element has list properties; expected scalar x,y,z[,side]"
+        raise InputError(msg)
+    names = [p.lower() for p, _ in props]
+    require_columns(names, "xyz", path, "vertex properties x,y,z[,side]")
+    if count == 0:
+        msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
+        raise InputError(msg)
+    if fmt == "ascii":
+        try:
+            df = pd.read_csv(
+                path,
+                sep=r"\s+",
+                header=None,
+                skiprows=len(head[:body_offset].splitlines()) + skip_rows,
+                nrows=count,
+                names=names,
+                usecols=range(len(names)),
+                engine="c",
+            )
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
+            msg = f"{path}: PLY ascii body not readable ({one_line(exc)})"
+            raise InputError(msg) from None
+        if df.shape[0] != count:
+            msg = f"{path}: PLY header says {count} vertices, body has {df.shape[0]}"
+            raise InputError(msg)
+        cols = {c: df[c] for c in "xyz"}
+        return cols, df.get("side")
+    endian = "<" if fmt == "binary_little_endian" else ">"
+    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])
+    size = path.stat().st_size
+    need = body_offset + skip_bytes + count * dtype.itemsize
+    if size < need:
+        msg = (
+            f"{path}: PLY body too short: header says {count} vertices of {dtype.itemsize} "
+            f"bytes, file has {size - body_offset - skip_bytes} bytes of vertex data"
+        )
+        raise InputError(msg)
+    data = np.fromfile(path, dtype=dtype, count=count, offset=body_offset + skip_bytes)
+    cols = {c: data[c].astype(np.float64) for c in "xyz"}
+    return cols, (data["side"] if "side" in names else None)

@@ -1,0 +1,383 @@
+"""Ramps from real OSM extracts (tests/data/osm, © OpenStreetMap contributors, ODbL).
+
+A fake mapping run drives along a real motorway way (the OSM carriageway centreline); the
+"measured" mainline road is that line offset to its median-side edge with the shared lane
+layout. Checked with numbers: candidates (Algorithm 1), directions and sides, Algorithm 2
+per tag combination, the highway-class fallback on the Kotka extract (no lane tags), left-
+hand candidates on the Melbourne extract, the LiDAR gore deciding the station, and the
+attachment of every ramp to the mainline (gap <= 1 cm, heading <= 0.5 deg).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import pytest
+from shapely.geometry import LineString
+
+from roadtwin.config import RampConfig
+from roadtwin.fitting import PolylineFrame, fit_parampoly3_chain, resample_polyline, savgol_smooth
+from roadtwin.frames import MappingFrame, Origin
+from roadtwin.model import (
+    CubicPiece,
+    CubicProfile,
+    LaneSection,
+    Road,
+    chain_geometry,
+    constant_lane,
+)
+from roadtwin.osm import load_osm
+from roadtwin.ramps import (
+    build_ramps,
+    extract_ramp_chains,
+    find_candidates,
+    infer_lane_count,
+)
+
+DATA = Path(__file__).parent / "data" / "osm"
+
+
+# ---------------------------------------------------------------------------
+# helpers
+# ---------------------------------------------------------------------------
+
+
+def _load(name: str, lat: float, lon: float) -> nx.MultiDiGraph:
+    return load_osm(DATA / name, frame=MappingFrame(Origin(lat, lon)), around_xy=None)
+
+
+def _is_motorway(graph, e) -> bool:
+    return graph.edges[e].get("highway") == "motorway"
+
+
+def _edge_len(graph, e) -> float:
+    return float(graph.edges[e]["geometry"].length)
+
+
+def motorway_path(graph: nx.MultiDiGraph, node, *, back_m: float, ahead_m: float) -> np.ndarray:
+    """Polyline along motorway edges through ``node``: ``back_m`` upstream, ``ahead_m``
+    downstream (first edge in sorted order at forks)."""
+    back, length, n = [], 0.0, node
+    while length < back_m:
+        ins = sorted(e for e in graph.in_edges(n, keys=True) if _is_motorway(graph, e))
+        if not ins or any(ins[0] == b for b in back):
+            break
+        back.append(ins[0])
+        length += _edge_len(graph, ins[0])
+        n = ins[0][0]
+    ahead, length, n = [], 0.0, node
+    while length < ahead_m:
+        outs = sorted(e for e in graph.out_edges(n, keys=True) if _is_motorway(graph, e))
+        if not outs or any(outs[0] == a for a in ahead):
+            break
+        ahead.append(outs[0])
+        length += _edge_len(graph, outs[0])
+        n = outs[0][1]
+    edges = back[::-1] + ahead
+    parts = [np.asarray(graph.edges[e]["geometry"].coords) for e in edges]
+    xy = np.vstack([parts[0], *[p[1:] for p in parts[1:]]])
+    return xy[np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-6])]
+
+
+def fake_run(centre_xy: np.ndarray, side: str = "right") -> tuple[np.ndarray, Road]:
+    """Trajectory (1 m, smoothed OSM centreline) and a mainline road whose reference line
+    is the median-side edge: inner shoulder 1 m, three 3.5 m lanes, hard shoulder 2.5 m."""
+    dense = savgol_smooth(resample_polyline(centre_xy, 1.0), window=61, polyorder=2)
+    frame = PolylineFrame.from_points(dense)
+    sign = 1.0 if side == "right" else -1.0
+    edge = frame.offset_points(np.full(frame.s.shape, sign * (1.0 + 1.5 * 3.5)))
+    geometry = chain_geometry(fit_parampoly3_chain(edge))
+    k = -1 if side == "right" else 1
+    lanes = (
+        constant_lane(k * 1, 1.0, lane_type="shoulder"),
+        constant_lane(k * 2, 3.5, mark="broken"),
+        constant_lane(k * 3, 3.5, mark="broken"),
+        constant_lane(k * 4, 3.5),
+        constant_lane(k * 5, 2.5, lane_type="shoulder", mark="none"),
+    )
+    section = LaneSection(0.0, right=lanes) if side == "right" else LaneSection(0.0, left=lanes)
+    return dense, Road("1", geometry, (section,), name="mainline")
+
+
+def _attach_nodes(graph, kind: str = "motorway_link") -> list:
+    """Nodes where a link meets a motorway edge."""
+    out = set()
+    for u, v, _k, d in graph.edges(keys=True, data=True):
+        if d.get("highway") != kind:
+            continue
+        for n in (u, v):
+            inc = list(graph.in_edges(n, keys=True)) + list(graph.out_edges(n, keys=True))
+            if any(_is_motorway(graph, e) for e in inc):
+                out.add(n)
+    return sorted(out)
+
+
+def _check_attached(ramp, road: Road, side: str) -> None:
+    assert ramp.attach_gap_m <= 0.01
+    assert ramp.attach_heading_deg <= 0.5
+    s_end = 0.0 if ramp.type == "exit" else ramp.road.length
+    x, y, h, _ = ramp.road.evaluate(np.array([s_end]))
+    s, t = road.project(np.array([[x[0], y[0]]]))
+    assert s[0] == pytest.approx(ramp.station_m, abs=0.05)
+    source = ramp.mainline_lane_ids[0]
+    inner = source + (1 if source < 0 else -1)
+    t_inner = road.lane_border_t(np.array([ramp.station_m]), inner)[0]
+    assert t[0] == pytest.approx(t_inner, abs=0.01)
+    dh = (h[0] - road.heading(np.array([ramp.station_m]))[0] + math.pi) % (2 * math.pi) - math.pi
+    assert abs(math.degrees(dh)) <= 0.5
+    # 150 m away from the mainline the ramp lies on the traffic side
+    sign = -1.0 if side == "right" else 1.0
+    s_far = min(150.0, ramp.road.length)
+    s_far = s_far if ramp.type == "exit" else ramp.road.length - s_far
+    _, t_far = road.project(ramp.road.xy(np.array([s_far])))
+    assert t_far[0] * sign > 0.0
+
+
+# ---------------------------------------------------------------------------
+# Algorithm 2
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("tags", "lanes", "rule"),
+    [
+        ({"lanes:forward": "2", "lanes": "4", "highway": "motorway_link"}, 2, "lanes:forward"),
+        ({"lanes": "3", "turn:lanes": "left|right", "highway": "motorway_link"}, 3, "lanes"),
+        ({"lanes": ["2", "3"], "highway": "trunk_link"}, 2, "lanes"),
+        ({"lanes": "x", "turn:lanes": "left|through|through;right"}, 3, "turn:lanes"),
+        ({"lanes": "0", "turn:lanes": "through|right", "highway": "primary"}, 2, "turn:lanes"),
+        ({"lanes:forward": "1;2"}, 1, "lanes:forward"),
+        ({"highway": "motorway_link"}, 3, "highway class"),
+        ({"highway": "motorway"}, 3, "highway class"),
+        ({"highway": "trunk_link"}, 2, "highway class"),
+        ({"highway": "primary_link"}, 2, "highway class"),
+        ({"highway": "secondary_link"}, 1, "highway class"),
+        ({"lanes": float("nan"), "highway": "tertiary_link"}, 1, "highway class"),
+        ({}, 1, "highway class"),
+    ],
+)
+def test_algorithm2_priority(tags, lanes, rule):
+    assert infer_lane_count(tags) == (lanes, rule)
+
+
+# ---------------------------------------------------------------------------
+# West Oakland (I-880): candidates, entry, direction check
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def oakland():
+    graph = _load("west-oakland-i880.osm.bz2", 37.81, -122.297)
+    # I-880 carriageway through the node where the link of way 28413786 joins it
+    node = next(
+        v
+        for u, v, d in graph.edges(data=True)
+        if d.get("highway") == "motorway_link" and d.get("osmid") == 28413786
+    )
+    centre = motorway_path(graph, node, back_m=900.0, ahead_m=900.0)
+    traj, road = fake_run(centre)
+    return graph, traj, road
+
+
+def test_candidates_algorithm1(oakland):
+    graph, traj, _ = oakland
+    cands = find_candidates(graph, traj)
+    assert len(cands) >= 3
+    traj_line = LineString(traj)
+    for c in cands:
+        assert c.highway.endswith("_link")
+        geom = graph.edges[c.u, c.v, c.key]["geometry"]
+        assert geom.distance(traj_line) == pytest.approx(c.distance_m, abs=1e-6)
+        assert c.distance_m <= RampConfig().candidate_distance_m
+    # every link edge within d_r is a candidate, and only those
+    near = {
+        (u, v, k)
+        for u, v, k, d in graph.edges(keys=True, data=True)
+        if "_link" in str(d.get("highway")) and d["geometry"].distance(traj_line) <= 30.0
+    }
+    assert {(c.u, c.v, c.key) for c in cands} == near
+    wider = find_candidates(graph, traj, config=RampConfig(candidate_distance_m=200.0))
+    assert len(wider) > len(cands)
+
+
+def test_oakland_entry_found_and_attached(oakland):
+    graph, traj, road = oakland
+    result = build_ramps(graph, road, trajectory_xy=traj)
+    by_way = {w: r for r in result.ramps for w in r.osm_way_ids}
+    assert 28413786 in by_way
+    ramp = by_way[28413786]
+    assert ramp.type == "entry"
+    assert ramp.type_geometry == "entry"
+    # its OSM lane tags decide (no mainline lane change on this fake mainline)
+    assert ramp.lane_rule in ("lanes:forward", "lanes", "turn:lanes")
+    assert (
+        ramp.lanes
+        == infer_lane_count(
+            graph.edges[
+                next(
+                    (u, v, k)
+                    for u, v, k, d in graph.edges(keys=True, data=True)
+                    if d.get("osmid") == 28413786
+                )
+            ]
+        )[0]
+    )
+    assert ramp.station_source == "osm"
+    for r in result.ramps:
+        _check_attached(r, road, "right")
+    # candidates not used are all listed with a reason
+    used = {e for ch in result.chains for e in ch.edges}
+    listed = {c for c in result.candidates if (c.u, c.v, c.key) not in used}
+    assert len(result.rejected) >= len(listed)
+
+
+def test_direction_check_rejects_the_opposite_direction(oakland):
+    graph, traj, road = oakland
+    forward = build_ramps(graph, road, trajectory_xy=traj)
+    assert forward.ramps
+    # drive the same line the other way: the carriageway's nodes no longer match the
+    # driven direction, so none of its links may be taken as ramps of this drive
+    chains, rejected = extract_ramp_chains(graph, traj[::-1])
+    fwd_ways = {w for r in forward.ramps for w in r.osm_way_ids}
+    assert not fwd_ways & {w for c in chains for w in c.osm_way_ids}
+    assert rejected
+
+
+def test_side_check(oakland):
+    graph, traj, _ = oakland
+    chains_r, _ = extract_ramp_chains(graph, traj, traffic_side="right")
+    chains_l, rej_l = extract_ramp_chains(graph, traj, traffic_side="left")
+    ways_r = {w for c in chains_r for w in c.osm_way_ids}
+    ways_l = {w for c in chains_l for w in c.osm_way_ids}
+    assert 28413786 in ways_r
+    assert 28413786 not in ways_l  # it lies right of the drive
+    assert any("left" in why or "right" in why for _, why in rej_l)
+
+
+# ---------------------------------------------------------------------------
+# Kotka (E18): no lane tags on some links -> the class fallback, reported
+# ---------------------------------------------------------------------------
+
+
+def test_kotka_fallback_reported():
+    graph = _load("kotka-e18.osm.pbf", 60.528, 26.95)
+    found = []
+    for node in _attach_nodes(graph):
+        centre = motorway_path(graph, node, back_m=700.0, ahead_m=700.0)
+        if LineString(centre).length < 600.0:
+            continue
+        traj, road = fake_run(centre)
+        result = build_ramps(graph, road, trajectory_xy=traj)
+        for r in result.ramps:
+            _check_attached(r, road, "right")
+        found.extend((r, result) for r in result.ramps)
+    assert found
+    fallback = [(r, res) for r, res in found if r.osm_lane_rule == "highway class"]
+    assert fallback, "Kotka has links without lanes tags"
+    for r, res in fallback:
+        assert r.lanes == 3  # motorway_link: Algorithm 2's class rule
+        assert r.lane_rule == "highway class"
+        assert any("highway class" in w for w in r.warnings)
+        assert any("highway class" in w for w in res.warnings)
+    tagged = [r for r, _ in found if r.osm_lane_rule == "lanes"]
+    assert tagged
+    assert all(r.lanes >= 1 for r in tagged)
+
+
+# ---------------------------------------------------------------------------
+# Melbourne: left-hand traffic
+# ---------------------------------------------------------------------------
+
+
+def test_melbourne_left_hand_candidates():
+    graph = _load("melbourne-lht.osm.pbf", -37.63, 145.37)
+    n_chains = n_runs = 0
+    for node in _attach_nodes(graph):
+        centre = motorway_path(graph, node, back_m=600.0, ahead_m=600.0)
+        if LineString(centre).length < 400.0 or n_runs == 3:
+            continue
+        n_runs += 1
+        traj, road = fake_run(centre, side="left")
+        cands = find_candidates(graph, traj)
+        assert cands
+        chains, _ = extract_ramp_chains(graph, traj, traffic_side="left", candidates=cands)
+        result = build_ramps(graph, road, trajectory_xy=traj, traffic_side="left")
+        for r in result.ramps:
+            assert r.road.lane_sections[0].left
+            assert not r.road.lane_sections[0].right
+            _check_attached(r, road, "left")
+        # the same links are on the wrong side for right-hand traffic
+        chains_rht, _ = extract_ramp_chains(graph, traj, traffic_side="right", candidates=cands)
+        lht = {c.edges for c in chains}
+        assert not lht & {c.edges for c in chains_rht}
+        n_chains += len(chains)
+    assert n_chains >= 2
+
+
+# ---------------------------------------------------------------------------
+# LiDAR evidence: a measured deceleration lane decides the station and lane count
+# ---------------------------------------------------------------------------
+
+
+def test_measured_gore_decides_station():
+    x = np.linspace(0.0, 1200.0, 601)
+    centre = np.stack([x, 0.002 * (x - 600.0) ** 2 / 10.0], axis=1)
+    traj, road = fake_run(centre)
+    # add a 3.5 m deceleration lane from s=300 (60 m taper) to the gore at s=520
+    base = road.lane_sections[0].right
+    decel = constant_lane(-5, 3.5)
+    taper = CubicProfile(
+        (CubicPiece(0.0, 0.0, 0.0, 3 * 3.5 / 60**2, -2 * 3.5 / 60**3), CubicPiece(60.0, 3.5))
+    )
+    decel = type(decel)(-5, "driving", taper, decel.road_marks)
+    hard = constant_lane(-6, 2.5, lane_type="shoulder", mark="none")
+    sections = (
+        LaneSection(0.0, right=base),
+        LaneSection(300.0, right=(*base[:4], decel, hard)),
+        LaneSection(520.0, right=base),
+    )
+    road = Road("1", road.geometry, sections, name="mainline")
+    # an OSM graph: the carriageway centreline and one 2-lane exit leaving at s~470
+    graph = nx.MultiDiGraph(crs="local")
+    frame = PolylineFrame.from_points(traj)
+    s_nodes = [0.0, 470.0, frame.length]
+    for i, s in enumerate(s_nodes):
+        p, _ = frame.at(np.array([s]))
+        graph.add_node(i, x=float(p[0, 0]), y=float(p[0, 1]))
+    for i in range(2):
+        s = np.linspace(s_nodes[i], s_nodes[i + 1], 30)
+        p, _ = frame.at(s)
+        graph.add_edge(i, i + 1, highway="motorway", osmid=1, geometry=LineString(p))
+    s_ramp = np.linspace(470.0, 800.0, 15)
+    t_ramp = -0.0004 * (s_ramp - 470.0) ** 2
+    p, tg = frame.at(s_ramp)
+    normal = np.stack([-tg[:, 1], tg[:, 0]], axis=1)
+    ramp_xy = p + t_ramp[:, None] * normal
+    graph.add_node(9, x=float(ramp_xy[-1, 0]), y=float(ramp_xy[-1, 1]))
+    graph.add_edge(1, 9, highway="motorway_link", lanes="2", osmid=2, geometry=LineString(ramp_xy))
+    result = build_ramps(graph, road, trajectory_xy=traj)
+    assert len(result.ramps) == 1
+    ramp = result.ramps[0]
+    assert ramp.type == "exit"
+    assert ramp.station_source == "lidar gore"
+    assert ramp.station_m == pytest.approx(520.0)
+    assert ramp.lanes == 1
+    assert ramp.lane_rule == "mainline lane change"
+    assert ramp.osm_lanes == 2
+    assert ramp.mainline_lane_ids == (-5,)
+    assert any("mainline lane change says 1" in w for w in ramp.warnings)
+    _check_attached(ramp, road, "right")
+    # the ramp's first lane takes the deceleration lane's width at the gore
+    w0 = ramp.road.lane_sections[0].right[0].width.value(np.array([0.0]))[0]
+    assert w0 == pytest.approx(3.5, abs=1e-3)
+    # without the LiDAR evidence the OSM attachment and tags decide
+    plain = Road("1", road.geometry, (sections[0],), name="mainline")
+    osm_only = build_ramps(graph, plain, trajectory_xy=traj).ramps[0]
+    assert osm_only.station_source == "osm"
+    # the OSM node at trajectory station 470 lies at ~469 m on the offset reference line
+    assert osm_only.station_m == pytest.approx(470.0, abs=3.0)
+    assert (osm_only.lanes, osm_only.lane_rule) == (2, "lanes")
+    _check_attached(osm_only, plain, "right")

@@ -1,0 +1,352 @@
+"""Topology: a hand-built mainline road with a deceleration and an acceleration lane plus
+two ramp polylines -> cut roads, junctions (default and direct), lane links.
+
+Numbers checked: attachment gap <= 1 cm and heading jump <= 0.5 deg at every link, lane
+routes from the mainline into the exit and from the entry onto the mainline, mutual links
+(``roadtwin.check.check_network`` finds no link problem), lane sections where the lane
+count changes.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from roadtwin.check import check_network
+from roadtwin.config import RampConfig, TopologyConfig
+from roadtwin.model import (
+    Arc,
+    CubicPiece,
+    CubicProfile,
+    Header,
+    Lane,
+    LaneSection,
+    Line,
+    Road,
+    RoadMark,
+    RoadNetwork,
+)
+from roadtwin.ramps import Ramp, build_ramp_road, gore_events
+from roadtwin.topology import build_topology, hermite_road, lane_graph, match_lanes
+
+W = 3.75
+LINK_CODES = {
+    "link_gap",
+    "link_kink",
+    "one_sided_link",
+    "dangling_link",
+    "missing_lane_link",
+    "geometry_gap",
+    "geometry_kink",
+}
+
+
+def _taper(w0: float, w1: float, s0: float, length: float) -> CubicPiece:
+    dw = w1 - w0
+    return CubicPiece(s0, w0, 0.0, 3 * dw / length**2, -2 * dw / length**3)
+
+
+def _lane(lane_id, width, lane_type="driving", mark="broken", pred=None, succ=None):
+    if not isinstance(width, CubicProfile):
+        width = CubicProfile.constant(width)
+    return Lane(lane_id, lane_type, width, (RoadMark(0.0, mark),), pred, succ)
+
+
+def _mirror(section: LaneSection, side: str) -> LaneSection:
+    if side == "right":
+        return section
+
+    def flip(lane: Lane) -> Lane:
+        return Lane(
+            -lane.id,
+            lane.type,
+            lane.width,
+            lane.road_marks,
+            None if lane.predecessor is None else -lane.predecessor,
+            None if lane.successor is None else -lane.successor,
+        )
+
+    return LaneSection(section.s0, left=tuple(flip(x) for x in section.right))
+
+
+def mainline_road(side: str = "right") -> Road:
+    """1200 m: line then a left arc; decel lane 300..500 (gore at 500), accel lane
+    800..1000 (gore at 800); shared lane layout (inner shoulder, 3 lanes, hard shoulder)."""
+    line = Line(0.0, 100.0, 50.0, 0.3, 400.0)
+    geometry = (line, Arc(400.0, *line.end_pose(), 800.0, curvature_per_m=1 / 1500))
+
+    def base(decel=None, extra_succ=None, extra_pred=None, s_pred=True, s_succ=True):
+        lanes = [
+            _lane(-1, 0.75, "shoulder", "solid", -1 if s_pred else None, -1 if s_succ else None),
+            _lane(-2, W, pred=-2 if s_pred else None, succ=-2 if s_succ else None),
+            _lane(-3, W, pred=-3 if s_pred else None, succ=-3 if s_succ else None),
+            _lane(-4, W, mark="solid", pred=-4 if s_pred else None, succ=-4 if s_succ else None),
+        ]
+        if decel is not None:
+            lanes.append(_lane(-5, decel, mark="solid", pred=extra_pred, succ=extra_succ))
+        hs = -6 if decel is not None else -5
+        lanes.append(_lane(hs, 2.5, "shoulder", "none"))
+        return lanes
+
+    s0 = base(s_pred=False)
+    s0[-1] = _lane(-5, 2.5, "shoulder", "none", None, -6)
+    s1 = base(CubicProfile((_taper(0.0, W, 0.0, 60.0), CubicPiece(60.0, W))))
+    s1[-1] = _lane(-6, 2.5, "shoulder", "none", -5, None)
+    s2 = base()
+    s2[-1] = _lane(-5, 2.5, "shoulder", "none", None, -6)
+    s3 = base(CubicProfile((CubicPiece(0.0, W), _taper(W, 0.0, 140.0, 60.0))))
+    s3[-1] = _lane(-6, 2.5, "shoulder", "none", None, -5)
+    s4 = base(s_succ=False)
+    s4[-1] = _lane(-5, 2.5, "shoulder", "none", -6, None)
+    center = Lane(0, "none", road_marks=(RoadMark(0.0, "none"),))
+    sections = tuple(
+        _mirror(LaneSection(s, center=center, right=tuple(lanes)), side)
+        for s, lanes in ((0.0, s0), (300.0, s1), (500.0, s2), (800.0, s3), (1000.0, s4))
+    )
+    return Road(
+        "1",
+        geometry,
+        sections,
+        name="mainline",
+        elevation=CubicProfile((CubicPiece(0.0, 10.0, 0.01),)),
+    )
+
+
+def ramp_polylines(road: Road, side: str = "right") -> dict[str, np.ndarray]:
+    """OSM-like sparse centrelines: the exit leaves the carriageway centre near s=430 and
+    bends away; the entry comes in and joins the centre near s=900."""
+    sign = -1.0 if side == "right" else 1.0
+    centre_t = sign * (0.75 + 1.5 * W)
+    s_exit = np.arange(430.0, 800.0, 20.0)
+    t_exit = centre_t + sign * 0.0012 * (s_exit - 430.0) ** 2
+    s_entry = np.arange(560.0, 901.0, 20.0)
+    t_entry = centre_t + sign * 0.0012 * (900.0 - s_entry) ** 2
+    return {
+        "exit": road.to_xy(s_exit, t_exit),
+        "entry": road.to_xy(s_entry, t_entry),
+    }
+
+
+def make_ramps(road: Road, side: str = "right") -> list[Ramp]:
+    cfg = RampConfig()
+    events = {e.kind: e for e in gore_events(road, traffic_side=side)}
+    out = []
+    for kind, xy in ramp_polylines(road, side).items():
+        ev = events[kind]
+        ramp_road, gap, dh = build_ramp_road(
+            xy,
+            road,
+            ramp_type=kind,
+            lanes=len(ev.lane_ids),
+            station_m=ev.station_m,
+            source_lane_ids=ev.lane_ids,
+            traffic_side=side,
+            road_id=f"r{kind}",
+            config=cfg,
+        )
+        out.append(
+            Ramp(
+                type=kind,
+                road=ramp_road,
+                station_m=ev.station_m,
+                lanes=len(ev.lane_ids),
+                lane_rule="mainline lane change",
+                osm_lanes=1,
+                osm_lane_rule="highway class",
+                station_source="lidar gore",
+                mainline_lane_ids=ev.lane_ids,
+                type_connectivity=kind,
+                type_geometry=kind,
+                osm_way_ids=(),
+                attach_gap_m=gap,
+                attach_heading_deg=dh,
+            )
+        )
+    return out
+
+
+def _network(topo) -> RoadNetwork:
+    return RoadNetwork(
+        Header(geo_reference="+proj=tmerc +lat_0=50 +lon_0=11"), topo.roads, topo.junctions
+    )
+
+
+def _pose(road: Road, s: float):
+    x, y, h, _ = road.evaluate(np.array([s]))
+    return float(x[0]), float(y[0]), float(h[0])
+
+
+def _lane_border_xy(road: Road, s: float, lane_id: int) -> np.ndarray:
+    """Inner and outer border points of a lane at station s."""
+    inner = lane_id + (1 if lane_id < 0 else -1)
+    t = [road.lane_border_t(np.array([s]), i)[0] for i in (inner, lane_id)]
+    return road.to_xy(np.array([s, s]), np.array(t))
+
+
+@pytest.fixture(scope="module", params=["right", "left"])
+def side(request):
+    return request.param
+
+
+@pytest.fixture(scope="module")
+def mainline(side):
+    return mainline_road(side)
+
+
+@pytest.fixture(scope="module")
+def ramps(mainline, side):
+    return make_ramps(mainline, side)
+
+
+def test_gore_events_from_lane_sections(mainline, side):
+    events = gore_events(mainline, traffic_side=side)
+    sign = -1 if side == "right" else 1
+    assert [(e.kind, e.station_m, e.lane_ids, e.through_lane_id) for e in events] == [
+        ("exit", 500.0, (sign * 5,), sign * 4),
+        ("entry", 800.0, (sign * 5,), sign * 4),
+    ]
+
+
+def test_ramp_roads_attach_exactly(mainline, ramps, side):
+    sign = -1 if side == "right" else 1
+    for ramp in ramps:
+        assert ramp.attach_gap_m <= 0.01
+        assert ramp.attach_heading_deg <= 0.5
+        s_ramp = 0.0 if ramp.type == "exit" else ramp.road.length
+        # the ramp's reference line lies on the outer border of the outermost through lane
+        t_border = mainline.lane_border_t(np.array([ramp.station_m]), sign * 4)[0]
+        target = mainline.to_xy(np.array([ramp.station_m]), np.array([t_border]))[0]
+        x, y, h = _pose(ramp.road, s_ramp)
+        assert math.hypot(x - target[0], y - target[1]) <= 0.01
+        h_main = float(mainline.heading(np.array([ramp.station_m]))[0])
+        assert abs(math.degrees((h - h_main + math.pi) % (2 * math.pi) - math.pi)) <= 0.5
+        # the ramp lies on the traffic side, outside the carriageway, 100 m away
+        s_far = 100.0 if ramp.type == "exit" else ramp.road.length - 100.0
+        _, t_far = mainline.project(ramp.road.xy(np.array([s_far])))
+        edge = mainline.lane_border_t(np.array([ramp.station_m]), sign * 4)[0]
+        assert t_far[0] * sign > abs(edge)
+
+
+@pytest.mark.parametrize("junctions", ["default", "direct"])
+def test_topology_links_and_routes(mainline, ramps, side, junctions):
+    topo = build_topology(
+        mainline, ramps, traffic_side=side, config=TopologyConfig(junctions=junctions)
+    )
+    assert not topo.skipped
+    net = _network(topo)
+    names = [r.name for r in net.roads]
+    assert names.count("mainline") == 3
+    assert names.count("exit") == 1
+    assert names.count("entry") == 1
+    assert names.count("connector") == (4 if junctions == "default" else 0)
+    assert [r.id for r in net.roads if r.name == "mainline"] == ["1", "2", "3"]
+    assert len(net.junctions) == 2
+    assert {j.type for j in net.junctions} == {junctions}
+    # mainline lengths add up (default: plus the through connectors)
+    total = sum(r.length for r in net.roads if r.name == "mainline")
+    total += sum(
+        r.length
+        for r in net.roads
+        if r.name == "connector"
+        and r.lane_sections[0].lane(-1 if side == "right" else 1).type == "shoulder"
+    )
+    assert total == pytest.approx(mainline.length, abs=0.01)
+
+    findings = check_network(net)
+    bad = [f for f in findings if f.code in LINK_CODES and f.severity == "error"]
+    assert not bad, [f.message for f in bad]
+    errors = [f for f in findings if f.severity == "error"]
+    assert not errors, [f.message for f in errors]
+
+    # every road link is mutual and geometrically continuous within 1 cm / 0.5 deg
+    ids = net.id_to_road
+    for road in net.roads:
+        for contact, link in (("start", road.predecessor), ("end", road.successor)):
+            if link is None or link.element_type != "road":
+                continue
+            other = ids[link.element_id]
+            back = other.predecessor if link.contact_point == "start" else other.successor
+            assert back is not None
+            assert back.element_id in (road.id, road.junction)
+            s_a = 0.0 if contact == "start" else road.length
+            s_b = 0.0 if link.contact_point == "start" else other.length
+            _xa, _ya, ha = _pose(road, s_a)
+            _xb, _yb, hb = _pose(other, s_b)
+            pairs = [
+                (ln.id, ln.predecessor if contact == "start" else ln.successor)
+                for sec in (road.lane_sections[0 if contact == "start" else -1],)
+                for ln in (*sec.left, *sec.right)
+            ]
+            pairs = [(a, b) for a, b in pairs if b is not None]
+            assert pairs, f"road {road.id} {contact}: no lane links"
+            for a, b in pairs:
+                pa = _lane_border_xy(road, s_a, a)
+                pb = _lane_border_xy(other, s_b, b)
+                assert np.max(np.hypot(*(pa - pb).T)) <= 0.01
+            dh = math.degrees((hb - ha + math.pi) % (2 * math.pi) - math.pi)
+            assert abs(dh) <= 0.5
+    # routes over the lane graph (lane changes allowed inside a lane section)
+    g = lane_graph(net, lane_changes=True)
+    sign = -1 if side == "right" else 1
+    first, last = ids["1"], ids["3"]
+    start = ("1", 0, sign * 2)
+    end = ("3", len(last.lane_sections) - 1, sign * 2)
+    exit_id = next(r.id for r in net.roads if r.name == "exit")
+    entry_id = next(r.id for r in net.roads if r.name == "entry")
+    exit_road, _entry_road = ids[exit_id], ids[entry_id]
+    assert nx.has_path(g, start, (exit_id, len(exit_road.lane_sections) - 1, sign * 1))
+    assert nx.has_path(g, (entry_id, 0, sign * 1), end)
+    assert nx.has_path(g, start, end)
+    # without lane changes: the deceleration lane leads into the exit, the entry into the
+    # acceleration lane
+    g0 = lane_graph(net)
+    assert nx.has_path(g0, ("1", len(first.lane_sections) - 1, sign * 5), (exit_id, 0, sign))
+    assert nx.has_path(g0, (entry_id, 0, sign), ("3", 0, sign * 5))
+
+
+def test_lane_sections_follow_lane_count(mainline, ramps, side):
+    topo = build_topology(mainline, ramps, traffic_side=side)
+    for road in topo.roads:
+        counts = [len(s.left) + len(s.right) for s in road.lane_sections]
+        assert all(a != b for a, b in itertools.pairwise(counts)) or len(counts) == 1
+
+
+def test_too_close_ramps_are_skipped(mainline, ramps, side):
+    moved = [ramps[0], Ramp(**{**ramps[1].__dict__, "station_m": ramps[0].station_m + 10.0})]
+    topo = build_topology(mainline, moved, traffic_side=side)
+    assert len(topo.skipped) == 1
+    assert len(topo.junctions) == 1
+
+
+def test_match_lanes_by_role(mainline, side):
+    sign = -1 if side == "right" else 1
+    before, gore_next = mainline.lane_sections[1], mainline.lane_sections[2]
+    m = match_lanes(before, gore_next, traffic_side=side)
+    # shoulders and through lanes continue; the deceleration lane and the hard shoulder
+    # beside the gore do not
+    assert m == {sign * i: sign * i for i in (1, 2, 3, 4)}
+    same = match_lanes(mainline.lane_sections[0], mainline.lane_sections[2], traffic_side=side)
+    assert same[sign * 5] == sign * 5
+
+
+def test_hermite_road_meets_both_poses():
+    start = (10.0, -5.0, 0.2)
+    end = (60.0, 3.0, 0.45)
+    road = hermite_road(start, end, road_id="c", widths_start=[3.5, 0.0], widths_end=[3.6, 3.6])
+    x0, y0, h0 = _pose(road, 0.0)
+    x1, y1, h1 = _pose(road, road.length)
+    assert math.hypot(x0 - start[0], y0 - start[1]) < 1e-9
+    assert math.hypot(x1 - end[0], y1 - end[1]) < 1e-6
+    assert abs(h0 - start[2]) < 1e-9
+    assert abs(h1 - end[2]) < 1e-9
+    # declared length is the true arc length (1 mm ASAM tolerance)
+    s = np.linspace(0, road.length, 20001)
+    true_len = float(np.sum(np.hypot(*np.diff(road.xy(s), axis=0).T)))
+    assert road.length == pytest.approx(true_len, abs=1e-4)
+    w = road.lane_sections[0].right[1].width
+    assert float(w.value(0.0)) == pytest.approx(0.0)
+    assert float(w.value(road.length)) == pytest.approx(3.6)
