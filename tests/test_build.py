@@ -192,3 +192,14 @@ def test_check_reports_zero_errors(built):
     if errors and all(e.startswith(("negative_width", "width_jump")) for e in errors):
         pytest.xfail(f"{built.name}: mainline lane widths (mainline stage): {errors[:3]}")
     assert not errors
+
+
+def test_build_bad_input_leaves_no_output(tmp_path, capsys):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    out = tmp_path / "out"
+    assert main(["-q", "build", str(run_dir), "-o", str(out), "--no-check"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("roadtwin: error:")
+    assert len(err.strip().splitlines()) == 1
+    assert not out.exists()

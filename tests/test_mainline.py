@@ -93,9 +93,21 @@ def _lane_ids(sec: LaneSection) -> list[int]:
     return [ln.id for ln in (sec.right or sec.left)]
 
 
-def sample_run(road: Road, *, noise_m: float = 0.03, seed: int = 0, outliers: float = 0.0,
-               gap: tuple[float, float] | None = None, traffic_side: str = "right") -> MappingRun:
-    """Edge points, lane samples and poses of ``road`` with Gaussian noise."""
+def sample_run(
+    road: Road,
+    *,
+    noise_m: float = 0.03,
+    seed: int = 0,
+    outliers: float = 0.0,
+    gap: tuple[float, float] | None = None,
+    traffic_side: str = "right",
+    cross_slope: float = 0.0,
+) -> MappingRun:
+    """Edge points, lane samples and poses of ``road`` with Gaussian noise.
+
+    ``outliers``: fraction of edge points pushed 0.5-3 m outward (guardrails);
+    ``gap``: station range without edge points (occlusion); ``cross_slope``: the surface
+    height changes by this much per metre of t (z = elevation + t * cross_slope)."""
     rng = np.random.default_rng(seed)
     sign = 1.0 if traffic_side == "right" else -1.0
     length = road.length
@@ -112,12 +124,12 @@ def sample_run(road: Road, *, noise_m: float = 0.03, seed: int = 0, outliers: fl
         if gap is not None:
             keep &= ~((s_e > gap[0]) & (s_e < gap[1]))
         xy = road.to_xy(s_e[keep], t[keep])
-        z = road.height(s_e[keep])
+        z = road.height(s_e[keep]) + cross_slope * t[keep]
         pts = np.column_stack([xy, z]) + rng.normal(0.0, noise_m, (xy.shape[0], 3))
         if outliers > 0:  # guardrail-like points offset outward
             n_out = int(outliers * pts.shape[0])
             idx = rng.choice(pts.shape[0], n_out, replace=False)
-            _, h = road.project(pts[idx])[0], road.heading(road.project(pts[idx])[0])
+            h = road.heading(road.project(pts[idx])[0])
             out_dir = side_val * np.stack([-np.sin(h), np.cos(h)], axis=1)
             pts[idx, :2] += out_dir * rng.uniform(0.5, 3.0, (n_out, 1))
         edges.append(pts)
@@ -139,14 +151,14 @@ def sample_run(road: Road, *, noise_m: float = 0.03, seed: int = 0, outliers: fl
             w = ln.width.value(ss - sec.s0)
             ss, t = ss[w > 0.05], t[w > 0.05]
             xy = road.to_xy(ss, t)
-            lane_pts.append(np.column_stack([xy, road.height(ss)]))
+            lane_pts.append(np.column_stack([xy, road.height(ss) + cross_slope * t]))
     lanes = np.vstack(lane_pts)
     lanes = lanes + rng.normal(0.0, noise_m, lanes.shape)
     # trajectory: centre of the second driving lane, with a gentle weave
     s_p = np.arange(0.0, length, 1.0)
     t_p = road.lane_border_t(s_p, int(-3 * sign)) + sign * 1.875 + 0.3 * np.sin(s_p / 90.0)
     xy_p = road.to_xy(s_p, t_p)
-    z_p = road.height(s_p)
+    z_p = road.height(s_p) + cross_slope * t_p
     traj = Trajectory(
         frame=np.arange(s_p.size, dtype=np.int64),
         t=s_p / 25.0,
@@ -197,7 +209,7 @@ def compare_to_truth(built: Road, truth: Road, *, step_m: float = 1.0, trim_m: f
     """Lateral errors (metres) of the built road against the truth road: road edges, lane
     markings (same index where the lane counts agree, else the nearest marking), elevation,
     and the fraction of stations where the lane count agrees."""
-    s_t = np.arange(trim_m, truth.length - trim_m, step_m)
+    s_t = np.arange(trim_m + 0.5 * step_m, truth.length - trim_m, step_m)  # off boundaries
     ref_t, out_t, marks_t, count_t = _borders(truth, s_t)
     res = {}
     pts_ref = truth.to_xy(s_t, ref_t)
@@ -230,3 +242,198 @@ def compare_to_truth(built: Road, truth: Road, *, step_m: float = 1.0, trim_m: f
 def rmse(e) -> float:
     e = np.asarray(e, float)
     return float(np.sqrt(np.mean(e * e)))
+
+
+def continuity(road: Road) -> tuple[float, float]:
+    """Largest gap (m) and kink (deg) between consecutive geometry pieces."""
+    gap = kink = 0.0
+    for a, b in zip(road.geometry[:-1], road.geometry[1:], strict=True):
+        x, y, h = a.end_pose()
+        gap = max(gap, float(np.hypot(x - b.x0, y - b.y0)))
+        kink = max(kink, abs(float(np.degrees((h - b.hdg + np.pi) % (2 * np.pi) - np.pi))))
+    return gap, kink
+
+
+# ---------------------------------------------------------------------------
+# tests
+# ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def right_case():
+    truth = truth_road()
+    run = sample_run(truth, seed=1)
+    return truth, run, build_mainline(run)
+
+
+def test_default_method_matches_truth(right_case):
+    truth, _run, ml = right_case
+    road = ml.road
+    assert road.name == "mainline"
+    assert road.id == "1"
+    res = compare_to_truth(road, truth)
+    assert rmse(res["ref_edge"]) < 0.02
+    assert rmse(res["outer_edge"]) < 0.05
+    assert rmse(res["lane_boundary"]) < 0.03
+    assert rmse(res["elevation"]) < 0.01
+    assert res["lane_count_agreement"] > 0.98
+    gap, kink = continuity(road)
+    assert gap < 1e-3
+    assert kink < 0.01
+    assert road.length == pytest.approx(truth.length, abs=0.5)
+    assert road.superelevation is None  # flat cross section
+    assert ml.residuals["road_edge"] < 0.06
+    assert ml.residuals["lane_boundary"] < 0.06
+    assert set(ml.timings_s) >= {"reference_line", "elevation", "lanes", "total"}
+
+
+def test_default_lane_layout_and_events(right_case):
+    _, _, ml = right_case
+    secs = ml.road.lane_sections
+    assert [len(sec.right) for sec in secs] == [5, 6, 5]
+    assert secs[1].s0 == pytest.approx(900.0, abs=3.0)
+    assert secs[2].s0 == pytest.approx(1200.0, abs=3.0)
+    for sec in secs:
+        assert not sec.left
+        types = [ln.type for ln in sec.right]
+        assert types[0] == "shoulder"
+        assert types[-1] == "shoulder"
+        assert set(types[1:-1]) == {"driving"}
+        assert [ln.id for ln in sec.right] == list(range(-1, -len(sec.right) - 1, -1))
+        assert sec.right[-1].road_marks[0].type == "none"
+        assert sec.right[0].road_marks[0].type == "solid"
+    marks = [ln.road_marks[0].type for ln in secs[0].right]
+    assert marks == ["solid", "broken", "broken", "solid", "none"]
+    aux = secs[1].right[4]
+    assert aux.width.value(0.0) < 0.1  # tapers from zero
+    assert aux.width.value(150.0) == pytest.approx(3.5, abs=0.1)
+    assert aux.predecessor is None
+    # hard shoulder continues across sections
+    assert secs[1].right[-1].predecessor == -5
+    assert secs[0].right[-1].successor == -6
+    births = [e for e in ml.lane_events if e.kind == "birth"]
+    ends = [e for e in ml.lane_events if e.kind == "end"]
+    assert len(births) == 1
+    assert len(ends) == 1
+    assert births[0].s_m == pytest.approx(900.0, abs=5.0)
+    assert births[0].taper_m == pytest.approx(80.0, abs=15.0)
+    assert births[0].lane_id == -5
+    assert births[0].position == "outer"
+    assert ends[0].s_m == pytest.approx(1200.0, abs=3.0)
+    assert ends[0].taper_m == 0.0
+    # widths are never negative
+    for sec, nxt in zip(secs, [*secs[1:], None], strict=True):
+        hi = (nxt.s0 if nxt else ml.road.length) - sec.s0
+        ds = np.linspace(0.0, hi, 50)
+        for ln in sec.right:
+            assert np.all(ln.width.value(ds) >= -1e-6)
+
+
+def test_left_hand_traffic_is_mirrored():
+    truth = truth_road(sign=-1.0)
+    run = sample_run(truth, seed=2, traffic_side="left")
+    ml = build_mainline(run)
+    secs = ml.road.lane_sections
+    assert all(not sec.right for sec in secs)
+    assert [len(sec.left) for sec in secs] == [5, 6, 5]
+    assert [ln.id for ln in secs[0].left] == [1, 2, 3, 4, 5]
+    res = compare_to_truth(ml.road, truth)
+    assert rmse(res["ref_edge"]) < 0.02
+    assert rmse(res["lane_boundary"]) < 0.03
+    assert ml.lane_events[0].side == "left"
+    assert ml.lane_events[0].lane_id == 5
+
+
+def test_robust_to_outliers_occlusion_and_cross_slope():
+    truth = truth_road(aux_lane=False)
+    run = sample_run(truth, seed=3, outliers=0.08, gap=(600.0, 700.0), cross_slope=0.025)
+    ml = build_mainline(run)
+    res = compare_to_truth(ml.road, truth)
+    assert rmse(res["ref_edge"]) < 0.03
+    assert rmse(res["outer_edge"]) < 0.06
+    assert res["lane_count_agreement"] > 0.99
+    assert len(ml.road.lane_sections) == 1
+    # surface falls to the right (t < 0 lower): superelevation = atan(0.025) > 0
+    assert ml.road.superelevation is not None
+    sup = ml.road.superelevation.value(np.linspace(100, 1400, 20))
+    np.testing.assert_allclose(sup, np.arctan(0.025), atol=0.003)
+    assert rmse(res["elevation"]) < 0.02
+
+
+def test_paper_method_is_windowed(right_case):
+    truth, run, ml = right_case
+    paper = build_mainline(run, config=MainlineConfig(method="paper"))
+    assert paper.method == "paper"
+    road = paper.road
+    # one piece and one lane section per 100 m window
+    assert len(road.geometry) == pytest.approx(15, abs=1)
+    assert len(road.lane_sections) == len(road.geometry)
+    gap, _ = continuity(road)
+    assert gap > 1e-3  # independent windows do not meet exactly
+    res = compare_to_truth(road, truth)
+    assert rmse(res["ref_edge"]) < 0.2
+    assert np.isfinite(paper.residuals["overall"])
+    # the default method is better on the lanes
+    assert rmse(compare_to_truth(ml.road, truth)["lane_boundary"]) < rmse(res["lane_boundary"])
+
+
+def test_unknown_method_is_an_input_error(right_case):
+    from roadtwin._errors import InputError
+
+    _, run, _ = right_case
+    with pytest.raises(InputError):
+        build_mainline(run, config=MainlineConfig(method="magic"))  # type: ignore[arg-type]
+
+
+def test_cut_road_is_exact(right_case):
+    _, _, ml = right_case
+    road = ml.road
+    a, b = 850.3, 1250.7
+    sub = cut_road(road, a, b, road_id="7")
+    assert sub.id == "7"
+    assert sub.predecessor is None
+    assert sub.successor is None
+    assert sub.length == pytest.approx(b - a, abs=1e-9)
+    assert sub.geometry[0].s0 == 0.0
+    assert sub.lane_sections[0].s0 == 0.0
+    s = np.linspace(0.0, b - a, 300)
+    np.testing.assert_allclose(sub.xy(s), road.xy(s + a), atol=1e-7)
+    np.testing.assert_allclose(sub.heading(s), road.heading(s + a), atol=1e-9)
+    np.testing.assert_allclose(sub.height(s), road.height(s + a), atol=1e-9)
+    for lid in (-1, -3, -5):
+        np.testing.assert_allclose(
+            sub.lane_border_t(s, lid), road.lane_border_t(s + a, lid), atol=1e-9, equal_nan=True
+        )
+    assert [sc.s0 + a for sc in sub.lane_sections[1:]] == pytest.approx(
+        [sc.s0 for sc in road.lane_sections if a < sc.s0 < b]
+    )
+    gap, kink = continuity(sub)
+    assert gap < 1e-6
+    assert kink < 1e-6
+    first = sub.lane_sections[0].right
+    assert all(ln.predecessor is None for ln in first)
+    assert all(ln.successor is None for ln in sub.lane_sections[-1].right)
+
+
+def test_simulated_run_end_to_end(tmp_path):
+    simulate = pytest.importorskip("roadtwin.simulate")
+    from roadtwin.io import load_run
+    from roadtwin.xodr import read_xodr
+
+    out = simulate.simulate_run("straight_curve_2km", tmp_path / "run")
+    run = load_run(out)
+    ml = build_mainline(run)
+    truth = read_xodr(out / "truth.xodr")
+    mains = sorted((r for r in truth.roads if r.name == "mainline"), key=lambda r: int(r.id))
+    errs = {"ref_edge": [], "outer_edge": [], "lane_boundary": []}
+    for r in mains:
+        res = compare_to_truth(ml.road, r, trim_m=0.5)
+        for k in errs:
+            errs[k].append(res[k])
+    assert rmse(np.concatenate(errs["ref_edge"])) < 0.05
+    assert rmse(np.concatenate(errs["lane_boundary"])) < 0.05
+    # exit and entry: a deceleration lane ends at the exit gore, an acceleration lane
+    # starts at the entry gore
+    kinds = [(e.kind, round(e.s_m / 50.0) * 50) for e in ml.lane_events]
+    assert ("end", 650) in kinds
+    assert ("birth", 1250) in kinds

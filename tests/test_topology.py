@@ -350,3 +350,19 @@ def test_hermite_road_meets_both_poses():
     w = road.lane_sections[0].right[1].width
     assert float(w.value(0.0)) == pytest.approx(0.0)
     assert float(w.value(road.length)) == pytest.approx(3.6)
+
+
+def test_gores_from_lane_events_match_section_scan(mainline, side):
+    from roadtwin.mainline import LaneEvent
+    from roadtwin.ramps import gores_from_lane_events
+
+    k = -5 if side == "right" else 5
+    events = [
+        LaneEvent(300.0, "birth", side, k, "outer", 60.0, W),
+        LaneEvent(500.0, "end", side, k, "outer", 0.0, W),
+        LaneEvent(800.0, "birth", side, k, "outer", 0.0, W),
+        LaneEvent(1000.0, "end", side, k, "outer", 60.0, W),
+    ]
+    got = gores_from_lane_events(events, mainline, traffic_side=side)
+    assert got == gore_events(mainline, traffic_side=side)
+    assert [g.station_m for g in got] == [500.0, 800.0]

@@ -290,6 +290,9 @@ def _cmd_build(args: argparse.Namespace) -> int:
             "warnings": list(result.warnings),
         }
         (tmp / "build.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+        busy = [name for name in names if (out / name).is_dir()]
+        if busy:
+            raise InputError(f"{out}: cannot write {', '.join(busy)}: a folder of that name exists")
         for name in names:
             (tmp / name).replace(out / name)
     finally:

@@ -79,7 +79,7 @@ class MainlineConfig:
     """A lane birth/end is extrapolated to zero width at most this far (metres)."""
     lane_split_m: float = 1.6
     """A marking that starts/ends within this of a neighbour opens/closes a tapering lane."""
-    ramp_line_slope: float = 0.03
+    ramp_line_slope: float = 0.012
     """A marking whose offset changes faster than this (m/m) where it starts (inward) or
     ends (outward) is a ramp line crossing the corridor near a gore, not the mainline's."""
     hidden_lane_min_m: float = 2.0
@@ -148,36 +148,6 @@ class TopologyConfig:
 
 
 @dataclass(frozen=True)
-class PipelineConfig:
-    """All stage configurations together."""
-
-    load: LoadConfig = field(default_factory=LoadConfig)
-    mainline: MainlineConfig = field(default_factory=MainlineConfig)
-    ramps: RampConfig = field(default_factory=RampConfig)
-    topology: TopologyConfig = field(default_factory=TopologyConfig)
-
-    @classmethod
-    def from_dict(cls, data: dict[str, dict[str, Any]]) -> PipelineConfig:
-        """Build from ``{"mainline": {...}, ...}`` (as read from a TOML file)."""
-        from ._errors import InputError
-
-        parts: dict[str, Any] = {}
-        for f in fields(cls):
-            table = data.get(f.name, {})
-            default = f.default_factory()  # type: ignore[misc]
-            known = {g.name for g in fields(default)}
-            unknown = set(table) - known
-            if unknown:
-                msg = f"config [{f.name}]: unknown keys {sorted(unknown)}; known: {sorted(known)}"
-                raise InputError(msg)
-            parts[f.name] = replace(default, **table)
-        unknown_tables = set(data) - {f.name for f in fields(cls)}
-        if unknown_tables:
-            raise InputError(f"config: unknown tables {sorted(unknown_tables)}")
-        return cls(**parts)
-
-
-@dataclass(frozen=True)
 class EvaluationConfig:
     """Accuracy evaluation (``roadtwin.evaluation``)."""
 
@@ -202,3 +172,34 @@ class EvaluationConfig:
             if not getattr(self, name) > 0:
                 msg = f"evaluation config: {name} must be > 0, got {getattr(self, name)}"
                 raise ValueError(msg)
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """All stage configurations together."""
+
+    load: LoadConfig = field(default_factory=LoadConfig)
+    mainline: MainlineConfig = field(default_factory=MainlineConfig)
+    ramps: RampConfig = field(default_factory=RampConfig)
+    topology: TopologyConfig = field(default_factory=TopologyConfig)
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+
+    @classmethod
+    def from_dict(cls, data: dict[str, dict[str, Any]]) -> PipelineConfig:
+        """Build from ``{"mainline": {...}, ...}`` (as read from a TOML file)."""
+        from ._errors import InputError
+
+        parts: dict[str, Any] = {}
+        for f in fields(cls):
+            table = data.get(f.name, {})
+            default = f.default_factory()  # type: ignore[misc]
+            known = {g.name for g in fields(default)}
+            unknown = set(table) - known
+            if unknown:
+                msg = f"config [{f.name}]: unknown keys {sorted(unknown)}; known: {sorted(known)}"
+                raise InputError(msg)
+            parts[f.name] = replace(default, **table)
+        unknown_tables = set(data) - {f.name for f in fields(cls)}
+        if unknown_tables:
+            raise InputError(f"config: unknown tables {sorted(unknown_tables)}")
+        return cls(**parts)

@@ -34,6 +34,7 @@ method is written once and mirrored by the sign.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import time
@@ -286,7 +287,7 @@ def robust_offset_fit(
     step = float(grid[1] - grid[0])
     edges = np.concatenate([grid - 0.5 * step, [grid[-1] + 0.5 * step]])
     med, _, count = binned_statistics(s, t, edges)
-    win = max(3, int(round(cutoff_m / 2.0 / step)) | 1)
+    win = max(3, round(cutoff_m / 2.0 / step) | 1)
     prior = moving_median(med, window=win)
     prior = _fill_nan(grid, prior)
     lam = _lam(cutoff_m, step)
@@ -540,7 +541,7 @@ def _find_track_peaks(
 
 def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack]:
     """Greedy nearest-neighbour linking of column peaks into tracks."""
-    max_gap = max(1, int(round(cfg.lane_max_gap_m / cfg.lane_column_m)))
+    max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
     tracks: list[_RawTrack] = []
     active: list[int] = []
     for c, pk in enumerate(peaks):
@@ -646,7 +647,7 @@ def fit_outer_edge(
     ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
     used = ok & (np.abs(d - ref) < 0.8)
     out = np.full(grid.size, np.nan)
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+    for a, b in itertools.pairwise(bounds):
         gsel = (grid >= a) & (grid < b)
         psel = used & (s >= a) & (s < b)
         if np.count_nonzero(gsel) < 4 or np.count_nonzero(psel) < 10:
@@ -753,7 +754,9 @@ def _tracks_from_samples(
         hi = centres[tr.cols[-1]] + 0.5 * col
         if hi - lo < cfg.lane_min_track_m:
             continue
-        cand.append(_Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0]))
+        cand.append(
+            _Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0])
+        )
     if not cand:
         return []
     dist = np.full((len(cand), s.size), np.inf)
@@ -763,7 +766,7 @@ def _tracks_from_samples(
     owner = np.argmin(dist, axis=0)
     best = dist[owner, np.arange(s.size)]
     final: list[_Track] = []
-    for k, tr in enumerate(cand):
+    for k in range(len(cand)):
         sel = (owner == k) & (best < cfg.lane_assign_m)
         if np.count_nonzero(sel) < 10:
             continue
@@ -810,10 +813,14 @@ def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArr
     steep = cfg.ramp_line_slope
     # leading part: converging inward steeply
     flat = np.flatnonzero(slope > -steep)
-    if flat.size and flat[0] > 0 and (g[flat[0]] - g[0]) >= 10.0:
+    if flat.size == 0:
+        return np.zeros(g.size, dtype=bool)  # converging all along: a ramp line
+    if flat[0] > 0 and (g[flat[0]] - g[0]) >= 10.0:
         keep[: flat[0]] = False
     flat = np.flatnonzero(slope < steep)
-    if flat.size and flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
+    if flat.size == 0:
+        return np.zeros(g.size, dtype=bool)
+    if flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
         keep[flat[-1] + 1 :] = False
     return keep
 
@@ -846,7 +853,12 @@ def _bridge_edge_gaps(
         x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
         inner = d_last[a:b]
         ok = np.isfinite(inner)
-        out[a:b][ok] = inner[ok] + (1 - x[ok]) * hw0 + x[ok] * hw1
+        hw = (1 - x) * hw0 + x * hw1
+        # a lane that starts/ends inside the gap (a gore): each side keeps its own width
+        jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
+        if jump.size == 1:
+            hw = np.where(np.arange(b - a) < jump[0], hw0, hw1)
+        out[a:b][ok] = inner[ok] + hw[ok]
     return out
 
 
@@ -934,7 +946,11 @@ def _taper(
         return None
     jn = min(others, key=lambda j: abs(dmat[k, i_edge] - dmat[j, i_edge]))
     span = int(300.0 / cfg.grid_step_m)
-    sl = slice(i_edge, min(i_edge + span, n_g)) if end == "start" else slice(max(i_edge - span, 0), i_edge + 1)
+    sl = (
+        slice(i_edge, min(i_edge + span, n_g))
+        if end == "start"
+        else slice(max(i_edge - span, 0), i_edge + 1)
+    )
     both = np.isfinite(dmat[k, sl]) & np.isfinite(dmat[jn, sl])
     gs = grid[sl][both]
     sep = np.abs(dmat[k, sl] - dmat[jn, sl])[both]
@@ -1032,7 +1048,7 @@ def _sections_from_tracks(
     sections: list[LaneSection] = []
     bounds_per: list[list[tuple[object, object]]] = []
     members_per: list[list[int]] = []
-    for a, b in zip(starts[:-1], starts[1:], strict=True):
+    for a, b in itertools.pairwise(starts):
         b_inc = min(b + 1, n_g)
         votes = present[:, a:b].mean(axis=1)
         members = [k for k in range(len(tracks)) if votes[k] > 0.5]
@@ -1183,7 +1199,9 @@ def _events(
             continue
         lane = lanes[lane_idx]
         driving = [ln for ln in lanes if ln.type == "driving"]
-        position = "outer" if driving and lane.id == driving[-1].id and len(driving) > 1 else "inner"
+        position = (
+            "outer" if driving and lane.id == driving[-1].id and len(driving) > 1 else "inner"
+        )
         ds = probe - sections[n].s0
         events.append(
             LaneEvent(
@@ -1262,9 +1280,19 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
         length = _cubic_arc_length(coef_g)
         pieces.append(
             ParamPoly3(
-                s0, float(x0[0]), float(x0[1]), ang + hdg_loc, length,
-                aU=0.0, bU=float(UVr[1, 0]), cU=float(UVr[2, 0]), dU=float(UVr[3, 0]),
-                aV=0.0, bV=0.0, cV=float(UVr[2, 1]), dV=float(UVr[3, 1]),
+                s0,
+                float(x0[0]),
+                float(x0[1]),
+                ang + hdg_loc,
+                length,
+                aU=0.0,
+                bU=float(UVr[1, 0]),
+                cU=float(UVr[2, 0]),
+                dU=float(UVr[3, 0]),
+                aV=0.0,
+                bV=0.0,
+                cV=float(UVr[2, 1]),
+                dV=float(UVr[3, 1]),
                 p_range="normalized",
             )
         )
@@ -1359,15 +1387,22 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
             mark = "none" if i == n_l - 1 else ("solid" if i in (0, n_l - 2) else "broken")
             lid = -(i + 1) if sign > 0 else i + 1
             lanes.append(
-                Lane(lid, lane_type, CubicProfile((CubicPiece(0.0, *map(float, wc)),)),  # type: ignore[arg-type]
-                     (RoadMark(0.0, mark),))  # type: ignore[arg-type]
+                Lane(
+                    lid,
+                    lane_type,
+                    CubicProfile((CubicPiece(0.0, *map(float, wc)),)),  # type: ignore[arg-type]
+                    (RoadMark(0.0, mark),),
+                )  # type: ignore[arg-type]
             )
         sections.append(
             LaneSection(lo, right=tuple(lanes)) if sign > 0 else LaneSection(lo, left=tuple(lanes))
         )
     timings["lanes"] = time.perf_counter() - t0
     road = replace(
-        base, elevation=elevation, lane_sections=tuple(sections), lane_offset=CubicProfile.constant(0.0)
+        base,
+        elevation=elevation,
+        lane_sections=tuple(sections),
+        lane_offset=CubicProfile.constant(0.0),
     )
     return _Partial(road, (), "paper")
 
@@ -1463,17 +1498,35 @@ def _cut_geometry(g: Geometry, a: float, b: float, s_new: float) -> Geometry:
         c, sn = math.cos(rel), math.sin(rel)
         UVr = UV @ np.array([[c, -sn], [sn, c]])
         return ParamPoly3(
-            s_new, float(x[0]), float(y[0]), float(h[0]), length,
-            aU=0.0, bU=float(UVr[1, 0]), cU=float(UVr[2, 0]), dU=float(UVr[3, 0]),
-            aV=0.0, bV=float(UVr[1, 1]), cV=float(UVr[2, 1]), dV=float(UVr[3, 1]),
+            s_new,
+            float(x[0]),
+            float(y[0]),
+            float(h[0]),
+            length,
+            aU=0.0,
+            bU=float(UVr[1, 0]),
+            cU=float(UVr[2, 0]),
+            dU=float(UVr[3, 0]),
+            aV=0.0,
+            bV=float(UVr[1, 1]),
+            cV=float(UVr[2, 1]),
+            dV=float(UVr[3, 1]),
             p_range=g.p_range,
         )
     if isinstance(g, Spiral):
-        return Spiral(s_new, float(x[0]), float(y[0]), float(h[0]), length,
-                      curv_start=float(k[0]), curv_end=float(k[1]))
+        return Spiral(
+            s_new,
+            float(x[0]),
+            float(y[0]),
+            float(h[0]),
+            length,
+            curv_start=float(k[0]),
+            curv_end=float(k[1]),
+        )
     if isinstance(g, Arc):
-        return Arc(s_new, float(x[0]), float(y[0]), float(h[0]), length,
-                   curvature_per_m=g.curvature_per_m)
+        return Arc(
+            s_new, float(x[0]), float(y[0]), float(h[0]), length, curvature_per_m=g.curvature_per_m
+        )
     if isinstance(g, Line):
         return Line(s_new, float(x[0]), float(y[0]), float(h[0]), length)
     if math.isclose(a, g.s0) and math.isclose(b, g.s0 + g.length):
@@ -1496,7 +1549,11 @@ def _cut_profile(prof: CubicProfile, a: float, b: float) -> CubicProfile:
 def _cut_lane(lane: Lane, ds: float, keep_pred: bool, keep_succ: bool, span: float) -> Lane:
     width = _cut_profile(lane.width, ds, ds + span)
     marks = [m for m in lane.road_marks if m.s_offset <= ds + 1e-9]
-    later = [replace(m, s_offset=m.s_offset - ds) for m in lane.road_marks if ds + 1e-9 < m.s_offset < ds + span]
+    later = [
+        replace(m, s_offset=m.s_offset - ds)
+        for m in lane.road_marks
+        if ds + 1e-9 < m.s_offset < ds + span
+    ]
     first = [replace(marks[-1], s_offset=0.0)] if marks else []
     return replace(
         lane,
@@ -1540,7 +1597,9 @@ def cut_road(road: Road, s_start: float, s_end: float, *, road_id: str) -> Road:
         geo.append(_cut_geometry(g, lo, hi, lo - a))
     sec_s0 = np.array([sc.s0 for sc in road.lane_sections])
     i0 = max(int(np.searchsorted(sec_s0, a, side="right")) - 1, 0)
-    secs = [road.lane_sections[i0]] + [sc for sc in road.lane_sections[i0 + 1 :] if sc.s0 < b - 1e-9]
+    secs = [road.lane_sections[i0]] + [
+        sc for sc in road.lane_sections[i0 + 1 :] if sc.s0 < b - 1e-9
+    ]
     new_secs: list[LaneSection] = []
     for j, sc in enumerate(secs):
         sa = max(sc.s0, a)

@@ -17,7 +17,7 @@ from .config import PipelineConfig
 from .io import MappingRun
 from .mainline import Mainline, build_mainline
 from .model import Header, RoadNetwork
-from .ramps import Ramp, RampSet, build_ramps
+from .ramps import Ramp, RampSet, build_ramps, gores_from_lane_events
 from .topology import Topology, build_topology
 
 log = logging.getLogger(__name__)
@@ -104,6 +104,9 @@ def build_map(
             mainline.road,
             trajectory_xy=run.trajectory.xy,
             traffic_side=run.traffic_side,
+            gores=gores_from_lane_events(
+                mainline.lane_events, mainline.road, traffic_side=run.traffic_side
+            ),
             config=cfg.ramps,
         )
     else:

@@ -15,13 +15,18 @@ attach to the measured road (DESIGN.md section 4):
    connectivity (the paper's rule), cross-checked with geometry.
 3. :func:`infer_lane_count` -- Algorithm 2 (``lanes:forward`` > ``lanes`` > ``turn:lanes``
    > highway class); the measured mainline lane-count change at the gore
-   (:func:`gore_events`) overrides it when present.
+   (:func:`gores_from_lane_events`, :func:`gore_events`) overrides it when present, and
+   the measured gore decides the station where the ramp leaves or joins.
 4. :func:`build_ramp_road` -- OSM polyline resampled at 0.5 m, Savitzky-Golay smoothed,
    offset by half the ramp width to its median-side boundary (the reference line), kept
-   outside the measured carriageway, trimmed or extended to the measured gore, and
-   re-anchored: its mainline end is moved exactly onto the outer border of the outermost
-   through lane with the mainline's heading, blended into the OSM shape over
-   ``blend_length_m``; then fitted with :func:`roadtwin.fitting.fit_parampoly3_chain`.
+   outside the measured carriageway, trimmed or extended to the gore, and re-anchored:
+   its mainline end is moved exactly onto the inner border of the mainline lane it
+   continues (the deceleration/acceleration lane: i.e. the outer border of the outermost
+   through lane; without a measured gore the outermost lane, which the ramp splits off)
+   with the mainline's heading, blended into the OSM shape over ``blend_length_m``, the
+   attachment piece made an exact Hermite ParamPoly3; the rest fitted with
+   :func:`roadtwin.fitting.fit_parampoly3_chain`. The first ramp lanes take the widths of
+   the mainline lanes they continue and blend to ``lane_width_m``.
 
 All coordinates are in the mapping frame (metres, radians CCW from +x). Lane layout
 conventions (right-hand traffic; left-hand traffic mirrors): ramp reference line = the
@@ -40,6 +45,7 @@ import networkx as nx
 import numpy as np
 import shapely
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from ._errors import FitError, InputError
 from .config import RampConfig
@@ -79,6 +85,7 @@ __all__ = [
     "extract_ramp_chains",
     "find_candidates",
     "gore_events",
+    "gores_from_lane_events",
     "hermite_piece",
     "infer_lane_count",
 ]
@@ -129,7 +136,7 @@ class RampChain:
     mainline_edge: EdgeKey
     type: RampType
     type_geometry: RampType
-    xy: FloatArray = field(repr=False)
+    xy: FloatArray = field(repr=False, compare=False)
     tags: dict[str, Any] = field(default_factory=dict, repr=False)
 
 
@@ -163,7 +170,7 @@ class Ramp:
     type : ``"exit"`` or ``"entry"``.
     road : the ramp road in driving direction (``name`` = type, a provisional id;
         topology assigns the final id). Its reference line starts (exit) or ends (entry)
-        exactly on the mainline's outer through-lane border at ``station_m``.
+        exactly on the inner border of ``mainline_lane_ids[0]`` at ``station_m``.
     station_m : mainline station of the attachment (gore), metres.
     lanes : ramp lane count.
     lane_rule : which rule decided ``lanes`` (``"lanes:forward"``, ``"lanes"``,
@@ -281,21 +288,34 @@ def infer_lane_count(tags: dict[str, Any]) -> tuple[int, str]:
 # ---------------------------------------------------------------------------
 
 
-def _track_frame(trajectory_xy: FloatArray) -> PolylineFrame:
-    """Smooth 1 m polyline of the driven path (driving direction)."""
-    xy = np.asarray(trajectory_xy, dtype=float)[:, :2]
-    if xy.shape[0] < 2:
-        msg = "ramps: the trajectory needs at least two poses"
-        raise InputError(msg)
-    dense = resample_polyline(xy, 1.0)
-    smooth = savgol_smooth(dense, window=21, polyorder=2)
-    smooth[0], smooth[-1] = dense[0], dense[-1]
-    return PolylineFrame.from_points(smooth)
+class _Track:
+    """The driven path as a smooth 1 m Frenet frame with a KD-tree built once."""
 
+    def __init__(self, trajectory_xy: FloatArray) -> None:
+        xy = _dedupe_xy(np.asarray(trajectory_xy, dtype=float)[:, :2])
+        dense = resample_polyline(xy, 1.0)
+        smooth = savgol_smooth(dense, window=21, polyorder=2)
+        smooth[0], smooth[-1] = dense[0], dense[-1]
+        self.frame = PolylineFrame.from_points(smooth)
+        self.tree = cKDTree(self.frame.xy)
+        self.length = self.frame.length
 
-def _track_heading(track: PolylineFrame, s: FloatArray) -> FloatArray:
-    _, tg = track.at(np.clip(s, 0.0, track.length))
-    return np.arctan2(tg[..., 1], tg[..., 0])
+    def project(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Frenet ``(s, t)`` of ``(N, 2)`` points (metres; t left positive)."""
+        pts = np.asarray(points, dtype=float)[:, :2]
+        _, idx = self.tree.query(pts)
+        f = self.frame
+        s = f.s[idx] + np.einsum("ij,ij->i", pts - f.xy[idx], f.tangent[idx])
+        xy_r, tg_r = f.at(np.clip(s, 0.0, f.length))
+        s = np.where((s >= 0.0) & (s <= f.length), s + np.einsum("ij,ij->i", pts - xy_r, tg_r), s)
+        xy_r, tg_r = f.at(np.clip(s, 0.0, f.length))
+        d = pts - xy_r
+        return s, tg_r[:, 0] * d[:, 1] - tg_r[:, 1] * d[:, 0]
+
+    def heading(self, s: FloatArray) -> FloatArray:
+        """Heading (radians) of the driven path at stations ``s``."""
+        _, tg = self.frame.at(np.clip(s, 0.0, self.length))
+        return np.arctan2(tg[..., 1], tg[..., 0])
 
 
 def _wrap(angle: FloatArray | float) -> FloatArray | float:
@@ -321,6 +341,15 @@ def _end_heading(xy: FloatArray, *, at_start: bool, reach_m: float = 8.0) -> flo
         j = int(max(np.searchsorted(s, max(s[-1] - reach_m, 0.0), side="right") - 1, 0))
         d = xy[-1] - xy[j]
     return math.atan2(d[1], d[0])
+
+
+def _dedupe_xy(xy: FloatArray) -> FloatArray:
+    keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
+    out = xy[keep]
+    if out.shape[0] < 2:
+        msg = "ramps: the trajectory needs at least two distinct poses"
+        raise InputError(msg)
+    return out
 
 
 def _is_link(data: dict[str, Any]) -> bool:
@@ -353,18 +382,27 @@ def find_candidates(
     Candidates sorted by (distance, way id) -- deterministic.
     """
     cfg = config or RampConfig()
-    traj = shapely.LineString(np.asarray(trajectory_xy, dtype=float)[:, :2])
-    keys: list[EdgeKey] = []
-    geoms = []
-    for u, v, k, data in osm_graph.edges(keys=True, data=True):
-        if _is_link(data):
-            keys.append((u, v, k))
-            geoms.append(shapely.LineString(_edge_xy(osm_graph, u, v, k)))
-    if not keys:
-        return ()
-    dist = shapely.distance(np.array(geoms, dtype=object), traj)
+    traj_xy = _dedupe_xy(np.asarray(trajectory_xy, dtype=float)[:, :2])
+    # coarse distances from a KD-tree of the trajectory resampled at 1 m (error < 0.5 m),
+    # exact ones (shapely) only near d_r, against the stretch of trajectory concerned
+    traj_s = arc_length(traj_xy)
+    step = 1.0
+    n = max(2, math.ceil(traj_s[-1] / step) + 1)
+    dense_s = np.linspace(0.0, traj_s[-1], n)
+    dense = np.stack([np.interp(dense_s, traj_s, traj_xy[:, j]) for j in range(2)], axis=1)
+    tree = cKDTree(dense)
     out = []
-    for (u, v, k), d in zip(keys, dist, strict=False):
+    for u, v, k, data in osm_graph.edges(keys=True, data=True):
+        if not _is_link(data):
+            continue
+        xy = _edge_xy(osm_graph, u, v, k)
+        coarse, idx = tree.query(resample_polyline(xy, step))
+        if float(coarse.min()) > cfg.candidate_distance_m + step:
+            continue
+        s_lo, s_hi = dense_s[max(int(idx.min()) - 2, 0)], dense_s[min(int(idx.max()) + 2, n - 1)]
+        a = max(int(np.searchsorted(traj_s, s_lo, side="right")) - 2, 0)
+        b = min(int(np.searchsorted(traj_s, s_hi)) + 2, len(traj_s))
+        d = shapely.distance(shapely.LineString(xy), shapely.LineString(traj_xy[a:b]))
         if d <= cfg.candidate_distance_m:
             data = osm_graph.edges[u, v, k]
             hw = data.get("highway", "")
@@ -383,7 +421,7 @@ def find_candidates(
 
 
 def _mainline_nodes(
-    osm_graph: nx.MultiDiGraph, track: PolylineFrame, cfg: RampConfig
+    osm_graph: nx.MultiDiGraph, track: _Track, cfg: RampConfig
 ) -> dict[Any, EdgeKey]:
     """OSM nodes on the driven carriageway -> one aligned non-link edge at that node."""
     max_dh = math.radians(cfg.max_heading_diff_deg)
@@ -397,7 +435,7 @@ def _mainline_nodes(
     near_nodes = {n: float(si) for n, si, ok in zip(node_ids, s, near, strict=False) if ok}
     out: dict[Any, EdgeKey] = {}
     for n, sn in near_nodes.items():
-        h_track = float(_track_heading(track, np.array([sn]))[0])
+        h_track = float(track.heading(np.array([sn]))[0])
         edges = [(u, v, k, True) for u, v, k in osm_graph.out_edges(n, keys=True)]
         edges += [(u, v, k, False) for u, v, k in osm_graph.in_edges(n, keys=True)]
         for u, v, k, outgoing in sorted(edges, key=lambda e: (str(e[0]), str(e[1]), e[2])):
@@ -483,7 +521,7 @@ def extract_ramp_chains(
     cfg = config or RampConfig()
     if candidates is None:
         candidates = find_candidates(osm_graph, trajectory_xy, config=cfg)
-    track = _track_frame(trajectory_xy)
+    track = _Track(trajectory_xy)
     on_carriageway = _mainline_nodes(osm_graph, track, cfg)
     side_sign = -1.0 if traffic_side == "right" else 1.0
     max_dh = math.radians(cfg.max_heading_diff_deg)
@@ -519,7 +557,7 @@ def extract_ramp_chains(
         # direction check at the attachment
         node_xy = np.array([[osm_graph.nodes[attach]["x"], osm_graph.nodes[attach]["y"]]])
         s_att, _ = track.project(node_xy)
-        h_track = float(_track_heading(track, s_att)[0])
+        h_track = float(track.heading(s_att)[0])
         h_ramp = _end_heading(xy, at_start=ramp_type == "exit")
         dh = abs(float(_wrap(h_ramp - h_track)))
         if dh > max_dh:
@@ -613,6 +651,45 @@ def gore_events(road: Road, *, traffic_side: TrafficSide = "right") -> tuple[Gor
             widths = [float(lane.width.value(0.0)) for lane in starting]
             if min(widths) > _MIN_GORE_WIDTH_M:
                 out.append(GoreEvent(s_b, "entry", tuple(x.id for x in starting), dn[-k - 1].id))
+    return tuple(out)
+
+
+def gores_from_lane_events(
+    lane_events, road: Road, *, traffic_side: TrafficSide = "right", max_taper_m: float = 1.0
+) -> tuple[GoreEvent, ...]:
+    """Measured gores from the mainline stage's lane events.
+
+    A lane that ends without a taper (``kind="end"``, ``taper_m`` below ``max_taper_m``)
+    ends at an exit gore; one that is born without a taper starts at an entry gore.
+    Events at the same station and kind are one gore with several lanes.
+
+    Parameters
+    ----------
+    lane_events
+        :class:`roadtwin.mainline.LaneEvent` records (``s_m``, ``kind``, ``lane_id``,
+        ``taper_m``).
+    road
+        The mainline road they refer to.
+    """
+    groups: dict[tuple[float, str], list[int]] = {}
+    for ev in lane_events:
+        if ev.taper_m > max_taper_m:
+            continue
+        kind = "exit" if ev.kind == "end" else "entry"
+        groups.setdefault((round(float(ev.s_m), 6), kind), []).append(int(ev.lane_id))
+    out = []
+    for (s, kind), ids in sorted(groups.items()):
+        ids = sorted(ids, key=abs)
+        s_sec = s - 1e-6 if kind == "exit" else s + 1e-6
+        section = road.lane_sections[int(road.section_index(np.array([s_sec]))[0])]
+        inner = [
+            lane.id
+            for lane in _driving(_traffic_lanes(section, traffic_side))
+            if abs(lane.id) < abs(ids[0])
+        ]
+        if not inner:
+            continue
+        out.append(GoreEvent(s, kind, tuple(ids), inner[-1]))  # type: ignore[arg-type]
     return tuple(out)
 
 
@@ -978,6 +1055,7 @@ def build_ramps(
     *,
     trajectory_xy: FloatArray,
     traffic_side: TrafficSide = "right",
+    gores: tuple[GoreEvent, ...] | None = None,
     config: RampConfig | None = None,
 ) -> RampSet:
     """The ramp stage: OSM graph + measured mainline -> ramp roads with their decisions.
@@ -992,6 +1070,10 @@ def build_ramps(
         ``(N, 2)`` vehicle positions, mapping frame, metres.
     traffic_side
         ``"right"`` or ``"left"``.
+    gores
+        Measured gores (:func:`gores_from_lane_events` on the mainline stage's lane
+        events); ``None`` scans the road's lane sections (:func:`gore_events`); ``()``
+        uses none (OSM decides every station).
     config
         Ramp settings.
 
@@ -1006,7 +1088,7 @@ def build_ramps(
     chains, rejected = extract_ramp_chains(
         osm_graph, trajectory_xy, traffic_side=traffic_side, candidates=candidates, config=cfg
     )
-    events = gore_events(mainline_road, traffic_side=traffic_side)
+    events = gore_events(mainline_road, traffic_side=traffic_side) if gores is None else gores
     stations = []
     for chain in chains:
         node = osm_graph.nodes[chain.attach_node]

@@ -80,6 +80,8 @@ def plot_map(run: RunEvaluation) -> bytes:
         if series:
             xy = np.vstack([d.xy for d in series])
             err = np.abs(np.concatenate([d.error_m for d in series]))
+            finite = np.isfinite(err)
+            xy, err = xy[finite], err[finite]
             order = np.arange(err.size)[_stride(err.size)]
             order = order[np.argsort(err[order], kind="stable")]  # large errors drawn on top
             vmax = max(float(np.percentile(err, 99.0)), 1e-3)
@@ -128,9 +130,11 @@ def plot_error_along_s(run: RunEvaluation) -> bytes:
             order = np.argsort(d.station_m[m], kind="stable")
             st = d.station_m[m][order][_stride(int(m.sum()))]
             er = d.error_m[m][order][_stride(int(m.sum()))]
-            if key.endswith("elevation"):
-                label = "height"
-            elif lane_id == 0:
+            if key.startswith("truth/") and st.size > 1:  # break lines where a lane is absent
+                gap = np.nonzero(np.diff(st) > 5.0)[0] + 1
+                st = np.insert(st, gap, np.nan)
+                er = np.insert(er, gap, np.nan)
+            if lane_id == 0:
                 label = "inner edge (lane 0 border)"
             else:
                 label = f"outer border of lane {lane_id}"
@@ -159,7 +163,7 @@ def plot_histogram(run: RunEvaluation) -> bytes:
     fig.subplots_adjust(left=0.07, right=0.98, bottom=0.14, top=0.9, wspace=0.2)
     for ax, (prefix, title) in zip(axes, groups, strict=True):
         series = [
-            (k, np.abs(d.error_m))
+            (k, np.abs(d.error_m[np.isfinite(d.error_m)]))
             for k, d in run.details.items()
             if k.startswith(prefix + "/") and k != "truth/elevation" and d.error_m.size
         ]

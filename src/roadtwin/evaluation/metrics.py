@@ -1,0 +1,484 @@
+"""Lateral error metrics: self-consistency (the seed paper's Table 4) and accuracy against
+truth, in metres."""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import EvaluationConfig
+from ..model import Road, RoadNetwork
+from .frenet import (
+    _BEYOND_ENDS,
+    _NO_ROAD,
+    _OK,
+    EDGE,
+    LANE,
+    FloatArray,
+    Projection,
+    _height,
+    _project_one,
+    _section_centre_t,
+    _stations,
+    driving_lane_count,
+    mainline_roads,
+    nearest_boundary,
+    project_points,
+    ramp_roads,
+    section_boundaries,
+)
+
+log = logging.getLogger(__name__)
+
+
+# ---------------------------------------------------------------------------
+# statistics
+# ---------------------------------------------------------------------------
+
+
+def error_stats(errors: Sequence[float] | FloatArray) -> dict[str, float | int | None]:
+    """Summary of absolute errors (metres): ``n``, ``rmse_m``, ``mean_abs_m``, ``p95_m``,
+    ``max_m``. Empty input gives ``n = 0`` and ``None`` for the rest (JSON ``null``)."""
+    e = np.abs(np.asarray(errors, dtype=float))
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return {"n": 0, "rmse_m": None, "mean_abs_m": None, "p95_m": None, "max_m": None}
+    return {
+        "n": int(e.size),
+        "rmse_m": float(np.sqrt(np.mean(e * e))),
+        "mean_abs_m": float(np.mean(e)),
+        "p95_m": float(np.percentile(e, 95.0)),
+        "max_m": float(np.max(e)),
+    }
+
+
+def _rmse(errors: FloatArray) -> float:
+    e = errors[np.isfinite(errors)]
+    return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+
+
+# ---------------------------------------------------------------------------
+# roles of roads and boundaries
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PointErrors:
+    """Per-point lateral errors of one metric, for plots (not written to JSON).
+
+    Attributes
+    ----------
+    name : metric name, e.g. ``"self/road_edge"`` or ``"truth/lane_boundary"``.
+    xy : (N, 2) mapping-frame positions of the points, metres.
+    station_m : (N,) station along the mainline chain (metres).
+    error_m : (N,) signed error (measured/true minus reconstructed), metres.
+    boundary : (N,) lane id whose outer border the matched boundary is.
+    """
+
+    name: str
+    xy: FloatArray
+    station_m: FloatArray
+    error_m: FloatArray
+    boundary: NDArray[np.int64]
+
+    @property
+    def rmse_m(self) -> float:
+        """RMSE of ``error_m`` (metres; NaN if empty)."""
+        return _rmse(self.error_m)
+
+
+# ---------------------------------------------------------------------------
+# self-consistency
+# ---------------------------------------------------------------------------
+
+
+def _errors_full(
+    roads: Sequence[Road], proj: Projection, kind: str | None
+) -> tuple[FloatArray, NDArray[np.int64]]:
+    """Signed ``t - t_b`` (NaN where not projected) and the matched lane id, per point."""
+    n = proj.s.size
+    err = np.full(n, np.nan)
+    lane = np.zeros(n, dtype=np.int64)
+    keep = np.nonzero(proj.ok)[0]
+    ri = proj.road_index[keep]
+    for r in np.unique(ri):  # grouped by road
+        idx = keep[ri == r]
+        t_b, lid = nearest_boundary(roads[int(r)], proj.s[idx], proj.t[idx], kind)
+        err[idx] = proj.t[idx] - t_b
+        lane[idx] = lid
+    return err, lane
+
+
+def _lateral_errors(
+    roads: Sequence[Road], pts: FloatArray, proj: Projection, kind: str | None, name: str
+) -> PointErrors:
+    """Signed ``t - t_b`` of projected points against the nearest boundary of ``kind``."""
+    err, lane = _errors_full(roads, proj, kind)
+    good = np.isfinite(err)
+    return PointErrors(name, pts[good, :2], proj.station_m[good], err[good], lane[good])
+
+
+def self_consistency_errors(
+    network: RoadNetwork, run: Any, *, config: EvaluationConfig | None = None
+) -> tuple[PointErrors, PointErrors, dict[str, int]]:
+    """Per-point self-consistency errors of a run's measurements against a map.
+
+    Each point is projected onto the mainline roads and, with
+    ``config.self_consistency_scope == "all"`` (default), also onto the ramp roads (and
+    their connecting roads); its error is the one against the nearest boundary of its kind
+    among the roads it projects onto. Road-edge points and lane samples the car measured on
+    a ramp's gore and first metres belong to the ramp, not to the mainline; with
+    ``"mainline"`` they are compared with the mainline only (the literal reading of the
+    paper, which inflates the RMSE near every ramp even for a perfect map).
+
+    Parameters
+    ----------
+    network
+        The built map.
+    run
+        A :class:`~roadtwin.io.MappingRun` (uses ``edges`` and ``lane_samples``, mapping
+        frame, metres).
+
+    Returns
+    -------
+    edge_errors, lane_errors, counts
+        Errors of road-edge points against the nearest road edge and of lane samples
+        against the nearest lane boundary, and extras: ``excluded_beyond_ends``,
+        ``excluded_no_road`` (points on no road), ``ramp_points`` (points whose nearest
+        boundary is on a ramp road), ``height_rmse_m`` (RMS of measured z minus the map's
+        surface height at the points on mainline roads, metres).
+    """
+    cfg = config or EvaluationConfig()
+    main = mainline_roads(network)
+    ramps = ramp_roads(network) if cfg.self_consistency_scope == "all" else []
+    counts: dict[str, Any] = {"excluded_beyond_ends": 0, "excluded_no_road": 0, "ramp_points": 0}
+    out = []
+    dz_all = []
+    for pts, kind in ((run.edges, EDGE), (run.lane_samples, LANE)):
+        pts = np.asarray(pts, dtype=float).reshape(-1, 3)
+        kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
+        proj = project_points(main, pts, **kw)
+        err, lane = _errors_full(main, proj, kind)
+        status = proj.status
+        use_r = np.zeros(err.size, dtype=bool)
+        if ramps:
+            proj_r = project_points(ramps, pts, **kw)
+            err_r, lane_r = _errors_full(ramps, proj_r, kind)
+            use_r = np.isfinite(err_r) & ~(np.abs(err) <= np.abs(err_r))
+            err = np.where(use_r, err_r, err)
+            lane = np.where(use_r, lane_r, lane)
+            counts["ramp_points"] += int(use_r.sum())
+            status = np.where(proj_r.ok, _OK, np.minimum(status, proj_r.status))
+        counts["excluded_beyond_ends"] += int(np.sum(status == _BEYOND_ENDS))
+        counts["excluded_no_road"] += int(np.sum(status == _NO_ROAD))
+        good = np.isfinite(err)
+        out.append(
+            PointErrors(f"self/{kind}", pts[good, :2], proj.station_m[good], err[good], lane[good])
+        )
+        on_main = proj.ok & ~use_r
+        for r in np.unique(proj.road_index[on_main]):  # measured height - map surface
+            sel = on_main & (proj.road_index == r)
+            dz_all.append(pts[sel, 2] - _height(main[int(r)], proj.s[sel], proj.t[sel]))
+    counts["height_rmse_m"] = _rmse(np.concatenate(dz_all)) if dz_all else math.nan
+    return out[0], out[1], counts
+
+
+def _self_summary(edge: PointErrors, lane: PointErrors, counts: dict[str, Any]) -> dict:
+    both = np.concatenate([edge.error_m, lane.error_m])
+    return {
+        "road_edge_rmse_m": _rmse(edge.error_m),
+        "lane_boundary_rmse_m": _rmse(lane.error_m),
+        "overall_rmse_m": _rmse(both),
+        "road_edge_points": int(edge.error_m.size),
+        "lane_samples": int(lane.error_m.size),
+        **counts,
+    }
+
+
+def data_quality(
+    network: RoadNetwork, run: Any, *, config: EvaluationConfig | None = None
+) -> dict[str, float]:
+    """Relative accuracy of a map for the OpenDRIVE header's ``<dataQuality><error>``.
+
+    Returns
+    -------
+    dict
+        ``xy_relative`` (overall self-consistency RMSE) and ``z_relative`` (height RMSE of
+        the measured points against the map surface), metres; keys of
+        :class:`~roadtwin.model.Header` ``data_quality``. The absolute errors need the
+        GNSS accuracy of the run, which a run folder does not state, so they are absent.
+    """
+    sc = self_consistency(network, run, config=config)
+    return {"xy_relative": sc["overall_rmse_m"], "z_relative": sc["height_rmse_m"]}
+
+
+def self_consistency(
+    network: RoadNetwork, run: Any, *, config: EvaluationConfig | None = None
+) -> dict[str, float]:
+    """The seed paper's self-consistency RMSE of a map against its own run.
+
+    ``e_i = |t_m,i - t_b(s_m,i)|`` in the Frenet frame of the mainline road each point
+    projects onto; road-edge points against the nearest road edge, lane samples against
+    the nearest lane boundary.
+
+    Returns
+    -------
+    dict
+        ``road_edge_rmse_m``, ``lane_boundary_rmse_m``, ``overall_rmse_m`` (all points
+        pooled), metres (NaN where no point was evaluated); ``road_edge_points``,
+        ``lane_samples`` (evaluated counts), ``excluded_beyond_ends``, ``excluded_no_road``,
+        ``ramp_points`` (see :func:`self_consistency_errors` for which roads count),
+        ``height_rmse_m`` (measured z against the map surface, metres).
+    """
+    edge, lane, counts = self_consistency_errors(network, run, config=config)
+    return _self_summary(edge, lane, counts)
+
+
+# ---------------------------------------------------------------------------
+# against truth
+# ---------------------------------------------------------------------------
+
+
+# ---------------------------------------------------------------------------
+# against truth
+# ---------------------------------------------------------------------------
+
+
+def _sample_boundaries(
+    road: Road, step_m: float
+) -> tuple[FloatArray, FloatArray, list[str], NDArray[np.int64], FloatArray]:
+    """Points every ``step_m`` along every boundary of a road.
+
+    Returns ``s, t, kinds, lane_ids, z`` (flat arrays over boundaries and stations).
+    """
+    s_all = _stations(road.length, step_m)
+    s_list, t_list, kinds, ids = [], [], [], []
+    sec_idx = road.section_index(s_all)
+    for k in np.unique(sec_idx):
+        s = s_all[sec_idx == k]
+        for kind, lid in section_boundaries(road.lane_sections[int(k)]):
+            s_list.append(s)
+            t_list.append(road.lane_border_t(s, lid))
+            kinds += [kind] * s.size
+            ids.append(np.full(s.size, lid, dtype=np.int64))
+    s = np.concatenate(s_list) if s_list else np.zeros(0)
+    t = np.concatenate(t_list) if t_list else np.zeros(0)
+    lane_ids = np.concatenate(ids) if ids else np.zeros(0, dtype=np.int64)
+    return s, t, kinds, lane_ids, _height(road, s, t)
+
+
+def _truth_mainline(
+    network: RoadNetwork, truth: RoadNetwork, cfg: EvaluationConfig
+) -> tuple[dict[str, Any], dict[str, PointErrors]]:
+    true_roads = mainline_roads(truth)
+    built = mainline_roads(network)
+    offsets = np.concatenate([[0.0], np.cumsum([r.length for r in true_roads])])
+    xy_l, st_l, kind_l, z_l, id_l = [], [], [], [], []
+    for i, road in enumerate(true_roads):
+        s, t, kinds, lane_ids, z = _sample_boundaries(road, cfg.truth_step_m)
+        xy_l.append(road.to_xy(s, t).reshape(-1, 2))
+        st_l.append(offsets[i] + s)
+        kind_l += kinds
+        z_l.append(z)
+        id_l.append(lane_ids)
+    if not xy_l:
+        empty = error_stats(np.zeros(0))
+        return {
+            "mainline_roads": 0,
+            "true_points": 0,
+            "covered_fraction": None,
+            EDGE: empty,
+            LANE: dict(empty),
+            "elevation": dict(empty),
+            "lane_count": {"stations": 0, "matched_fraction": None, "sections": []},
+        }, {}
+    xy = np.vstack(xy_l)
+    station = np.concatenate(st_l)
+    z_true = np.concatenate(z_l)
+    kinds_arr = np.asarray(kind_l)
+    proj = project_points(
+        built, xy, max_lateral_m=cfg.max_lateral_m, end_tolerance_m=cfg.end_tolerance_m
+    )
+    details: dict[str, PointErrors] = {}
+    result: dict[str, Any] = {
+        "mainline_roads": len(true_roads),
+        "true_points": int(xy.shape[0]),
+        "covered_fraction": float(np.mean(proj.ok)) if proj.ok.size else 0.0,
+    }
+    for kind in (EDGE, LANE):
+        mask = kinds_arr == kind
+        sub = Projection(
+            np.where(mask, proj.road_index, -1),
+            proj.s,
+            proj.t,
+            np.where(mask, proj.status, _NO_ROAD),
+            station,  # plots along the TRUE mainline station
+        )
+        pe = _lateral_errors(built, xy, sub, kind, f"truth/{kind}")
+        details[f"truth/{kind}"] = pe
+        result[kind] = error_stats(pe.error_m)
+    # elevation at every covered true boundary point
+    ok = np.nonzero(proj.ok)[0]
+    dz = np.full(ok.size, np.nan)
+    for r in np.unique(proj.road_index[ok]):
+        sel = ok[proj.road_index[ok] == r]
+        dz[np.searchsorted(ok, sel)] = (
+            _height(built[int(r)], proj.s[sel], proj.t[sel]) - z_true[sel]
+        )
+    details["truth/elevation"] = PointErrors(
+        "truth/elevation", xy[ok], station[ok], dz, np.concatenate(id_l)[ok]
+    )
+    result["elevation"] = error_stats(dz)
+    result["lane_count"] = _lane_count(true_roads, built, offsets, cfg)
+    return result, details
+
+
+def _lane_count(
+    true_roads: Sequence[Road], built: Sequence[Road], offsets: FloatArray, cfg: EvaluationConfig
+) -> dict[str, Any]:
+    """Driving-lane count of the built map against truth at every station."""
+    sections = []
+    all_match: list[NDArray[np.bool_]] = []
+    for i, road in enumerate(true_roads):
+        s = _stations(road.length, cfg.truth_step_m)
+        sec_idx = road.section_index(s)
+        centre = np.empty(s.size)
+        for k in np.unique(sec_idx):
+            sel = sec_idx == k
+            centre[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
+        true_n = driving_lane_count(road, s, min_width_m=cfg.lane_count_min_width_m)
+        proj = project_points(
+            built,
+            road.to_xy(s, centre).reshape(-1, 2),
+            max_lateral_m=cfg.max_lateral_m,
+            end_tolerance_m=cfg.end_tolerance_m,
+        )
+        built_n = np.full(s.size, -1, dtype=np.int64)
+        for r in np.unique(proj.road_index[proj.ok]):
+            sel = proj.road_index == r
+            built_n[sel] = driving_lane_count(
+                built[int(r)], proj.s[sel], min_width_m=cfg.lane_count_min_width_m
+            )
+        match = (built_n == true_n) & proj.ok
+        for k in np.unique(sec_idx):
+            sel = (sec_idx == k) & proj.ok
+            sec = road.lane_sections[int(k)]
+            end = (
+                road.lane_sections[int(k) + 1].s0
+                if int(k) + 1 < len(road.lane_sections)
+                else road.length
+            )
+            counts = true_n[sec_idx == k]
+            sections.append(
+                {
+                    "road_id": road.id,
+                    "s0_m": float(sec.s0),
+                    "s1_m": float(end),
+                    "station0_m": float(offsets[i] + sec.s0),
+                    "true_driving_lanes": int(np.bincount(counts).argmax()),
+                    "built_driving_lanes": (
+                        int(np.bincount(built_n[sel]).argmax()) if sel.any() else None
+                    ),
+                    "covered_stations": int(sel.sum()),
+                    "matched_fraction": float(np.mean(match[sel])) if sel.any() else None,
+                }
+            )
+        all_match.append(match[proj.ok])
+    flat = np.concatenate(all_match) if all_match else np.zeros(0, dtype=bool)
+    return {
+        "stations": int(flat.size),
+        "matched_fraction": float(np.mean(flat)) if flat.size else None,
+        "sections": sections,
+    }
+
+
+def _truth_ramps(
+    network: RoadNetwork, truth: RoadNetwork, cfg: EvaluationConfig
+) -> tuple[dict[str, Any], dict[str, PointErrors]]:
+    """True ramp centre lines and boundaries against the nearest built ramp road.
+
+    Centre: the middle between a section's road edges, against the same on the built road
+    the centre point projects onto (:func:`project_points`). Boundaries: against the
+    nearest boundary of the same kind on the built road their station's centre point went
+    to (so a boundary point where two ramps overlap stays with its own ramp).
+    """
+    true_roads = ramp_roads(truth)
+    built = ramp_roads(network)
+    centre_err, bound_err = [], []
+    xy_c, xy_b, st_c, st_b = [], [], [], []
+    n_true = 0
+    n_centre_points = 0
+    for road in true_roads:
+        s = _stations(road.length, cfg.truth_step_m)
+        sec_idx = road.section_index(s)
+        t_c = np.empty(s.size)
+        for k in np.unique(sec_idx):
+            sel = sec_idx == k
+            t_c[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
+        pts_c = road.to_xy(s, t_c).reshape(-1, 2)
+        n_centre_points += s.size
+        sb, tb, kinds_b, _, _ = _sample_boundaries(road, cfg.truth_step_m)
+        kinds_b_arr = np.asarray(kinds_b)
+        pts_b = road.to_xy(sb, tb).reshape(-1, 2)
+        n_true += sb.size
+        if not built:
+            continue
+        kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
+        proj_c = project_points(built, pts_c, **kw)
+        # a boundary point goes to the built road its station's centre point went to
+        station_idx = np.clip(
+            np.rint((sb - 0.5 * cfg.truth_step_m) / cfg.truth_step_m), 0, s.size - 1
+        )
+        owner_b = proj_c.road_index[station_idx.astype(np.int64)]
+        for r in np.unique(proj_c.road_index[proj_c.ok]):
+            broad = built[int(r)]
+            sel = np.nonzero(proj_c.road_index == r)[0]
+            sc_, tc_ = proj_c.s[sel], proj_c.t[sel]
+            t_ref = np.empty(sel.size)
+            sidx = broad.section_index(sc_)
+            for k in np.unique(sidx):
+                m = sidx == k
+                t_ref[m] = _section_centre_t(broad, sc_[m], broad.lane_sections[int(k)])
+            centre_err.append(tc_ - t_ref)
+            xy_c.append(pts_c[sel])
+            st_c.append(s[sel])
+            selb = np.nonzero(owner_b == r)[0]
+            s_b, t_b, beyond = _project_one(broad, pts_b[selb], cfg.end_tolerance_m)
+            selb, s_b, t_b = selb[~beyond], s_b[~beyond], t_b[~beyond]
+            t_ref = np.full(selb.size, np.nan)
+            for kind in (EDGE, LANE):
+                m = kinds_b_arr[selb] == kind
+                t_ref[m], _ = nearest_boundary(broad, s_b[m], t_b[m], kind)
+            bound_err.append(t_b - t_ref)
+            xy_b.append(pts_b[selb])
+            st_b.append(sb[selb])
+    details = {}
+    result: dict[str, Any] = {"true_ramp_roads": len(true_roads), "built_ramp_roads": len(built)}
+    for key, errs, xys, sts, total in (
+        ("ramp_centre", centre_err, xy_c, st_c, n_centre_points),
+        ("ramp_boundary", bound_err, xy_b, st_b, n_true),
+    ):
+        e = np.concatenate(errs) if errs else np.zeros(0)
+        keep = np.isfinite(e)
+        result[key] = error_stats(e)
+        covered = int(keep.sum())  # NaN: the built ramp has no such boundary
+        result[key]["covered_fraction"] = float(covered / total) if total else None
+        details[f"truth/{key}"] = PointErrors(
+            f"truth/{key}",
+            (np.vstack(xys) if xys else np.zeros((0, 2)))[keep],
+            (np.concatenate(sts) if sts else np.zeros(0))[keep],
+            e[keep],
+            np.zeros(int(keep.sum()), dtype=np.int64),
+        )
+    return result, details
+
+
+# ---------------------------------------------------------------------------
+# topology
+# ---------------------------------------------------------------------------
