@@ -203,3 +203,14 @@ def test_build_bad_input_leaves_no_output(tmp_path, capsys):
     assert err.startswith("roadtwin: error:")
     assert len(err.strip().splitlines()) == 1
     assert not out.exists()
+
+
+def test_without_osm_the_map_is_the_mainline(built):
+    if built.name != "straight_curve_2km":
+        pytest.skip("one scenario is enough")
+    res = build_map(built.run, None)
+    assert [r.name for r in res.network.roads] == ["mainline"]
+    assert not res.network.junctions
+    assert res.ramps == ()
+    assert any("no OSM" in w for w in res.warnings)
+    assert set(res.timings_s) == {"mainline", "ramps", "topology"}

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -128,6 +129,11 @@ class PolylineFrame:
         tangent = d / np.linalg.norm(d, axis=1, keepdims=True)
         return PolylineFrame(s, pts, tangent)
 
+    @cached_property
+    def tree(self) -> cKDTree:
+        """KD-tree of the vertices (built once per frame)."""
+        return cKDTree(self.xy)
+
     @property
     def normal(self) -> FloatArray:
         """(N, 2) unit left normals."""
@@ -176,8 +182,7 @@ def project_to_polyline(frame: PolylineFrame, points: ArrayLike) -> tuple[FloatA
     pts = np.asarray(points, dtype=float)[:, :2]
     if pts.shape[0] == 0:
         return np.zeros(0), np.zeros(0)
-    tree = cKDTree(frame.xy)
-    _, idx = tree.query(pts)
+    _, idx = frame.tree.query(pts)
     d = pts - frame.xy[idx]
     tg = frame.tangent[idx]
     along = np.einsum("ij,ij->i", d, tg)
@@ -518,28 +523,29 @@ def fit_cubic_profile(
         fn = make_smoothing_spline(su, vu, w=wsum)
     else:
         fn = make_interp_spline(su, vu, k=3)
-    lo, hi = float(su[0]), float(su[-1])
-    n0 = max(1, math.ceil((hi - lo) / max_piece_m))
-    grid = np.linspace(lo, hi, n0 + 1)
-    stack = list(zip(grid[:-1].tolist(), grid[1:].tolist(), strict=True))[::-1]
+    # knots are sample stations (plus midpoints, so that sparse samples are checked
+    # between them too); the function and its slope are evaluated once
+    x = np.sort(np.concatenate([su, 0.5 * (su[1:] + su[:-1])]))
+    fx, dfx = fn(x), fn(x, 1)
+    n0 = max(1, math.ceil((x[-1] - x[0]) / max_piece_m))
+    starts = np.unique(np.searchsorted(x, np.linspace(x[0], x[-1], n0 + 1)))
+    stack = list(zip(starts[:-1].tolist(), starts[1:].tolist(), strict=True))[::-1]
     pieces: list[CubicPiece] = []
     while stack:
-        a, b = stack.pop()
-        h = b - a
-        va, vb = float(fn(a)), float(fn(b))
-        da, db = float(fn(a, 1)), float(fn(b, 1))
+        i, j = stack.pop()
+        a, h = float(x[i]), float(x[j] - x[i])
+        va, vb, da, db = float(fx[i]), float(fx[j]), float(dfx[i]), float(dfx[j])
         c2 = (3.0 * (vb - va) / h - 2.0 * da - db) / h
         c3 = (2.0 * (va - vb) / h + da + db) / (h * h)
-        i0, i1 = np.searchsorted(su, [a, b])
-        x = np.concatenate([su[i0:i1], np.linspace(a, b, 9)])
-        dx = x - a
-        dev = np.abs(va + dx * (da + dx * (c2 + dx * c3)) - fn(x))
-        if h > 2.0 * min_piece_m and float(dev.max()) > tolerance:
-            m = 0.5 * (a + b)
-            stack.append((m, b))
-            stack.append((a, m))
+        dx = x[i : j + 1] - a
+        dev = np.abs(va + dx * (da + dx * (c2 + dx * c3)) - fx[i : j + 1])
+        if j - i > 1 and h > 2.0 * min_piece_m and float(dev.max()) > tolerance:
+            m = int(np.searchsorted(x, a + 0.5 * h))
+            m = min(max(m, i + 1), j - 1)
+            stack.append((m, j))
+            stack.append((i, m))
             continue
-        pieces.append(CubicPiece(float(a), va, da, float(c2), float(c3)))
+        pieces.append(CubicPiece(a, va, da, float(c2), float(c3)))
     return CubicProfile(tuple(pieces))
 
 

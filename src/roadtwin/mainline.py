@@ -495,9 +495,12 @@ class _RawTrack:
         """Offset extrapolated linearly from the last few columns to column ``col``."""
         if len(self.d) < 3:
             return self.d[-1]
-        c = np.asarray(self.cols[-4:], dtype=float)
-        slope = float(np.polyfit(c, np.asarray(self.d[-4:]), 1)[0])
-        slope = float(np.clip(slope, -0.5, 0.5))
+        c = self.cols[-4:]
+        v = self.d[-4:]
+        cm, vm = sum(c) / len(c), sum(v) / len(v)
+        var = sum((ci - cm) ** 2 for ci in c)
+        slope = sum((ci - cm) * (vi - vm) for ci, vi in zip(c, v, strict=True)) / var
+        slope = min(max(slope, -0.5), 0.5)
         return self.d[-1] + slope * (col - self.cols[-1])
 
 
