@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import networkx as nx
 
 from .config import PipelineConfig
+from .evaluation import data_quality
 from .io import MappingRun
 from .mainline import Mainline, build_mainline
 from .model import Header, RoadNetwork
@@ -129,6 +130,14 @@ def build_map(
         geo_reference=run.frame.geo_reference,
     )
     network = RoadNetwork(header, topology.roads, topology.junctions)
+
+    # The map carries its own accuracy: the paper's self-consistency RMSE as the relative
+    # error of <dataQuality>. Absolute errors need the run's GNSS accuracy, which the run
+    # folder does not state, so they stay NaN.
+    t0 = time.perf_counter()
+    quality = data_quality(network, run, config=cfg.evaluation)
+    network = replace(network, header=replace(header, data_quality=quality))
+    timings["self-consistency"] = time.perf_counter() - t0
     log.info(
         "built %d roads, %d junctions (%d ramps) in %.2f s",
         len(network.roads),

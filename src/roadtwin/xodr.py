@@ -98,6 +98,8 @@ def _f(value: float) -> str:
     v = float(value)
     if v == 0.0:
         return "0.0"  # no "-0.0"
+    if math.isnan(v):
+        return "NaN"  # the XSD lexical form of xs:double; repr gives "nan"
     return repr(v)
 
 

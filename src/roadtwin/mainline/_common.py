@@ -1,0 +1,267 @@
+"""Results, shared helpers and the self-consistency metric of the mainline stage."""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import FitError, InputError
+from ..fitting import (
+    PolylineFrame,
+    binned_statistics,
+    moving_median,
+    resample_polyline,
+    savgol_smooth,
+    whittaker_smooth,
+)
+from ..io import MappingRun
+from ..model import (
+    Road,
+)
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class LaneEvent:
+    """A lane that begins or ends inside the run (evidence of exits and entries).
+
+    Attributes
+    ----------
+    s_m : station on the mainline road where the lane has zero width (birth: where it
+        starts to open; end: where it has closed), metres.
+    kind : ``"birth"`` or ``"end"``.
+    side : road side of the lane, ``"right"`` or ``"left"`` (the outer side: ``"right"``
+        for right-hand traffic).
+    lane_id : id of the lane in the lane section where it exists.
+    position : ``"outer"`` if the lane is the outermost non-shoulder lane (deceleration /
+        acceleration lane), else ``"inner"``.
+    taper_m : distance over which the lane opens (birth) or closes (end), metres; 0 if it
+        starts / ends at full width (e.g. at a gore).
+    width_m : width of the lane where it is fully open, metres.
+    """
+
+    s_m: float
+    kind: Literal["birth", "end"]
+    side: Literal["right", "left"]
+    lane_id: int
+    position: Literal["outer", "inner"]
+    taper_m: float
+    width_m: float
+
+
+@dataclass(frozen=True)
+class BoundaryTrack:
+    """A lane marking followed along the reference line.
+
+    ``s_m``/``d_m``: smoothed offset from the reference edge towards the carriageway
+    (metres) on a regular station grid; ``mark``: observed type; ``n_samples``.
+    """
+
+    id: int
+    s_m: FloatArray
+    d_m: FloatArray
+    mark: Literal["solid", "broken"]
+    n_samples: int
+
+
+@dataclass(frozen=True)
+class Mainline:
+    """Result of :func:`build_mainline`.
+
+    Attributes
+    ----------
+    road : the mainline road (id ``"1"``, name ``"mainline"``), whole run.
+    lane_events : lane births and ends, sorted by station.
+    method : ``"default"`` or ``"paper"``.
+    tracks : lane-marking tracks (default method; empty for the paper method).
+    timings_s : seconds per stage.
+    residuals : self-consistency RMSE (metres) of the paper's metric
+        ``e = |t_measured - t_boundary(s)|``: ``road_edge``, ``lane_boundary``, ``overall``.
+    """
+
+    road: Road
+    lane_events: tuple[LaneEvent, ...] = ()
+    method: str = "default"
+    tracks: tuple[BoundaryTrack, ...] = ()
+    timings_s: dict[str, float] = field(default_factory=dict)
+    residuals: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class _Partial:
+    road: Road
+    lane_events: tuple[LaneEvent, ...]
+    method: str
+    tracks: tuple[BoundaryTrack, ...] = ()
+
+
+def _sign(run: MappingRun) -> float:
+    """+1 for right-hand traffic (reference = left edge, lanes at t < 0), -1 for left."""
+    return 1.0 if run.traffic_side == "right" else -1.0
+
+
+def _trajectory_frame(run: MappingRun, *, smooth_m: float = 31.0) -> PolylineFrame:
+    """Frenet frame of the smoothed trajectory (1 m resampling, Savitzky-Golay)."""
+    xy = resample_polyline(run.trajectory.xy, 1.0)
+    if xy.shape[0] < 4:
+        msg = "mainline: the trajectory is shorter than 4 m"
+        raise InputError(msg)
+    xy = savgol_smooth(xy, window=int(smooth_m), polyorder=3)
+    return PolylineFrame.from_points(xy)
+
+
+def _split_edges(run: MappingRun, frame: PolylineFrame) -> tuple[FloatArray, FloatArray]:
+    """Reference-side and outer-side edge points ``(N, 3)``, by ``edge_side`` or by the
+    sign of the lateral offset from the trajectory where the side is unknown."""
+    edges = np.asarray(run.edges, dtype=float)
+    side = np.asarray(run.edge_side, dtype=np.int8)
+    if edges.shape[0] == 0:
+        msg = "mainline: the run has no road-edge points"
+        raise InputError(msg)
+    unknown = side == 0
+    if np.any(unknown):
+        _, t = frame.project(edges[unknown])
+        side = side.copy()
+        side[unknown] = np.where(t > 0, 1, -1).astype(np.int8)
+    ref_side = 1 if run.traffic_side == "right" else -1
+    return edges[side == ref_side], edges[side == -ref_side]
+
+
+def _grid(lo: float, hi: float, step: float) -> FloatArray:
+    n = max(2, math.ceil((hi - lo) / step) + 1)
+    return lo + step * np.arange(n)
+
+
+def _lam(cutoff_m: float, step_m: float, order: int = 2) -> float:
+    """Whittaker smoothing strength for a cut-off wavelength (grid units)."""
+    return (cutoff_m / (2.0 * math.pi * step_m)) ** (2 * order)
+
+
+def robust_offset_fit(
+    s: FloatArray,
+    t: FloatArray,
+    grid: FloatArray,
+    *,
+    cutoff_m: float,
+    mad_k: float,
+    min_threshold_m: float,
+    iterations: int = 2,
+) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
+    """Smooth function t(s) on a regular grid from scattered samples, robustly.
+
+    First a per-bin median and a moving median give a robust prior; samples farther from
+    it than ``mad_k`` local robust sigmas (and ``min_threshold_m``) are dropped; inlier bin
+    means weighted by counts are smoothed by a Whittaker smoother (gaps bridged); the
+    rejection is repeated against the smooth fit.
+
+    Returns
+    -------
+    values : (G,) smoothed offsets on ``grid``.
+    inlier : (N,) mask of the samples kept.
+    counts : (G,) inlier samples per grid bin.
+    """
+    step = float(grid[1] - grid[0])
+    edges = np.concatenate([grid - 0.5 * step, [grid[-1] + 0.5 * step]])
+    med, _, count = binned_statistics(s, t, edges)
+    win = max(3, round(cutoff_m / 2.0 / step) | 1)
+    prior = moving_median(med, window=win)
+    prior = _fill_nan(grid, prior)
+    lam = _lam(cutoff_m, step)
+    inlier = np.ones(s.size, dtype=bool)
+    fit = prior
+    for _ in range(iterations):
+        res = t - np.interp(s, grid, fit)
+        absres = np.abs(res)
+        med_abs, _, _ = binned_statistics(s, absres, edges)
+        sigma = 1.4826 * _fill_nan(grid, moving_median(med_abs, window=max(win, 11)))
+        thr = np.maximum(mad_k * np.interp(s, grid, sigma), min_threshold_m)
+        inlier = absres <= thr
+        _, mean, count = binned_statistics(s[inlier], t[inlier], edges)
+        w = count.astype(float)
+        nz = w > 0
+        if not np.any(nz):
+            raise FitError("robust_offset_fit: every sample was rejected")
+        w /= float(np.median(w[nz]))
+        fit = whittaker_smooth(mean, w, lam=lam)
+    return fit, inlier, count.astype(float)
+
+
+def _fill_nan(x: FloatArray, y: FloatArray) -> FloatArray:
+    ok = np.isfinite(y)
+    if not np.any(ok):
+        return np.zeros_like(y)
+    return np.interp(x, x[ok], y[ok])
+
+
+def _road_frame(road: Road, step_m: float = 0.5) -> PolylineFrame:
+    """Dense polyline frame of a road's reference line with road stations."""
+    n = max(2, math.ceil(road.length / step_m) + 1)
+    s = np.linspace(0.0, road.length, n)
+    x, y, h, _ = road.evaluate(s)
+    return PolylineFrame(s, np.stack([x, y], axis=1), np.stack([np.cos(h), np.sin(h)], axis=1))
+
+
+def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
+    """RMSE of ``e = |t_measured - t_boundary(s)|`` (the paper's Table 4), metres.
+
+    Edge points are compared with the nearer of the two road edges (reference line and
+    the outer border of the outermost lane), lane samples with the nearest lane boundary
+    (outer borders of all lanes but the outermost) at their station. Only points between
+    the two road edges (plus 1 m for edge points, 0.5 m for lane samples) count, as in the
+    paper's corridor; ``<kind>_fraction_used`` says how many did.
+    """
+    frame = _road_frame(road)
+    out: dict[str, float] = {}
+    errs = {}
+    used: dict[str, float] = {}
+    for name, pts in (("road_edge", run.edges), ("lane_boundary", run.lane_samples)):
+        if pts.shape[0] == 0:
+            errs[name] = np.zeros(0)
+            continue
+        s, t = frame.project(pts)
+        ok = (s >= 0) & (s <= road.length)
+        s, t = s[ok], t[ok]
+        # only points on the carriageway (+- margin): ramp edges/markings beyond a gore
+        # and points of other roads are not measurements of this road
+        edges = _border_matrix(road, s, edges=True)[:2]
+        margin = 1.0 if name == "road_edge" else 0.5
+        inside = (t >= np.nanmin(edges, axis=0) - margin) & (t <= np.nanmax(edges, axis=0) + margin)
+        s, t = s[inside], t[inside]
+        used[name] = float(np.mean(inside)) if inside.size else 0.0
+        borders = _border_matrix(road, s, edges=(name == "road_edge"))
+        errs[name] = np.nanmin(np.abs(borders - t[None, :]), axis=0)
+    for name, e in errs.items():
+        out[name] = float(np.sqrt(np.nanmean(e * e))) if e.size else math.nan
+        out[f"{name}_fraction_used"] = used[name]
+    both = np.concatenate(list(errs.values()))
+    out["overall"] = float(np.sqrt(np.nanmean(both * both))) if both.size else math.nan
+    return out
+
+
+def _border_matrix(road: Road, s: FloatArray, *, edges: bool) -> FloatArray:
+    """Lateral offsets (t) of road edges or of lane boundaries at stations ``s``."""
+    sec_idx = road.section_index(s)
+    n_max = max(len(sec.left) + len(sec.right) for sec in road.lane_sections)
+    rows = np.full((n_max + 1, s.size), np.nan)
+    for k in np.unique(sec_idx):
+        sec = road.lane_sections[int(k)]
+        sel = sec_idx == k
+        side = sec.right if sec.right else sec.left
+        n = len(side)
+        ids = [ln.id for ln in side]
+        if edges:
+            rows[0, sel] = road.lane_border_t(s[sel], 0)
+            if ids:
+                rows[1, sel] = road.lane_border_t(s[sel], ids[-1])
+        else:
+            for j, lid in enumerate(ids[: n - 1]):
+                rows[j, sel] = road.lane_border_t(s[sel], lid)
+    return rows

@@ -1,0 +1,769 @@
+"""Default method: lane markings as tracks, outer edge, lane sections and events."""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from ..fitting import (
+    binned_quantile,
+    fit_cubic_profile,
+    moving_median,
+)
+from ..model import (
+    Lane,
+    LaneSection,
+    RoadMark,
+)
+from ._common import (
+    BoundaryTrack,
+    LaneEvent,
+    _fill_nan,
+    _grid,
+    robust_offset_fit,
+)
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class _RawTrack:
+    cols: list[int]
+    d: list[float]
+
+    def predict(self, col: int) -> float:
+        """Offset extrapolated linearly from the last few columns to column ``col``."""
+        if len(self.d) < 3:
+            return self.d[-1]
+        c = self.cols[-4:]
+        v = self.d[-4:]
+        cm, vm = sum(c) / len(c), sum(v) / len(v)
+        var = sum((ci - cm) ** 2 for ci in c)
+        slope = sum((ci - cm) * (vi - vm) for ci, vi in zip(c, v, strict=True)) / var
+        slope = min(max(slope, -0.5), 0.5)
+        return self.d[-1] + slope * (col - self.cols[-1])
+
+
+def _find_track_peaks(
+    s: FloatArray, d: FloatArray, length: float, cfg: MainlineConfig
+) -> tuple[FloatArray, list[FloatArray]]:
+    """Marking peaks per histogram column: column centres and the peak offsets in each."""
+    from scipy.ndimage import gaussian_filter1d, uniform_filter1d
+    from scipy.signal import find_peaks
+
+    col = cfg.lane_column_m
+    n_col = max(1, math.ceil(length / col))
+    d_lo, d_hi = -1.0, float(np.nanmax(d)) + 1.0 if d.size else 1.0
+    n_bin = max(4, math.ceil((d_hi - d_lo) / cfg.lane_bin_m))
+    hist, _, _ = np.histogram2d(
+        s, d, bins=(n_col, n_bin), range=((0.0, n_col * col), (d_lo, d_lo + n_bin * cfg.lane_bin_m))
+    )
+    hist = uniform_filter1d(hist, cfg.lane_window_columns, axis=0, mode="nearest")
+    hist = gaussian_filter1d(hist, 1.5, axis=1, mode="constant")
+    # height threshold: a fraction of the typical strong peak
+    strong = np.percentile(hist.max(axis=1), 75) if hist.size else 0.0
+    thr = max(0.15 * strong, 1e-9)
+    min_dist = max(1, int(cfg.lane_min_separation_m / cfg.lane_bin_m))
+    centres = (np.arange(n_col) + 0.5) * col
+    peaks: list[FloatArray] = []
+    bin_c = d_lo + (np.arange(n_bin) + 0.5) * cfg.lane_bin_m
+    for row in hist:  # loop over columns (a few thousand), vectorised inside
+        idx, _ = find_peaks(row, height=thr, distance=min_dist, prominence=0.5 * thr)
+        if idx.size == 0:
+            peaks.append(np.zeros(0))
+            continue
+        lo = np.clip(idx - 2, 0, n_bin - 1)
+        hi = np.clip(idx + 2, 0, n_bin - 1)
+        # centroid refinement over +-2 bins
+        ks = np.arange(-2, 3)
+        jj = np.clip(idx[:, None] + ks[None, :], lo[:, None], hi[:, None])
+        wts = row[jj]
+        peaks.append((wts * bin_c[jj]).sum(axis=1) / np.maximum(wts.sum(axis=1), 1e-12))
+    return centres, peaks
+
+
+def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack]:
+    """Greedy nearest-neighbour linking of column peaks into tracks."""
+    max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
+    tracks: list[_RawTrack] = []
+    active: list[int] = []
+    for c, pk in enumerate(peaks):
+        active = [i for i in active if c - tracks[i].cols[-1] <= max_gap]
+        used_p: set[int] = set()
+        used_t: set[int] = set()
+        if active and pk.size:
+            pred = np.array([tracks[i].predict(c) for i in active])
+            cost = np.abs(pk[:, None] - pred[None, :])
+            for flat in np.argsort(cost, axis=None):
+                pi, ti = divmod(int(flat), len(active))
+                if cost[pi, ti] > cfg.lane_link_m:
+                    break
+                if pi in used_p or ti in used_t:
+                    continue
+                used_p.add(pi)
+                used_t.add(ti)
+                tr = tracks[active[ti]]
+                tr.cols.append(c)
+                tr.d.append(float(pk[pi]))
+        for pi in range(pk.size):
+            if pi not in used_p:
+                tracks.append(_RawTrack([c], [float(pk[pi])]))
+                active.append(len(tracks) - 1)
+    return tracks
+
+
+def _mark_type(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig) -> str:
+    """``broken`` if long gaps between samples cover a large part of [lo, hi]."""
+    ss = np.sort(s_samples[(s_samples >= lo) & (s_samples <= hi)])
+    if ss.size < 3 or hi - lo <= 0:
+        return "solid"
+    gaps = np.diff(np.concatenate([[lo], ss, [hi]]))
+    spacing = float(np.median(np.diff(ss))) if ss.size > 1 else 0.0
+    limit = max(cfg.broken_gap_m, 3.0 * spacing)
+    frac = float(np.sum(gaps[gaps > limit])) / (hi - lo)
+    return "broken" if frac > cfg.broken_gap_fraction else "solid"
+
+
+def fit_outer_edge(
+    s: FloatArray, d: FloatArray, grid: FloatArray, *, config: MainlineConfig | None = None
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Outer road edge ``d_E(s)`` on ``grid`` from the outer-side edge points.
+
+    The outer side also holds ramp edges beyond a gore and outward outliers (guardrails,
+    vegetation), so the mainline edge is taken as the LOWEST cluster of offsets (near the
+    first quartile of each bin). Steps (gores, where the edge jumps by a lane) split the
+    fit into independent segments.
+
+    Returns
+    -------
+    d_edge : (G,) offsets, metres (NaN only if there are no points at all).
+    breaks : stations of the steps, metres.
+    used : (N,) mask of the points that belong to the mainline edge.
+    covered : (G,) grid stations with edge points within 3 m (False in occlusion gaps).
+    """
+    cfg = config or MainlineConfig()
+    step = float(grid[1] - grid[0])
+    used = np.zeros(s.size, dtype=bool)
+    ok = np.isfinite(s) & np.isfinite(d) & (d > 0.5)
+    if np.count_nonzero(ok) < 10:
+        return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
+    bin_m = 2.0
+    cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
+    cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
+    q_raw = binned_quantile(s[ok], d[ok], cedges, 0.25)
+    q = moving_median(q_raw, window=5)
+    have = np.isfinite(q)
+    if not np.any(have):
+        return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
+    qi = np.nonzero(have)[0]
+    jumps = np.nonzero(np.abs(np.diff(q[qi])) > 1.0)[0]
+    breaks = 0.5 * (cgrid[qi[jumps]] + cgrid[qi[jumps + 1]])
+    # refine each step with the points: the low level starts (step down, an exit gore)
+    # or ends (step up, an entry gore) exactly where the edge jumps
+    sv, dv = s[ok], d[ok]
+    for n, j in enumerate(jumps):
+        q0, q1 = q[qi[j]], q[qi[j + 1]]
+        low = min(q0, q1)
+        win = (np.abs(sv - breaks[n]) < 10.0) & (np.abs(dv - low) < 0.5)
+        if np.count_nonzero(win) >= 4:
+            ss = np.sort(sv[win])
+            breaks[n] = float(ss[1] if q1 < q0 else ss[-2])
+    # a real step has edge points right before and after it; an occlusion gap has none
+    real = [
+        np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
+        and np.count_nonzero((sv > b) & (sv <= b + 5.0)) >= 3
+        for b in breaks
+    ]
+    breaks = breaks[np.asarray(real, dtype=bool)] if breaks.size else breaks
+    # on the grid, so that edge segments and lane sections start at the same station
+    breaks = grid[0] + step * np.rint((breaks - grid[0]) / step)
+    bounds = np.concatenate([[grid[0] - 1.0], breaks, [grid[-1] + 1.0]])
+    # lower-cluster reference per segment (the moving median must not mix the levels of
+    # two sides of a step)
+    qf = np.full(cgrid.size, np.nan)
+    seg_of_bin = np.searchsorted(bounds, cgrid, side="right") - 1
+    for k in range(bounds.size - 1):
+        sel_b = seg_of_bin == k
+        if np.any(sel_b):
+            qf[sel_b] = moving_median(q_raw[sel_b], window=5)
+    qf = _fill_nan(cgrid, qf)
+    ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
+    used = ok & (np.abs(d - ref) < 0.8)
+    out = np.full(grid.size, np.nan)
+    for a, b in itertools.pairwise(bounds):
+        gsel = (grid >= a) & (grid < b)
+        psel = used & (s >= a) & (s < b)
+        if np.count_nonzero(gsel) < 4 or np.count_nonzero(psel) < 10:
+            continue
+        g = grid[gsel]
+        fit, _, _ = robust_offset_fit(
+            s[psel],
+            d[psel],
+            g,
+            cutoff_m=cfg.edge_smoothing_m,
+            mad_k=cfg.edge_outlier_mad,
+            min_threshold_m=cfg.edge_outlier_min_m,
+        )
+        out[gsel] = fit
+    su = np.sort(s[used])
+    if su.size:
+        pos = np.clip(np.searchsorted(su, grid), 1, su.size - 1)
+        near = np.minimum(np.abs(grid - su[pos - 1]), np.abs(su[pos] - grid))
+        covered = near < 3.0
+    else:
+        covered = np.zeros(grid.size, dtype=bool)
+    if np.all(np.isnan(out)):
+        out = _fill_nan(grid, np.interp(grid, cgrid, qf))
+    else:
+        # fill short unfitted segments by nearest value (keeps steps sharp)
+        idx = np.nonzero(np.isfinite(out))[0]
+        nearest = idx[np.clip(np.searchsorted(idx, np.arange(grid.size)), 0, idx.size - 1)]
+        out = np.where(np.isfinite(out), out, out[nearest])
+    return out, breaks, used, covered
+
+
+def fit_lanes(
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    s_outer: FloatArray,
+    d_outer: FloatArray,
+    *,
+    length: float,
+    sign: float,
+    config: MainlineConfig | None = None,
+) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...], FloatArray]:
+    """Lane sections from lane samples and outer-edge points in the reference frame.
+
+    Parameters
+    ----------
+    s_lane, d_lane
+        Stations and offsets from the reference edge towards the carriageway (metres)
+        of the lane-marking samples.
+    s_outer, d_outer
+        The same for the outer road-edge points.
+    length
+        Road length (metres).
+    sign
+        +1 right-hand traffic (lanes get negative ids), -1 left-hand traffic.
+
+    Returns
+    -------
+    lane sections, lane events, marking tracks, mask of the outer-edge points used.
+    """
+    cfg = config or MainlineConfig()
+    grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
+    d_edge, breaks, used, covered = fit_outer_edge(s_outer, d_outer, grid, config=cfg)
+    keep = (s_lane >= 0) & (s_lane <= length) & (d_lane > -0.5)
+    if np.all(np.isfinite(d_edge)):
+        keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
+    s_l, d_l = s_lane[keep], d_lane[keep]
+    tracks = _tracks_from_samples(s_l, d_l, grid, length, cfg)
+    if not np.all(np.isfinite(d_edge)):
+        last = max((float(np.max(tr.d)) for tr in tracks), default=3.0)
+        d_edge = np.full(grid.size, last + 2.5)
+        breaks = np.zeros(0)
+    else:
+        d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
+    sections, events, out_tracks = _sections_from_tracks(tracks, grid, d_edge, breaks, sign, cfg)
+    return sections, events, out_tracks, used
+
+
+@dataclass
+class _Track:
+    id: int
+    lo: float
+    hi: float
+    s: FloatArray  # stations of d (grid or column centres)
+    d: FloatArray
+    mark: str
+    n: int
+    s_samples: FloatArray
+
+
+def _tracks_from_samples(
+    s: FloatArray, d: FloatArray, grid: FloatArray, length: float, cfg: MainlineConfig
+) -> list[_Track]:
+    """Marking tracks: histogram peaks linked along s, false positives removed, samples
+    assigned exclusively to the nearest track, each track smoothed robustly."""
+    if s.size < 10:
+        return []
+    centres, peaks = _find_track_peaks(s, d, length, cfg)
+    raw = _link_tracks(peaks, cfg)
+    col = cfg.lane_column_m
+    cand: list[_Track] = []
+    for tr in raw:
+        lo = centres[tr.cols[0]] - 0.5 * col
+        hi = centres[tr.cols[-1]] + 0.5 * col
+        if hi - lo < cfg.lane_min_track_m:
+            continue
+        cand.append(
+            _Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0])
+        )
+    if not cand:
+        return []
+    dist = np.full((len(cand), s.size), np.inf)
+    for k, tr in enumerate(cand):
+        inside = (s >= tr.lo - col) & (s <= tr.hi + col)
+        dist[k, inside] = np.abs(d[inside] - np.interp(s[inside], tr.s, tr.d))
+    owner = np.argmin(dist, axis=0)
+    best = dist[owner, np.arange(s.size)]
+    final: list[_Track] = []
+    for k in range(len(cand)):
+        sel = (owner == k) & (best < cfg.lane_assign_m)
+        if np.count_nonzero(sel) < 10:
+            continue
+        ss_all = s[sel]
+        lo, hi = float(np.min(ss_all)), float(np.max(ss_all))
+        if hi - lo < cfg.lane_min_track_m:
+            continue
+        g = grid[(grid >= lo) & (grid <= hi)]
+        if g.size < 4:
+            continue
+        fit, inl, _ = robust_offset_fit(
+            ss_all,
+            d[sel],
+            g,
+            cutoff_m=cfg.lane_smoothing_m,
+            mad_k=cfg.edge_outlier_mad,
+            min_threshold_m=cfg.edge_outlier_min_m,
+        )
+        keep_g = _trim_ramp_lines(g, fit, cfg)
+        if np.count_nonzero(keep_g) * cfg.grid_step_m < cfg.lane_min_track_m:
+            continue
+        g, fit = g[keep_g], fit[keep_g]
+        lo, hi = float(g[0]), float(g[-1])
+        ss = ss_all[inl]
+        ss = ss[(ss >= lo - 1.0) & (ss <= hi + 1.0)]
+        mark = _mark_type(ss, lo, hi, cfg)
+        final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), np.sort(ss)))
+    return _merge_collinear(final, cfg)
+
+
+def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
+    """Mask of the part of a marking track that belongs to the mainline.
+
+    Ramp markings cross the mainline corridor near a gore: before an entry gore they come
+    in from outside, converging steeply (d decreasing), after an exit gore they leave
+    (d increasing). A track's leading part that converges steeply and its trailing part
+    that diverges steeply are cut off. (Lane tapers of the mainline itself open outward at
+    their start and close inward at their end, so they are kept.)
+    """
+    keep = np.ones(g.size, dtype=bool)
+    if g.size < 5:
+        return keep
+    slope = np.gradient(d, g)
+    steep = cfg.ramp_line_slope
+    # leading part: converging inward steeply
+    flat = np.flatnonzero(slope > -steep)
+    if flat.size == 0:
+        return np.zeros(g.size, dtype=bool)  # converging all along: a ramp line
+    if flat[0] > 0 and (g[flat[0]] - g[0]) >= 10.0:
+        keep[: flat[0]] = False
+    flat = np.flatnonzero(slope < steep)
+    if flat.size == 0:
+        return np.zeros(g.size, dtype=bool)
+    if flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
+        keep[flat[-1] + 1 :] = False
+    return keep
+
+
+def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
+    """Offset of the outermost marking track at each grid station (-inf where none)."""
+    d_last = np.full(grid.size, -np.inf)
+    for tr in tracks:
+        sel = (grid >= tr.lo) & (grid <= tr.hi)
+        d_last[sel] = np.maximum(d_last[sel], np.interp(grid[sel], tr.s, tr.d))
+    return d_last
+
+
+def _bridge_edge_gaps(
+    d_edge: FloatArray, covered: NDArray[np.bool_], tracks: list[_Track], grid: FloatArray
+) -> FloatArray:
+    """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
+    outermost marking) linear between the gap ends instead of the edge offset itself, so
+    the edge follows markings that were seen (tapers, gores inside the gap)."""
+    d_last = _last_marking(tracks, grid)
+    out = d_edge.copy()
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if a == 0 or b >= grid.size or b - a < 5:
+            continue
+        i0, i1 = a - 1, b
+        if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
+            continue
+        hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
+        x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
+        inner = d_last[a:b]
+        ok = np.isfinite(inner)
+        hw = (1 - x) * hw0 + x * hw1
+        # a lane that starts/ends inside the gap (a gore): each side keeps its own width
+        jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
+        if jump.size == 1:
+            hw = np.where(np.arange(b - a) < jump[0], hw0, hw1)
+        out[a:b][ok] = inner[ok] + hw[ok]
+    return out
+
+
+def _add_hidden_lanes(
+    tracks: list[_Track], grid: FloatArray, d_edge: FloatArray, cfg: MainlineConfig
+) -> list[_Track]:
+    """Infer an unobserved outer marking where the outer shoulder is a lane too wide.
+
+    Markings far from the car may not be sampled (e.g. the outer line of a two-lane
+    deceleration lane). Where the outermost marking is more than
+    ``hidden_lane_min_m`` farther from the observed outer edge than the run's typical
+    hard-shoulder width, a marking is placed that typical width inside the edge.
+    """
+    if not tracks:
+        return tracks
+    d_last = _last_marking(tracks, grid)
+    gap = np.where(np.isfinite(d_last), d_edge - d_last, np.nan)
+    if not np.any(np.isfinite(gap)):
+        return tracks
+    hw = float(np.nanmedian(gap))
+    wide = np.isfinite(gap) & (gap > hw + cfg.hidden_lane_min_m)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], wide.astype(np.int8), [0]])))
+    out = list(tracks)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if (b - a) * cfg.grid_step_m < cfg.lane_min_track_m:
+            continue
+        g = grid[a:b]
+        out.append(
+            _Track(len(out), float(g[0]), float(g[-1]), g, d_edge[a:b] - hw, "solid", 0, g[:0])
+        )
+        log.info("mainline: unobserved marking inferred at s=%.0f..%.0f m", g[0], g[-1])
+    return out
+
+
+def _merge_collinear(tracks: list[_Track], cfg: MainlineConfig) -> list[_Track]:
+    """Join a track that ends and another that starts at the same offset (occlusion)."""
+    tracks = sorted(tracks, key=lambda tr: tr.lo)
+    merged = True
+    while merged:
+        merged = False
+        for i, a in enumerate(tracks):
+            for j, b in enumerate(tracks):
+                if i == j or b.lo <= a.hi - 1.0 or b.lo - a.hi > 5.0 * cfg.lane_max_gap_m:
+                    continue
+                if abs(a.d[-1] - b.d[0]) > cfg.lane_link_m:
+                    continue
+                tracks[i] = _Track(
+                    a.id,
+                    a.lo,
+                    b.hi,
+                    np.concatenate([a.s, b.s]),
+                    np.concatenate([a.d, b.d]),
+                    a.mark if a.n >= b.n else b.mark,
+                    a.n + b.n,
+                    np.concatenate([a.s_samples, b.s_samples]),
+                )
+                del tracks[j]
+                merged = True
+                break
+            if merged:
+                break
+    return [replace(tr, id=k) for k, tr in enumerate(tracks)]
+
+
+def _smoothstep(x: FloatArray) -> FloatArray:
+    x = np.clip(x, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _taper(
+    dmat: FloatArray, k: int, grid: FloatArray, end: str, cfg: MainlineConfig
+) -> tuple[float, float, int] | None:
+    """Extend track ``k`` at its start/end to where it meets its nearest neighbour.
+
+    The separation from the neighbour is modelled as a smoothstep (cubic) taper whose
+    mid-point and slope are measured where the separation passes half the full width.
+    ``dmat`` is filled in place over the unobserved part of the taper. Returns
+    ``(s_zero, taper_length, neighbour)`` or None if the track starts/ends at full width.
+    """
+    n_g = grid.size
+    idx = np.nonzero(np.isfinite(dmat[k]))[0]
+    i_edge = int(idx[0] if end == "start" else idx[-1])
+    others = [j for j in range(dmat.shape[0]) if j != k and np.isfinite(dmat[j, i_edge])]
+    if not others:
+        return None
+    jn = min(others, key=lambda j: abs(dmat[k, i_edge] - dmat[j, i_edge]))
+    span = int(300.0 / cfg.grid_step_m)
+    sl = (
+        slice(i_edge, min(i_edge + span, n_g))
+        if end == "start"
+        else slice(max(i_edge - span, 0), i_edge + 1)
+    )
+    both = np.isfinite(dmat[k, sl]) & np.isfinite(dmat[jn, sl])
+    gs = grid[sl][both]
+    sep = np.abs(dmat[k, sl] - dmat[jn, sl])[both]
+    if gs.size < 10:
+        return None
+    w_full = float(np.percentile(sep, 90))
+    sep0 = float(np.abs(dmat[k, i_edge] - dmat[jn, i_edge]))
+    if w_full < 1.0 or sep0 > 0.7 * w_full:
+        return None
+    mid = (sep > 0.3 * w_full) & (sep < 0.7 * w_full)
+    if np.count_nonzero(mid) < 3:
+        return None
+    slope, icpt = np.polyfit(gs[mid], sep[mid], 1)
+    if abs(slope) < 1e-4:
+        return None
+    s50 = (0.5 * w_full - icpt) / slope
+    taper = float(min(1.5 * w_full / abs(slope), cfg.lane_taper_max_m))
+    sgn = np.sign(dmat[k, i_edge] - dmat[jn, i_edge])
+    s_edge = float(grid[i_edge])
+    if end == "start":
+        s_zero = float(np.clip(s50 - 0.5 * taper, grid[0], s_edge))
+        fill = (grid >= s_zero) & (grid < s_edge)
+        x = (grid[fill] - s_zero) / taper
+    else:
+        s_zero = float(np.clip(s50 + 0.5 * taper, s_edge, grid[-1]))
+        fill = (grid > s_edge) & (grid <= s_zero)
+        x = (s_zero - grid[fill]) / taper
+    ok = fill & np.isfinite(dmat[jn])
+    dmat[k, ok] = dmat[jn, ok] + sgn * w_full * _smoothstep(x[ok[fill]])
+    return s_zero, taper, jn
+
+
+def _sections_from_tracks(
+    tracks: list[_Track],
+    grid: FloatArray,
+    d_edge: FloatArray,
+    breaks: FloatArray,
+    sign: float,
+    cfg: MainlineConfig,
+) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...]]:
+    """Lane sections (constant set of tracks), lane links, road marks and lane events."""
+    length = float(grid[-1])
+    side: Literal["right", "left"] = "right" if sign > 0 else "left"
+    n_g = grid.size
+    dmat = np.full((len(tracks), n_g), np.nan)
+    for k, tr in enumerate(tracks):
+        lo = grid[0] if tr.lo - grid[0] < cfg.lane_max_gap_m else tr.lo
+        hi = length if length - tr.hi < cfg.lane_max_gap_m else tr.hi
+        sel = (grid >= lo) & (grid <= hi)
+        dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
+    # births / ends inside the run
+    raw_events: list[tuple[int, str, float, float, int | None]] = []
+    for k in range(len(tracks)):
+        for end in ("start", "end"):
+            idx = np.nonzero(np.isfinite(dmat[k]))[0]
+            if idx.size == 0:
+                continue
+            i_edge = idx[0] if end == "start" else idx[-1]
+            if (end == "start" and i_edge == 0) or (end == "end" and i_edge == n_g - 1):
+                continue
+            info = _taper(dmat, k, grid, end, cfg)
+            if info is None:
+                s_ev = float(grid[i_edge])
+                if breaks.size and np.min(np.abs(breaks - s_ev)) < 20.0:
+                    s_ev = float(breaks[np.argmin(np.abs(breaks - s_ev))])
+                raw_events.append((k, end, s_ev, 0.0, None))
+            else:
+                raw_events.append((k, end, info[0], info[1], info[2]))
+    # sections: runs of a constant set of tracks
+    present = np.isfinite(dmat)
+    codes = np.zeros(n_g, dtype=np.int64)
+    for k in range(len(tracks)):
+        codes = codes * 2 + present[k].astype(np.int64) if len(tracks) < 60 else codes
+    change = np.nonzero(np.diff(codes) != 0)[0] + 1
+    starts = [0, *change.tolist()]
+    # edge steps start a section too
+    forced: set[int] = set()
+    for b in breaks:
+        i_b = int(np.clip(np.rint((b - grid[0]) / cfg.grid_step_m), 1, n_g - 1))
+        # track changes next to an edge step belong to the gore: move them onto the step
+        starts = [i for i in starts if i == 0 or abs(i - i_b) * cfg.grid_step_m >= 20.0]
+        starts.append(i_b)
+        forced.add(i_b)
+    starts = sorted(set(starts))
+    min_n = max(1, int(cfg.min_section_m / cfg.grid_step_m))
+    merged_starts = [starts[0]]
+    for i in starts[1:]:
+        if n_g - i < min_n:
+            continue
+        if i - merged_starts[-1] >= min_n:
+            merged_starts.append(i)
+        elif i in forced and merged_starts[-1] != 0 and merged_starts[-1] not in forced:
+            merged_starts[-1] = i
+    starts = [*merged_starts, n_g]
+    sections: list[LaneSection] = []
+    bounds_per: list[list[tuple[object, object]]] = []
+    members_per: list[list[int]] = []
+    for a, b in itertools.pairwise(starts):
+        b_inc = min(b + 1, n_g)
+        votes = present[:, a:b].mean(axis=1)
+        members = [k for k in range(len(tracks)) if votes[k] > 0.5]
+        members.sort(key=lambda k: float(np.nanmedian(dmat[k, a:b])))
+        gs = grid[a:b_inc]
+        rel = gs - grid[a]
+        rows = [np.zeros(gs.size)]
+        labels: list[object] = ["ref"]
+        for k in members:
+            rows.append(_fill_nan(gs, dmat[k, a:b_inc]))
+            labels.append(k)
+        e = d_edge[a:b_inc].copy()
+        if b_inc > b and b < n_g and abs(d_edge[b] - d_edge[b - 1]) > 0.5:
+            e[-1] = 2 * e[-2] - e[-3] if e.size >= 3 else e[-2]  # no step inside
+        rows.append(e)
+        labels.append("edge")
+        stack = np.maximum.accumulate(np.vstack(rows), axis=0)
+        n_l = len(stack) - 1
+        lanes: list[Lane] = []
+        bounds: list[tuple[object, object]] = []
+        for i in range(n_l):
+            width = np.clip(stack[i + 1] - stack[i], 0.0, None)
+            lane_type = "shoulder" if i in (0, n_l - 1) else "driving"
+            if i == n_l - 1:
+                mark = "none"
+            else:
+                tr = tracks[labels[i + 1]]  # type: ignore[index]
+                mark = (
+                    _mark_type(tr.s_samples, float(gs[0]), float(gs[-1]), cfg)
+                    if gs[-1] - gs[0] >= 4 * cfg.broken_gap_m
+                    else tr.mark
+                )
+            prof = fit_cubic_profile(rel, width, tolerance=cfg.lane_width_tolerance_m)
+            lid = -(i + 1) if sign > 0 else i + 1
+            lanes.append(Lane(lid, lane_type, prof, (RoadMark(0.0, mark),)))  # type: ignore[arg-type]
+            bounds.append((labels[i], labels[i + 1]))
+        sections.append(_make_section(float(grid[a]), lanes, sign))
+        bounds_per.append(bounds)
+        members_per.append(members)
+    sections = _link_sections(sections, bounds_per)
+    events = _events(raw_events, sections, members_per, dmat, grid, side, sign)
+    out_tracks = tuple(
+        BoundaryTrack(
+            tr.id,
+            grid[np.isfinite(dmat[tr.id])],
+            dmat[tr.id][np.isfinite(dmat[tr.id])],
+            tr.mark,  # type: ignore[arg-type]
+            tr.n,
+        )
+        for tr in tracks
+    )
+    return tuple(sections), events, out_tracks
+
+
+def _make_section(s0: float, lanes: list[Lane], sign: float) -> LaneSection:
+    return LaneSection(s0, right=tuple(lanes)) if sign > 0 else LaneSection(s0, left=tuple(lanes))
+
+
+def _side_lanes(sec: LaneSection) -> tuple[Lane, ...]:
+    return sec.right if sec.right else sec.left
+
+
+def _link_sections(
+    sections: list[LaneSection], bounds_per: list[list[tuple[object, object]]]
+) -> list[LaneSection]:
+    """Lane predecessor/successor ids between consecutive sections of the road.
+
+    Lanes with the same pair of borders continue; the shoulders always continue; a lane
+    that shares one border with an unmatched lane continues unless it opens from zero
+    width (a lane birth) / closes to zero width (a lane end).
+    """
+    preds: list[dict[int, int]] = [{} for _ in sections]
+    succs: list[dict[int, int]] = [{} for _ in sections]
+    for n in range(1, len(sections)):
+        prev, cur = bounds_per[n - 1], bounds_per[n]
+        prev_lanes, cur_lanes = _side_lanes(sections[n - 1]), _side_lanes(sections[n])
+        prev_len = sections[n].s0 - sections[n - 1].s0
+        mapping: dict[int, int] = {}
+        for i, bd in enumerate(cur):
+            for j, pb in enumerate(prev):
+                if bd == pb:
+                    mapping[i] = j
+        mapping.setdefault(0, 0)
+        if len(cur) - 1 not in mapping and len(prev) - 1 not in mapping.values():
+            mapping[len(cur) - 1] = len(prev) - 1
+        used = set(mapping.values())
+        for i, bd in enumerate(cur):
+            if i in mapping or float(cur_lanes[i].width.value(0.0)) < 0.3:
+                continue
+            for j, pb in enumerate(prev):
+                if j in used or float(prev_lanes[j].width.value(prev_len)) < 0.3:
+                    continue
+                if bd[0] == pb[0] or bd[1] == pb[1]:
+                    mapping[i] = j
+                    used.add(j)
+                    break
+        for i, j in mapping.items():
+            preds[n][i] = prev_lanes[j].id
+            succs[n - 1][j] = cur_lanes[i].id
+    out = []
+    for n, sec in enumerate(sections):
+        lanes = tuple(
+            replace(ln, predecessor=preds[n].get(i), successor=succs[n].get(i))
+            for i, ln in enumerate(_side_lanes(sec))
+        )
+        out.append(replace(sec, right=lanes) if sec.right else replace(sec, left=lanes))
+    return out
+
+
+def _events(
+    raw_events: list[tuple[int, str, float, float, int | None]],
+    sections: list[LaneSection],
+    members_per: list[list[int]],
+    dmat: FloatArray,
+    grid: FloatArray,
+    side: Literal["right", "left"],
+    sign: float,
+) -> tuple[LaneEvent, ...]:
+    """Lane events: the lane between a track that starts/ends and its nearest neighbour."""
+    s0s = np.array([sec.s0 for sec in sections])
+    events = []
+    for k, end, s_zero, taper, jn in raw_events:
+        # the section where the lane exists: just after a birth, just before an end
+        probe = s_zero + (1.0 + taper if end == "start" else -(1.0 + taper))
+        probe = float(np.clip(probe, grid[0], grid[-1]))
+        n = int(np.clip(np.searchsorted(s0s, probe, side="right") - 1, 0, len(sections) - 1))
+        members = members_per[n]
+        if k not in members:
+            continue
+        pos = members.index(k)
+        i_p = int(np.clip(np.searchsorted(grid, probe), 0, grid.size - 1))
+        # neighbour: the adjacent member nearer in offset
+        cand = [p for p in (pos - 1, pos + 1) if 0 <= p < len(members)]
+        if taper == 0.0:  # abrupt (gore): the lane whose outer border is the track
+            outer_pos = pos
+        elif jn is not None and jn in members:
+            outer_pos = max(pos, members.index(jn))
+        elif cand:
+            p_nb = min(cand, key=lambda p: abs(dmat[members[p], i_p] - dmat[k, i_p]))
+            outer_pos = max(pos, p_nb)
+        else:
+            outer_pos = pos
+        lanes = _side_lanes(sections[n])
+        lane_idx = outer_pos  # lane index whose outer border is member outer_pos
+        if lane_idx == 0 and not cand:
+            lane_idx = 1
+        if lane_idx >= len(lanes) - 1:
+            continue
+        lane = lanes[lane_idx]
+        driving = [ln for ln in lanes if ln.type == "driving"]
+        position = (
+            "outer" if driving and lane.id == driving[-1].id and len(driving) > 1 else "inner"
+        )
+        ds = probe - sections[n].s0
+        events.append(
+            LaneEvent(
+                s_m=float(s_zero),
+                kind="birth" if end == "start" else "end",
+                side=side,
+                lane_id=int(lane.id),
+                position=position,  # type: ignore[arg-type]
+                taper_m=float(taper),
+                width_m=float(lane.width.value(ds)),
+            )
+        )
+    return tuple(sorted(events, key=lambda e: e.s_m))

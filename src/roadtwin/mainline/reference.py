@@ -1,0 +1,186 @@
+"""Default method: reference edge, elevation, and the assembly of the road."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import InputError
+from ..config import MainlineConfig
+from ..fitting import (
+    PolylineFrame,
+    fit_cubic_profile,
+    fit_parampoly3_chain,
+    resample_polyline,
+    whittaker_smooth,
+)
+from ..io import MappingRun
+from ..model import (
+    CubicProfile,
+    LaneSection,
+    Road,
+)
+from ._common import (
+    _grid,
+    _lam,
+    _Partial,
+    _road_frame,
+    _sign,
+    _split_edges,
+    _trajectory_frame,
+    robust_offset_fit,
+)
+from .lanes import fit_lanes
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]) -> _Partial:
+    sign = _sign(run)
+    t0 = time.perf_counter()
+    traj = _trajectory_frame(run)
+    ref_pts, outer_pts = _split_edges(run, traj)
+    if ref_pts.shape[0] < 10:
+        side = "left" if sign > 0 else "right"
+        msg = f"mainline: only {ref_pts.shape[0]} {side} (median-side) road-edge points"
+        raise InputError(msg)
+    timings["frame"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ref_xy = fit_reference_edge(ref_pts, traj, config=cfg)
+    geometry = fit_parampoly3_chain(ref_xy, tolerance_m=cfg.fit_tolerance_m)
+    timings["reference_line"] = time.perf_counter() - t0
+
+    base = Road("1", geometry, (LaneSection(0.0),), name="mainline")
+    frame = _road_frame(base)
+    length = base.length
+
+    t0 = time.perf_counter()
+    s_out, t_out = frame.project(outer_pts)
+    s_lane, t_lane = frame.project(run.lane_samples)
+    sections, events, tracks, used = fit_lanes(
+        s_lane,
+        -sign * t_lane,
+        s_out,
+        -sign * t_out,
+        length=length,
+        sign=sign,
+        config=cfg,
+    )
+    timings["lanes"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    poses = run.trajectory.xyz.copy()
+    poses[:, 2] -= run.pose_height_m
+    elevation, superelevation = fit_elevation(
+        frame, np.vstack([ref_pts, outer_pts[used], poses]), config=cfg
+    )
+    timings["elevation"] = time.perf_counter() - t0
+    road = replace(
+        base,
+        elevation=elevation,
+        superelevation=superelevation,
+        lane_sections=sections,
+        lane_offset=CubicProfile.constant(0.0),
+    )
+    return _Partial(road, events, "default", tracks)
+
+
+def fit_reference_edge(
+    ref_pts: FloatArray, traj: PolylineFrame, *, config: MainlineConfig | None = None
+) -> FloatArray:
+    """Smooth reference-edge polyline ``(G, 2)`` (mapping frame, ~1 m spacing).
+
+    Edge points are fitted as a robust smooth offset from a frame, first the smoothed
+    trajectory, then twice the previous fit itself (so the final smoothing acts on small
+    residuals only and does not flatten lane changes of the vehicle).
+    """
+    cfg = config or MainlineConfig()
+    step = cfg.grid_step_m
+    frame = traj
+    for it in range(3):
+        s, t = frame.project(ref_pts)
+        inside = (s >= -5.0) & (s <= frame.length + 5.0)
+        s, t = s[inside], t[inside]
+        if s.size < 10:
+            raise InputError("mainline: the median-side road edge is not beside the trajectory")
+        lo, hi = float(np.min(s)), float(np.max(s))
+        if it == 0:
+            lo, hi = max(lo, 0.0), min(hi, frame.length)
+        grid = _grid(lo, hi, step)
+        grid = grid[grid <= hi + 1e-9] if grid[-1] > hi + 0.5 * step else grid
+        cutoff = cfg.edge_smoothing_m if it > 0 else max(cfg.edge_smoothing_m, 60.0)
+        off, _, _ = robust_offset_fit(
+            s,
+            t,
+            grid,
+            cutoff_m=cutoff,
+            mad_k=cfg.edge_outlier_mad,
+            min_threshold_m=cfg.edge_outlier_min_m if it > 0 else 0.5,
+        )
+        xy, tg = frame.at(np.clip(grid, 0.0, frame.length))
+        # beyond the frame ends extrapolate along the end tangents
+        xy = xy + (grid - np.clip(grid, 0.0, frame.length))[:, None] * tg
+        nrm = np.stack([-tg[:, 1], tg[:, 0]], axis=1)
+        pts = xy + off[:, None] * nrm
+        frame = PolylineFrame.from_points(resample_polyline(pts, step))
+    return frame.xy
+
+
+def fit_elevation(
+    frame: PolylineFrame, points: FloatArray, *, config: MainlineConfig | None = None
+) -> tuple[CubicProfile, CubicProfile | None]:
+    """Elevation and (if significant) superelevation of the reference line.
+
+    Per station bin a weighted plane ``z = e + g t`` is fitted to the height points
+    (road-edge points, poses minus the pose height; mapping frame z), with one round of
+    robust (MAD) rejection; ``e`` and ``g`` are smoothed along s and bridged over gaps.
+
+    Returns
+    -------
+    elevation : C1 cubic profile of z at the reference line (metres).
+    superelevation : profile of ``atan(g)`` (radians; positive = falling to the right),
+        or None if ``|g|`` stays below ``config.superelevation_min_rad``.
+    """
+    cfg = config or MainlineConfig()
+    s, t = frame.project(points)
+    z = points[:, 2]
+    ok = (s >= 0) & (s <= frame.length) & np.isfinite(z)
+    s, t, z = s[ok], t[ok], z[ok]
+    step = cfg.elevation_bin_m
+    grid = _grid(0.0, frame.length, step)
+    n = grid.size
+    b = np.clip(np.rint(s / step).astype(np.int64), 0, n - 1)
+    keep = np.ones(s.size, dtype=bool)
+    e = g = np.zeros(n)
+    lam = _lam(cfg.elevation_smoothing_m, step)
+    for _ in range(2):
+        w = keep.astype(float)
+        sw = np.bincount(b, w, n)
+        st = np.bincount(b, w * t, n)
+        sz = np.bincount(b, w * z, n)
+        stt = np.bincount(b, w * t * t, n)
+        stz = np.bincount(b, w * t * z, n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mt, mz = st / sw, sz / sw
+            vt = stt / sw - mt * mt
+            ctz = stz / sw - mt * mz
+            g_bin = np.where(vt > 1.0, ctz / vt, np.nan)
+        gw = np.where(np.isfinite(g_bin), sw * np.nan_to_num(vt), 0.0)
+        g = whittaker_smooth(g_bin, gw, lam=lam) if np.any(gw > 0) else np.zeros(n)
+        e_bin = np.where(sw > 0, mz - g * mt, np.nan)
+        e = whittaker_smooth(e_bin, sw / max(float(np.median(sw[sw > 0])), 1e-12), lam=lam)
+        res = z - (np.interp(s, grid, e) + np.interp(s, grid, g) * t)
+        mad = float(np.median(np.abs(res))) * 1.4826
+        keep = np.abs(res) <= max(4.0 * mad, 0.05)
+    elevation = fit_cubic_profile(grid, e, tolerance=cfg.elevation_tolerance_m)
+    superelevation = None
+    if float(np.max(np.abs(g))) > cfg.superelevation_min_rad:
+        superelevation = fit_cubic_profile(grid, np.arctan(g), tolerance=1e-4)
+    return elevation, superelevation
