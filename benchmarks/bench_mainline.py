@@ -87,6 +87,18 @@ def compare_road(built: Road, truth: Road, *, step_m: float = 1.0, s_lo=0.0, s_h
         nearest = np.nanmin(np.abs(marks_b - t_b[None, :]), axis=0)
         errs.append(np.where(same & np.isfinite(by_index), np.abs(t_b - by_index), nearest))
     out["lane_boundary"] = np.concatenate(errs) if errs else np.zeros(0)
+    # lane count at the middle of every true lane section (longer than 20 m)
+    mids = []
+    for k, sec in enumerate(truth.lane_sections):
+        hi = truth.lane_sections[k + 1].s0 if k + 1 < len(truth.lane_sections) else truth.length
+        if hi - sec.s0 > 20.0 and s_lo <= 0.5 * (sec.s0 + hi) <= s_hi:
+            mids.append(0.5 * (sec.s0 + hi))
+    if mids:
+        s_m = np.asarray(mids)
+        s_b, _ = built.project(truth.to_xy(s_m, borders(truth, s_m)[0]))
+        out["section_count"] = (borders(built, s_b)[3] == borders(truth, s_m)[3]).astype(float)
+    else:
+        out["section_count"] = np.zeros(0)
     return out
 
 
@@ -138,6 +150,8 @@ def bench_run(run_dir: Path, method: str) -> dict:
         "edge_rmse": rmse(np.concatenate([res["ref_edge"], res["outer_edge"]])),
         "ref_rmse": rmse(res["ref_edge"]),
         "outer_rmse": rmse(res["outer_edge"]),
+        "outer_p95": float(np.percentile(np.abs(res["outer_edge"]), 95)),
+        "sections_ok": f"{int(res['section_count'].sum())}/{res['section_count'].size}",
         "lane_rmse": rmse(res["lane_boundary"]),
         "lane_p95": float(np.percentile(np.abs(res["lane_boundary"]), 95)),
         "elev_rmse": rmse(res["elevation"]),
@@ -161,10 +175,12 @@ COLUMNS = (
     ("km", "{:.1f}"),
     ("ref_rmse", "{:.3f}"),
     ("outer_rmse", "{:.3f}"),
+    ("outer_p95", "{:.3f}"),
     ("lane_rmse", "{:.3f}"),
     ("lane_p95", "{:.3f}"),
     ("elev_rmse", "{:.3f}"),
     ("lane_count_ok", "{:.3f}"),
+    ("sections_ok", "{}"),
     ("sections", "{}"),
     ("pieces", "{}"),
     ("gap_mm", "{:.2g}"),

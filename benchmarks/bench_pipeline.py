@@ -374,7 +374,12 @@ def run_measured(cmd: list[str], **kwargs) -> tuple[int, float, float]:
     return proc.returncode, elapsed, usage.ru_maxrss / 1024.0
 
 
-def run_child(run_dir: Path, *, method: str, trace: bool, external: bool) -> dict[str, Any]:
+THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def run_child(
+    run_dir: Path, *, method: str, trace: bool, external: bool, threads: int | None = None
+) -> dict[str, Any]:
     with tempfile.TemporaryDirectory(prefix="bench-child-") as tmp:
         out = Path(tmp) / "result.json"
         cmd = [
@@ -391,7 +396,10 @@ def run_child(run_dir: Path, *, method: str, trace: bool, external: bool) -> dic
             cmd.append("--child-trace")
         if external:
             cmd.append("--child-external")
-        code, wall, maxrss = run_measured(cmd)
+        env = dict(os.environ)
+        if threads:
+            env.update({k: str(threads) for k in THREAD_VARS})
+        code, wall, maxrss = run_measured(cmd, env=env)
         if code != 0 or not out.is_file():
             msg = f"benchmark child failed on {run_dir} (exit {code})"
             raise RuntimeError(msg)
@@ -539,6 +547,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--external-km", type=float, default=10.0, help="run external consumers on this length"
     )
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="BLAS/OpenMP threads in the measured processes (default: the libraries' own; "
+        "1 gives steadier CPU times on a machine shared with other jobs)",
+    )
     p.add_argument("--no-tracemalloc", action="store_true", help="skip the memory pass")
     p.add_argument("--no-netconvert", action="store_true")
     p.add_argument("--json", type=Path, default=None, help="write the raw numbers here")
@@ -566,6 +581,7 @@ def main(argv: list[str] | None = None) -> int:
         workdir = args.workdir
         workdir.mkdir(parents=True, exist_ok=True)
     info = machine()
+    info["blas_threads"] = str(args.threads or "library default")
     print(f"# roadtwin pipeline benchmark, method={args.method}", flush=True)
     print(", ".join(f"{k}: {v}" for k, v in info.items()), flush=True)
     results: dict[float, dict[str, Any]] = {}
@@ -583,6 +599,7 @@ def main(argv: list[str] | None = None) -> int:
                 method=args.method,
                 trace=False,
                 external=args.external_km > 0 and ext_len == L,
+                threads=args.threads,
             )
             st = timing["stages"]
             print(
@@ -598,7 +615,9 @@ def main(argv: list[str] | None = None) -> int:
                 "osm_kb": (run_dir / "map.osm").stat().st_size / 1e3,
             }
             if not args.no_tracemalloc:
-                rec["memory"] = run_child(run_dir, method=args.method, trace=True, external=False)
+                rec["memory"] = run_child(
+                    run_dir, method=args.method, trace=True, external=False, threads=args.threads
+                )
                 print(f"[{L:g} km] memory pass done", flush=True)
             if not args.no_netconvert:
                 rec["netconvert"] = netconvert_osm(run_dir / "map.osm")

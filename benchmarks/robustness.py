@@ -74,9 +74,8 @@ class RunData:
 
 def read_base(run_dir: Path) -> RunData:
     """Read a simulated run folder (our simulator's style) into :class:`RunData`."""
-    import tomllib
-
     import laspy
+    import tomllib
 
     manifest = tomllib.loads((run_dir / "run.toml").read_text(encoding="utf-8"))
     files = manifest["files"]
@@ -391,6 +390,48 @@ def reproject(rd: RunData, *, crs: str, origin: tuple[float, float] | None = Non
     return out
 
 
+def rotate(rd: RunData, theta: float, *, yaw_range: str = "pi") -> RunData:
+    """The same run at another place: every coordinate (poses, edges, OSM nodes, truth)
+    rotated by ``theta`` (radians) about the mapping-frame origin. Yaw is written wrapped
+    to (-pi, pi] (``yaw_range="pi"``) or [0, 2 pi) (``"2pi"``), as many INS export it."""
+    from lxml import etree
+
+    from roadtwin.frames import MappingFrame, Origin
+
+    out = _copy(rd)
+    c, s = np.cos(theta), np.sin(theta)
+
+    def rot(x, y):
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        return c * x - s * y, s * x + c * y
+
+    out.traj["x"], out.traj["y"] = rot(rd.traj["x"], rd.traj["y"])
+    yaw = rd.traj["yaw"].to_numpy(float) + theta
+    yaw = np.mod(yaw, 2 * np.pi) if yaw_range == "2pi" else np.angle(np.exp(1j * yaw))
+    out.traj["yaw"] = yaw
+    out.edges["x"], out.edges["y"] = rot(rd.edges["x"], rd.edges["y"])  # ego lane samples: as is
+    o = rd.manifest["origin"]
+    frame = MappingFrame(Origin(float(o["lat"]), float(o["lon"]), float(o.get("alt", 0.0))))
+
+    def rewrite(data: bytes) -> bytes:
+        root = etree.fromstring(data)
+        nodes = list(root.iter("node"))
+        lon = np.array([float(n.get("lon")) for n in nodes])
+        lat = np.array([float(n.get("lat")) for n in nodes])
+        x, y = frame.from_lonlat(lon, lat)
+        lon2, lat2 = frame.to_lonlat(*rot(x, y))
+        for n, a, b in zip(nodes, lon2, lat2, strict=True):
+            n.set("lon", f"{a:.8f}")
+            n.set("lat", f"{b:.8f}")
+        for b in root.iter("bounds"):
+            root.remove(b)
+        return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
+
+    out.osm_rewrite = rewrite
+    out.truth_xform = (theta, (0.0, 0.0), 0.0)
+    return out
+
+
 def utm_epsg(lat: float, lon: float) -> str:
     """EPSG code of the UTM zone of a WGS84 point."""
     zone = int((lon + 180.0) // 6.0) + 1
@@ -553,6 +594,12 @@ def _crs(which: str):
     return f
 
 
+def _wrap_theta(rd: RunData) -> float:
+    """A rotation that makes the run's heading cross +-pi half-way through."""
+    yaw = np.unwrap(rd.traj["yaw"].to_numpy(float))
+    return float(np.pi - yaw[yaw.size // 2])
+
+
 def _edge_noise(total_std: float):
     def f(rd, rng):
         out = _copy(rd)
@@ -683,7 +730,132 @@ def _osm_rewrite(kind: str):
                                 way.remove(nd)
             return etree.tostring(root, xml_declaration=True, encoding="UTF-8")
 
-        out.osm_rewrite = rewrite
+        prev = rd.osm_rewrite
+        out.osm_rewrite = rewrite if prev is None else (lambda data: rewrite(prev(data)))
+        return out
+
+    return f
+
+
+def _chain(*names):
+    def f(rd, rng):
+        out = rd
+        for n in names:
+            out = VARIANTS[n](out, rng)
+        return out
+
+    return f
+
+
+def _side_labels(kind: str):
+    def f(rd, rng):
+        out = _copy(rd)
+        out.edge_format = "csv"
+        side = out.edges["side"].astype(str)
+        if kind == "capitalised":
+            out.edges["side"] = side.str.capitalize()
+        else:  # integer codes as many tools write them: 1 = left, 2 = right
+            out.edges["side"] = np.where(side == "left", 1, 2)
+        return out
+
+    return f
+
+
+def v_frame_as_float(rd, rng):
+    out = _copy(rd)
+    out.traj["frame"] = out.traj["frame"].astype(float)
+    out.lanes["frame"] = out.lanes["frame"].astype(float)
+    return out
+
+
+def v_traj_2hz_lanes_by_t(rd, rng):
+    """Poses at 2 Hz only (every 5th row); lane samples keyed by ``t`` of their frame."""
+    out = _lanes_by_t(False)(rd, rng)
+    keep = np.zeros(len(rd.traj), dtype=bool)
+    keep[::5] = True
+    keep[-1] = True
+    out.traj = rd.traj[keep].reset_index(drop=True)
+    # ego coordinates relative to the pose interpolated between the kept poses
+    pts = lanes_to_map(rd)
+    _, xyz, yaw, t = _pose_arrays(out.traj)
+    ts = out.lanes["t"].to_numpy(float)
+    px = np.column_stack([np.interp(ts, t, xyz[:, k]) for k in range(3)])
+    ego = map_to_ego(pts, px, np.interp(ts, t, yaw))
+    out.lanes["x"], out.lanes["y"] = ego[:, 0], ego[:, 1]
+    if "z" in out.lanes:
+        out.lanes["z"] = ego[:, 2]
+    return out
+
+
+def v_lanes_rear_ego(rd, rng):
+    """Half the lane samples expressed in the frame 10 frames LATER (behind the car, ego
+    x < 0), as a 360-degree sensor reports them."""
+    out = _copy(rd)
+    pts = lanes_to_map(rd)
+    frames, xyz, yaw, _ = _pose_arrays(rd.traj)
+    idx = np.searchsorted(frames, rd.lanes["frame"].to_numpy())
+    later = np.where(rng.random(idx.size) < 0.5, np.minimum(idx + 10, frames.size - 1), idx)
+    ego = map_to_ego(pts, xyz[later], yaw[later])
+    out.lanes["frame"] = frames[later]
+    out.lanes["x"], out.lanes["y"] = ego[:, 0], ego[:, 1]
+    if "z" in out.lanes:
+        out.lanes["z"] = ego[:, 2]
+    return out
+
+
+def v_stop_and_go(rd, rng):
+    """The car stands still for 10 s half-way (100 extra poses at the same spot, 3 mm
+    jitter); the sensor keeps reporting the same lane samples and edge points there."""
+    out = _copy(rd)
+    tr = rd.traj.sort_values("frame").reset_index(drop=True)
+    k = len(tr) // 2
+    dt = float(np.median(np.diff(tr["t"])))
+    n_stop = 100
+    stop = pd.DataFrame([tr.iloc[k]] * n_stop).reset_index(drop=True)
+    stop["frame"] = tr["frame"].iloc[k] + 1 + np.arange(n_stop)
+    stop["t"] = tr["t"].iloc[k] + dt * (1 + np.arange(n_stop))
+    for c in ("x", "y"):
+        stop[c] = stop[c] + rng.normal(0, 0.003, n_stop)
+    after = tr.iloc[k + 1 :].copy()
+    after["frame"] = after["frame"] + n_stop
+    after["t"] = after["t"] + n_stop * dt
+    out.traj = pd.concat([tr.iloc[: k + 1], stop, after]).reset_index(drop=True)
+    lanes = rd.lanes.copy()
+    f0 = int(tr["frame"].iloc[k])
+    lanes.loc[lanes["frame"] > f0, "frame"] += n_stop
+    at_k = rd.lanes[rd.lanes["frame"] == f0]
+    reps = []
+    for j in range(n_stop):
+        r = at_k.copy()
+        r["frame"] = f0 + 1 + j
+        r["x"] = r["x"] + rng.normal(0, 0.03, len(r))
+        r["y"] = r["y"] + rng.normal(0, 0.03, len(r))
+        reps.append(r)
+    out.lanes = pd.concat([lanes, *reps]).sort_values("frame", kind="stable")
+    out.lanes = out.lanes.reset_index(drop=True)
+    # edge points seen from the standing car: 20 more noisy looks at those within 25 m
+    pose = tr[["x", "y"]].iloc[k].to_numpy(float)
+    near = rd.edges[np.hypot(*(rd.edges[["x", "y"]].to_numpy(float) - pose).T) < 25.0]
+    extra = pd.concat([near] * 20).reset_index(drop=True)
+    for c in ("x", "y"):
+        extra[c] = extra[c] + rng.normal(0, 0.03, len(extra))
+    out.edges = pd.concat([rd.edges, extra]).reset_index(drop=True)
+    return out
+
+
+def _crop(lo: float, hi: float):
+    """Only the part of the run between stations ``lo`` and ``hi`` (metres along the true
+    trajectory): runs that start or end inside a gore area, or are short."""
+
+    def f(rd, rng):
+        out = _copy(rd)
+        txy = rd.truth_traj[["x", "y"]].to_numpy(float)
+        st = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(txy, axis=0).T))])
+        keep_frames = rd.truth_traj["frame"].to_numpy()[(st >= lo) & (st <= hi)]
+        out.traj = rd.traj[rd.traj["frame"].isin(keep_frames)].reset_index(drop=True)
+        out.lanes = rd.lanes[rd.lanes["frame"].isin(keep_frames)].reset_index(drop=True)
+        est, _ = edge_stations(rd)
+        out.edges = rd.edges[(est >= lo - 20.0) & (est <= hi + 20.0)].reset_index(drop=True)
         return out
 
     return f
@@ -722,6 +894,8 @@ VARIANTS: dict[str, Callable] = {
     "frame_gaps": v_frame_gaps,
     "pose_height_1.8": _pose_height(1.8),
     "pose_height_1.8_no_lane_z": _pose_height(1.8, lane_z=False),
+    "rotated_yaw_wraps_pi": lambda rd, rng: rotate(rd, _wrap_theta(rd)),
+    "rotated_yaw_0_2pi": lambda rd, rng: rotate(rd, _wrap_theta(rd) - np.pi, yaw_range="2pi"),
     "crs_utm": _crs("utm"),
     "crs_utm_next_zone": _crs("utm_wrong_zone"),
     "origin_far": _crs("far"),
@@ -732,6 +906,7 @@ VARIANTS: dict[str, Callable] = {
     "occlusion_80m_left": _occlusion("left"),
     "occlusion_80m_right": _occlusion("right"),
     "edge_range_15m": _edge_range(15.0),
+    "edge_range_9m": _edge_range(9.0),
     "lane_miss_20pct": v_lane_miss_20pct,
     "lane_miss_frames_20pct": v_lane_miss_frames_20pct,
     "lane_false_pos_5pct": v_lane_false_positive,
@@ -740,6 +915,19 @@ VARIANTS: dict[str, Callable] = {
     "osm_no_lanes_tags": _osm_rewrite("no_lanes"),
     "osm_coarse_links": _osm_rewrite("coarse_links"),
     "no_osm": v_no_osm,
+    "edges_side_capitalised": _side_labels("capitalised"),
+    "edges_side_int_codes": _side_labels("int"),
+    "frame_as_float": v_frame_as_float,
+    "traj_2hz_lanes_by_t": v_traj_2hz_lanes_by_t,
+    "lanes_rear_ego": v_lanes_rear_ego,
+    "stop_and_go_10s": v_stop_and_go,
+    "crop_start_in_exit_taper": _crop(420.0, 2000.0),
+    "crop_gore_to_gore": _crop(600.0, 1300.0),
+    "crop_end_at_exit_gore": _crop(0.0, 660.0),
+    "crop_300m": _crop(800.0, 1100.0),
+    "crop_gore_to_gore_100m": _crop(550.0, 1350.0),
+    "lane_miss_and_false_pos": _chain("lane_miss_frames_20pct", "lane_false_pos_5pct"),
+    "osm_no_lanes_coarse_links": _chain("osm_no_lanes_tags", "osm_coarse_links"),
 }
 
 # variants that need a different simulation (cannot be post-processed): scenario edits
@@ -881,10 +1069,14 @@ def simulate_base(scenario: str, root: Path, edit: Callable | None = None) -> Pa
     return simulate_run(sc, root)
 
 
-def build_and_evaluate(run_dir: Path, out_dir: Path) -> dict:
-    """Build ``run_dir`` into ``out_dir/map.xodr`` and evaluate it against its truth."""
+def build_and_evaluate(run_dir: Path, out_dir: Path, *, roundtrip: bool = True) -> dict:
+    """Build ``run_dir`` into ``out_dir/map.xodr`` and evaluate it against its truth.
+
+    With ``roundtrip=False`` (fast tests) the built network is evaluated in memory: no
+    xodr written and read back, no ``check_network``.
+    """
     from roadtwin.check import check_network
-    from roadtwin.evaluation import evaluate_paths
+    from roadtwin.evaluation import evaluate, evaluate_paths, load_truth
     from roadtwin.io import load_run
     from roadtwin.osm import load_osm
     from roadtwin.pipeline import build_map
@@ -909,12 +1101,16 @@ def build_and_evaluate(run_dir: Path, out_dir: Path) -> dict:
                     )
                 graph = _OSM_CACHE[key]
             result = build_map(run, graph)
-            out_dir.mkdir(parents=True, exist_ok=True)
-            write_xodr(result.network, out_dir / "map.xodr")
-            findings = check_network(result.network)
-            row["check_errors"] = sum(f.severity == "error" for f in findings)
-            row["check_codes"] = sorted({f.code for f in findings if f.severity == "error"})
-            rep = evaluate_paths(out_dir / "map.xodr", [run_dir]).runs[0]
+            if roundtrip:
+                out_dir.mkdir(parents=True, exist_ok=True)
+                write_xodr(result.network, out_dir / "map.xodr")
+                findings = check_network(result.network)
+                row["check_errors"] = sum(f.severity == "error" for f in findings)
+                row["check_codes"] = sorted({f.code for f in findings if f.severity == "error"})
+                rep = evaluate_paths(out_dir / "map.xodr", [run_dir]).runs[0]
+            else:
+                truth, info = load_truth(run_dir / "truth.xodr")
+                rep = evaluate(result.network, run, truth=truth, truth_info=info).runs[0]
             t = rep.truth or {}
             topo = rep.topology or {}
             spikes = 0
@@ -938,7 +1134,7 @@ def build_and_evaluate(run_dir: Path, out_dir: Path) -> dict:
                 ramps_true=topo.get("true_ramps"),
                 typed=topo.get("type_correct"),
             )
-        except Exception as exc:  # noqa: BLE001 - a benchmark reports every failure
+        except Exception as exc:
             row["error"] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
             row["trace"] = traceback.format_exc(limit=6)
     row["warnings"] = [" ".join(str(w.message).split())[:160] for w in caught][:3]
@@ -974,6 +1170,9 @@ def shift_vs_base(base_row: dict, row: dict) -> tuple[float, float] | None:
     if not (base_row.get("ok") and row.get("ok")):
         return None
     pts = mainline_points(base_row["network"])
+    if row.get("rotation"):
+        c, s = np.cos(row["rotation"]), np.sin(row["rotation"])
+        pts = pts @ np.array([[c, s], [-s, c]])
     bf, vf = base_row["frame"], row["frame"]
     if bf.geo_reference != vf.geo_reference:
         tr = Transformer.from_crs(bf._crs, vf._crs, always_xy=True)
@@ -994,15 +1193,19 @@ def shift_vs_base(base_row: dict, row: dict) -> tuple[float, float] | None:
     return float(np.median(d)), float(np.percentile(d, 95))
 
 
-def run_variant(base: RunData, name: str, root: Path, seed: int = 0) -> dict:
+def run_variant(
+    base: RunData, name: str, root: Path, seed: int = 0, *, roundtrip: bool = True
+) -> dict:
     """Write variant ``name`` of ``base`` under ``root`` and build + evaluate it."""
     rng = np.random.default_rng(seed)
     try:
         rd = VARIANTS[name](base, rng)
         run_dir = write_run(rd, root / name)
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:
         return {"ok": False, "error": f"variant not written: {type(exc).__name__}: {exc}"}
-    row = build_and_evaluate(run_dir, root / name / "out")
+    row = build_and_evaluate(run_dir, root / name / "out", roundtrip=roundtrip)
+    if name.startswith("rotated"):
+        row["rotation"] = rd.truth_xform[0]
     if "truth_residual_m" in rd.csv_style:
         row["note"] = f"truth transform residual {rd.csv_style['truth_residual_m'] * 1000:.1f} mm"
     return row
@@ -1069,7 +1272,7 @@ def main(argv=None) -> int:
                 continue
             if name == "baseline":
                 base_row = row
-            if base_row is not None:
+            if base_row is not None and not name.startswith("crop"):
                 row["shift"] = shift_vs_base(base_row, row)
             line = format_row(scenario, name, row)
             if row.get("note"):
@@ -1083,7 +1286,7 @@ def main(argv=None) -> int:
         try:
             make_osm_run(osm, d)
             row = build_and_evaluate(d, d / "out")
-        except Exception as exc:  # noqa: BLE001
+        except Exception as exc:
             row = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
         line = format_row(d.name, "real OSM map + motorway", row)
         lines.append(line)

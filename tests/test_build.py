@@ -213,4 +213,4 @@ def test_without_osm_the_map_is_the_mainline(built):
     assert not res.network.junctions
     assert res.ramps == ()
     assert any("no OSM" in w for w in res.warnings)
-    assert set(res.timings_s) == {"mainline", "ramps", "topology"}
+    assert set(res.timings_s) == {"mainline", "ramps", "topology", "self-consistency"}

@@ -120,7 +120,7 @@ def test_cubic_profile_is_c1_and_within_tolerance():
 
 def test_cubic_profile_smoothing_of_noisy_samples():
     rng = np.random.default_rng(3)
-    s = np.sort(rng.uniform(0.0, 500.0, 3000))
+    s = np.sort(rng.uniform(0.0, 500.0, 600))
     truth = 2.0 + 0.02 * s - 3e-5 * s**2
     prof = fit_cubic_profile(s, truth + rng.normal(0, 0.05, s.size), smooth=True, tolerance=0.005)
     grid = np.linspace(5.0, 495.0, 200)

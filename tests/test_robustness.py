@@ -8,6 +8,7 @@ that change the algorithm's input are built and evaluated against the truth.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import sys
 import warnings
@@ -30,13 +31,27 @@ LANE_RMSE_MAX_M = 0.10  # lane boundaries vs truth, metres
 SHIFT_P95_MAX_M = 0.01  # frame/format-only change: same map (p95 distance to the base build)
 
 
+def _short_scenario(sc):
+    """The demo scenario cut to its first 1 km (straight, clothoid, 300 m of arc) with its
+    exit only: the same road and sensor, half the build time."""
+    al = sc.alignment
+    return dataclasses.replace(
+        sc,
+        name="straight_curve_1km",
+        alignment=(al[0], al[1], dataclasses.replace(al[2], length_m=300.0)),
+        ramps=sc.ramps[:1],
+        grades=sc.grades[:1],
+        other_roads=tuple(r for r in sc.other_roads if r.station_m < 900.0),
+    )
+
+
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
     """The simulated base run, read into memory, and its build."""
     root = tmp_path_factory.mktemp("robust")
-    run_dir = rb.simulate_base("straight_curve_2km", root / "_base")
+    run_dir = rb.simulate_base("straight_curve_2km", root / "_base", _short_scenario)
     data = rb.read_base(run_dir)
-    row = rb.build_and_evaluate(run_dir, root / "_base" / "out")
+    row = rb.build_and_evaluate(run_dir, root / "_base" / "out", roundtrip=False)
     assert row["ok"], row.get("error")
     return {"root": root, "data": data, "row": row, "run": _load(run_dir)}
 
@@ -98,7 +113,9 @@ def test_variant_loads_like_base(base, name):
     np.testing.assert_allclose(run.trajectory.xy, ref.trajectory.xy, atol=1e-6)
     np.testing.assert_allclose(run.trajectory.yaw, ref.trajectory.yaw, atol=1e-6)
     z_shift = 1.8 if name == "pose_height_1.8" else 0.0
-    np.testing.assert_allclose(run.trajectory.xyz[:, 2], ref.trajectory.xyz[:, 2] + z_shift, atol=1e-6)
+    np.testing.assert_allclose(
+        run.trajectory.xyz[:, 2], ref.trajectory.xyz[:, 2] + z_shift, atol=1e-6
+    )
     assert run.edges.shape == ref.edges.shape
     tol = 6e-4 if name == "edges_ply_f32" else 1.1e-3  # float32 / LAS mm grid
     np.testing.assert_allclose(_sorted_rows(run.edges), _sorted_rows(ref.edges), atol=tol)
@@ -118,14 +135,14 @@ def test_variant_loads_like_base(base, name):
 
 
 def _build(base, name: str) -> dict:
-    row = rb.run_variant(base["data"], name, base["root"])
+    row = rb.run_variant(base["data"], name, base["root"], roundtrip=False)
     assert row["ok"], row.get("error")
     row["shift"] = rb.shift_vs_base(base["row"], row)
     return row
 
 
 def _assert_accuracy(row: dict, *, edge=EDGE_RMSE_MAX_M, lane=LANE_RMSE_MAX_M) -> None:
-    assert row["ramps_matched"] == row["ramps_true"] == 2, row["ramps"]
+    assert row["ramps_matched"] == row["ramps_true"] == 1, row["ramps"]
     assert row["edge_rmse"] <= edge, (row["edge_rmse"], row["edge_p95"], row["spikes"])
     assert row["lane_rmse"] <= lane, (row["lane_rmse"], row["lane_p95"])
 
@@ -134,22 +151,52 @@ def test_baseline_accuracy(base):
     _assert_accuracy(base["row"])
 
 
-@pytest.mark.xfail(
-    reason="mainline: the hard-shoulder width cubic of the last lane section overshoots in "
-    "the last ~3 m of the run (negative width, road edge off by 3 m; check ERROR "
-    "negative_width), and truth points within 1 m of the gore cuts match the connector's "
-    "edge 6 m away; these 3 points alone lift the edge RMSE from ~0.02 to 0.08 m",
-    strict=True,
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    """The full 2 km demo run (two gore cuts, run end on a junction-free road)."""
+    root = tmp_path_factory.mktemp("robust_demo")
+    run_dir = rb.simulate_base("straight_curve_2km", root / "_base")
+    return {"root": root, "data": rb.read_base(run_dir), "dir": run_dir}
+
+
+@pytest.mark.parametrize(
+    "name",
+    [
+        "baseline",
+        pytest.param(
+            "edge_density_half",
+            marks=pytest.mark.xfail(
+                reason="gore stations off by +1 m (exit) / -2 m (entry): "
+                "mainline.lanes.fit_outer_edge refines a step of the outer edge to the 2nd "
+                "point of the low level (ss[1] / ss[-2]) and rounds it to the 1 m grid; the "
+                "auxiliary lane is full width up to the cut, so each metre of station error "
+                "puts a true edge sample 6 m off (3 of 4000 samples: edge RMSE 0.02 -> "
+                "0.165 m)",
+                strict=True,
+            ),
+        ),
+    ],
 )
-def test_baseline_has_no_error_spikes(base):
-    assert base["row"]["spikes"] == 0
-    assert base["row"]["check_errors"] == 0
+def test_demo_run_has_no_error_spikes(demo, name):
+    """No true boundary point of the 2 km demo more than 0.5 m off; edge RMSE <= 0.10 m."""
+    rd = rb.VARIANTS[name](demo["data"], np.random.default_rng(0))
+    run_dir = rb.write_run(rd, demo["root"] / name)
+    row = rb.build_and_evaluate(run_dir, run_dir / "out", roundtrip=False)
+    assert row["ok"], row.get("error")
+    assert row["spikes"] == 0, (row["spikes"], row["edge_rmse"], row["edge_p95"])
+    assert row["edge_rmse"] <= 0.10
 
 
-@pytest.mark.parametrize("name", ["crs_utm", "origin_far"])
-def test_other_frame_gives_the_same_map(base, name):
-    """A UTM CRS (large coordinates, grid convergence) or a far origin: the same road."""
-    row = _build(base, name)
+def test_wrapped_yaw_builds_the_rotated_map(base):
+    """Heading across +-pi (whole run, OSM and truth rotated): same accuracy, same map."""
+    row = _build(base, "rotated_yaw_wraps_pi")
+    assert row["shift"][1] <= SHIFT_P95_MAX_M, row["shift"]
+    _assert_accuracy(row)
+
+
+def test_utm_frame_gives_the_same_map(base):
+    """A UTM CRS (large coordinates, grid convergence, absolute heights): the same road."""
+    row = _build(base, "crs_utm")
     assert row["shift"][1] <= SHIFT_P95_MAX_M, row["shift"]
     _assert_accuracy(row)
 
@@ -160,21 +207,65 @@ def test_other_frame_gives_the_same_map(base, name):
         "edges_csv_no_side",
         "edge_outliers_10pct",
         "occlusion_80m_left",
-        "edge_range_15m",
-        "lane_miss_frames_20pct",
-        "lane_false_pos_5pct",
-        "osm_no_lanes_tags",
-        "osm_coarse_links",
+        "edge_density_half",
+        "lane_miss_and_false_pos",
+        "osm_no_lanes_coarse_links",
     ],
 )
 def test_degraded_input_stays_accurate(base, name):
     _assert_accuracy(_build(base, name))
 
 
+@pytest.mark.parametrize("name", ["rotated_yaw_wraps_pi", "rotated_yaw_0_2pi"])
+def test_wrapped_yaw_loads_like_rotated_base(base, name):
+    """Heading crossing +-pi, yaw written wrapped to (-pi, pi] or [0, 2 pi)."""
+    rd = rb.VARIANTS[name](base["data"], np.random.default_rng(0))
+    run = _load(rb.write_run(rd, base["root"] / name))
+    theta = rd.truth_xform[0]
+    c, s = np.cos(theta), np.sin(theta)
+    rot = np.array([[c, -s], [s, c]])
+    ref = base["run"]
+    assert np.abs(np.diff(run.trajectory.yaw)).max() < 0.1  # unwrapped
+    np.testing.assert_allclose(run.trajectory.xy, ref.trajectory.xy @ rot.T, atol=1e-5)
+    np.testing.assert_allclose(
+        _sorted_rows(run.lane_samples[:, :2]),
+        _sorted_rows(ref.lane_samples[:, :2] @ rot.T),
+        atol=1e-3,
+    )
+
+
+def _build_with(base, name: str, variant) -> dict:
+    rd = variant(base["data"], np.random.default_rng(0))
+    run_dir = rb.write_run(rd, base["root"] / name)
+    row = rb.build_and_evaluate(run_dir, run_dir / "out", roundtrip=False)
+    assert row["ok"], row.get("error")
+    return row
+
+
 @pytest.mark.xfail(
-    reason="with half the edge points the gore-cut spikes (road-end matching, see "
-    "test_baseline_has_no_error_spikes) dominate: edge RMSE 0.165 m, p95 0.034 m",
+    reason="run starts 50 m before the exit gore, inside the deceleration lane: the "
+    "auxiliary lane's marking track (50 m) is shorter than MainlineConfig.lane_min_track_m "
+    "(60 m) and dropped, so no lane section has the auxiliary lane and the lane boundaries "
+    "there are one lane (3.5 m) off; lane_min_track_m=30 fixes it (lane RMSE 0.68 -> 0.02 m "
+    "on the 2 km demo cropped to 600-1300 m)",
     strict=True,
 )
-def test_half_edge_density_stays_accurate(base):
-    _assert_accuracy(_build(base, "edge_density_half"))
+def test_run_from_gore_area_to_gore_area(demo):
+    """The 2 km demo cropped to 600-1300 m: starts 50 m before the exit gore (inside the
+    deceleration lane), ends 50 m after the entry gore (inside the acceleration lane)."""
+    row = _build_with(demo, "crop_600_1300", rb._crop(600.0, 1300.0))
+    assert row["ramps_matched"] == 2, row["ramps"]
+    assert row["lane_rmse"] <= LANE_RMSE_MAX_M, (row["lane_rmse"], row["spikes"])
+    assert row["edge_rmse"] <= EDGE_RMSE_MAX_M
+
+
+@pytest.mark.xfail(
+    reason="run ends 18 m after the exit gore: topology skips the exit ('too close to the "
+    "run's end') and the deceleration lane runs on to the end of the mainline, so the "
+    "outer edge is 3 m off over the last 20 m and the exit is missing",
+    strict=True,
+)
+def test_run_ending_just_after_the_exit_gore(base):
+    row = _build_with(base, "crop_end_660", rb._crop(0.0, 660.0))
+    assert row["ramps_matched"] == 1, row["ramps"]
+    assert row["edge_rmse"] <= EDGE_RMSE_MAX_M, (row["edge_rmse"], row["spikes"])

@@ -58,7 +58,8 @@ class MainlineConfig:
     lane_column_m: float = 5.0
     """Station step of the lane-marking histogram columns (metres)."""
     lane_window_columns: int = 1
-    """Columns summed per marking search window (covers broken-line gaps)."""
+    """Columns summed per marking search window (1: none; a wider window smears tapers,
+    broken-line gaps are bridged by the track linking instead)."""
     lane_bin_m: float = 0.05
     """Lateral histogram bin of the lane-marking search (metres)."""
     lane_min_separation_m: float = 0.8
@@ -82,6 +83,9 @@ class MainlineConfig:
     ramp_line_slope: float = 0.012
     """A marking whose offset changes faster than this (m/m) where it starts (inward) or
     ends (outward) is a ramp line crossing the corridor near a gore, not the mainline's."""
+    hidden_gore_slope: float = 0.004
+    """Where the outer edge is occluded, a marking that starts (ends) converging (diverging)
+    faster than this (m/m) is a ramp line up to the gore."""
     hidden_lane_min_m: float = 2.0
     """An outer shoulder wider than the run's typical one by more than this hides a lane
     whose outer marking was not observed (metres)."""

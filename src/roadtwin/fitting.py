@@ -20,7 +20,12 @@ from functools import cached_property
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy import sparse
-from scipy.interpolate import CubicSpline, make_interp_spline, make_smoothing_spline
+from scipy.interpolate import (
+    CubicSpline,
+    PchipInterpolator,
+    make_interp_spline,
+    make_smoothing_spline,
+)
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
@@ -469,6 +474,7 @@ def fit_cubic_profile(
     smooth: bool = False,
     max_piece_m: float = 500.0,
     min_piece_m: float = 2.0,
+    shape_preserving: bool = False,
 ) -> CubicProfile:
     """Fit a C1-continuous piecewise cubic profile to samples of a function of s.
 
@@ -492,6 +498,9 @@ def fit_cubic_profile(
         Smoothing spline instead of interpolation.
     max_piece_m, min_piece_m
         Bounds on piece length, metres.
+    shape_preserving
+        Interpolate with PCHIP (no overshoot: non-negative samples give a non-negative
+        profile, e.g. lane widths that open from zero) instead of a cubic spline.
 
     Returns
     -------
@@ -521,8 +530,11 @@ def fit_cubic_profile(
         return _taylor_profile(su[0], su[-1], coef, origin=0.0)
     if smooth and su.size >= 5:
         fn = make_smoothing_spline(su, vu, w=wsum)
+    elif shape_preserving:
+        fn = PchipInterpolator(su, vu)
     else:
         fn = make_interp_spline(su, vu, k=3)
+    floor = float(np.min(vu)) - 1e-9 if shape_preserving else -np.inf
     # knots are sample stations (plus midpoints, so that sparse samples are checked
     # between them too); the function and its slope are evaluated once
     x = np.sort(np.concatenate([su, 0.5 * (su[1:] + su[:-1])]))
@@ -539,7 +551,9 @@ def fit_cubic_profile(
         c3 = (2.0 * (va - vb) / h + da + db) / (h * h)
         dx = x[i : j + 1] - a
         dev = np.abs(va + dx * (da + dx * (c2 + dx * c3)) - fx[i : j + 1])
-        if j - i > 1 and h > 2.0 * min_piece_m and float(dev.max()) > tolerance:
+        hermite = va + dx * (da + dx * (c2 + dx * c3))
+        too_low = float(hermite.min()) < floor
+        if j - i > 1 and (too_low or (h > 2.0 * min_piece_m and float(dev.max()) > tolerance)):
             m = int(np.searchsorted(x, a + 0.5 * h))
             m = min(max(m, i + 1), j - 1)
             stack.append((m, j))

@@ -14,10 +14,14 @@ Two methods build the same :class:`Mainline` (one :class:`~roadtwin.model.Road` 
     bin (edge points and poses) and smoothed; elevation becomes C1 cubic pieces.
     Lane-marking samples are followed as tracks along s in a station/offset histogram;
     short tracks are rejected; a marking that starts or ends next to a neighbour opens or
-    closes a tapering lane (lane birth / end), extrapolated to zero width. Lane sections
-    follow the set of tracks; the inner shoulder (edge to first marking) and the hard
-    shoulder (last marking to the outer edge) are shoulder lanes; road marks are solid or
-    broken from the gap statistics of the samples along each track.
+    closes a tapering lane (lane birth / end), extrapolated to zero width; one that starts
+    or ends at full width is a gore. Ramp markings crossing the corridor near a gore are
+    cut off by their steep convergence/divergence. The outer road edge is the lowest
+    cluster of the outer-side edge points (ramp edges lie farther out), fitted piecewise
+    between edge steps (gores); across occlusion gaps the outer-shoulder width is bridged.
+    Lane sections follow the set of tracks; the inner shoulder (edge to first marking) and
+    the hard shoulder (last marking to the outer edge) are shoulder lanes; road marks are
+    solid or broken from the gap statistics of the samples along each track.
 
 ``paper`` (the seed paper, kept as the baseline)
     100 m trajectory windows; a cubic per window fitted to the median-side edge points and

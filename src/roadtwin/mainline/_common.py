@@ -225,6 +225,7 @@ def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
     for name, pts in (("road_edge", run.edges), ("lane_boundary", run.lane_samples)):
         if pts.shape[0] == 0:
             errs[name] = np.zeros(0)
+            used[name] = 0.0
             continue
         s, t = frame.project(pts)
         ok = (s >= 0) & (s <= road.length)

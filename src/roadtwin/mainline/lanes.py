@@ -266,12 +266,14 @@ def fit_lanes(
     if np.all(np.isfinite(d_edge)):
         keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
-    tracks = _tracks_from_samples(s_l, d_l, grid, length, cfg)
+    tracks, evidence = _tracks_from_samples(s_l, d_l, grid, length, cfg)
     if not np.all(np.isfinite(d_edge)):
         last = max((float(np.max(tr.d)) for tr in tracks), default=3.0)
         d_edge = np.full(grid.size, last + 2.5)
         breaks = np.zeros(0)
     else:
+        tracks, gores = _snap_to_hidden_gores(tracks, evidence, covered, grid, cfg)
+        breaks = np.sort(np.concatenate([breaks, gores]))
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
     sections, events, out_tracks = _sections_from_tracks(tracks, grid, d_edge, breaks, sign, cfg)
@@ -292,11 +294,14 @@ class _Track:
 
 def _tracks_from_samples(
     s: FloatArray, d: FloatArray, grid: FloatArray, length: float, cfg: MainlineConfig
-) -> list[_Track]:
+) -> tuple[list[_Track], list[tuple[float, float]]]:
     """Marking tracks: histogram peaks linked along s, false positives removed, samples
-    assigned exclusively to the nearest track, each track smoothed robustly."""
+    assigned exclusively to the nearest track, each track smoothed robustly.
+
+    Also returns ``(s, d)`` where ramp lines crossing the corridor were cut off (they meet
+    or leave a mainline marking there: gore evidence)."""
     if s.size < 10:
-        return []
+        return [], []
     centres, peaks = _find_track_peaks(s, d, length, cfg)
     raw = _link_tracks(peaks, cfg)
     col = cfg.lane_column_m
@@ -310,7 +315,7 @@ def _tracks_from_samples(
             _Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0])
         )
     if not cand:
-        return []
+        return [], []
     dist = np.full((len(cand), s.size), np.inf)
     for k, tr in enumerate(cand):
         inside = (s >= tr.lo - col) & (s <= tr.hi + col)
@@ -318,6 +323,7 @@ def _tracks_from_samples(
     owner = np.argmin(dist, axis=0)
     best = dist[owner, np.arange(s.size)]
     final: list[_Track] = []
+    evidence: list[tuple[float, float]] = []
     for k in range(len(cand)):
         sel = (owner == k) & (best < cfg.lane_assign_m)
         if np.count_nonzero(sel) < 10:
@@ -338,6 +344,14 @@ def _tracks_from_samples(
             min_threshold_m=cfg.edge_outlier_min_m,
         )
         keep_g = _trim_ramp_lines(g, fit, cfg)
+        if not keep_g[-1] or not keep_g[0]:
+            # a ramp line: where it meets / leaves the corridor's marking is a gore
+            if keep_g.any():
+                i_in = np.flatnonzero(keep_g)
+                i_g = i_in[0] - 1 if not keep_g[0] else i_in[-1] + 1
+            else:
+                i_g = g.size - 1 if fit[-1] < fit[0] else 0
+            evidence.append((float(g[i_g]), float(fit[i_g])))
         if np.count_nonzero(keep_g) * cfg.grid_step_m < cfg.lane_min_track_m:
             continue
         g, fit = g[keep_g], fit[keep_g]
@@ -346,7 +360,7 @@ def _tracks_from_samples(
         ss = ss[(ss >= lo - 1.0) & (ss <= hi + 1.0)]
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), np.sort(ss)))
-    return _merge_collinear(final, cfg)
+    return _merge_collinear(final, cfg), evidence
 
 
 def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
@@ -375,6 +389,76 @@ def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArr
     if flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
         keep[flat[-1] + 1 :] = False
     return keep
+
+
+def _snap_to_hidden_gores(
+    tracks: list[_Track],
+    evidence: list[tuple[float, float]],
+    covered: NDArray[np.bool_],
+    grid: FloatArray,
+    cfg: MainlineConfig,
+) -> tuple[list[_Track], FloatArray]:
+    """Place gores that an occlusion of the outer edge hid.
+
+    A ramp line that meets (entry) or leaves (exit) the outermost mainline marking inside
+    an occlusion gap marks the gore; an outer marking that starts or ends abruptly in the
+    same gap is cut or extended to that station (ramp markings upstream of an entry gore
+    otherwise make the lane start early). Returns the tracks and the gore stations.
+    """
+    gores: list[float] = []
+    out = list(tracks)
+    step = cfg.grid_step_m
+
+    def hidden(s_at: float) -> bool:
+        i = int(np.clip(np.rint((s_at - grid[0]) / step), 0, grid.size - 1))
+        return not covered[max(i - 10, 0) : i + 11].all()
+
+    # a marking that starts (ends) inside such a gap while still converging (diverging)
+    # is a ramp line until it runs parallel: the gore is where it does
+    for k, tr in enumerate(out):
+        if tr.s.size < 20:
+            continue
+        slope = np.gradient(tr.d, tr.s)
+        if tr.lo > grid[0] + step and hidden(tr.lo):
+            par = np.flatnonzero(slope > -cfg.hidden_gore_slope)
+            if par.size and par[0] > 0 and tr.s[par[0]] - tr.lo >= 5.0:
+                i0 = par[0]
+                tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
+                gores.append(tr.lo)
+        if tr.hi < grid[-1] - step and hidden(tr.hi):
+            slope = np.gradient(tr.d, tr.s)
+            par = np.flatnonzero(slope < cfg.hidden_gore_slope)
+            if par.size and par[-1] < tr.s.size - 1 and tr.hi - tr.s[par[-1]] >= 5.0:
+                i1 = par[-1] + 1
+                tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
+                gores.append(tr.hi)
+        out[k] = tr
+    for s_g, d_g in evidence:
+        i_g = int(np.clip(np.rint((s_g - grid[0]) / step), 0, grid.size - 1))
+        # inside (or within 10 m of) a gap of the outer-edge points
+        lo_i, hi_i = max(i_g - 10, 0), min(i_g + 11, grid.size)
+        if covered[lo_i:hi_i].all():
+            continue
+        # it must touch a mainline marking there
+        near = [
+            tr
+            for tr in out
+            if tr.lo - 1 <= s_g <= tr.hi + 1 and abs(np.interp(s_g, tr.s, tr.d) - d_g) < 1.0
+        ]
+        if not near:
+            continue
+        s_gore = float(grid[i_g])
+        if any(abs(g - s_gore) < 30.0 for g in gores):
+            continue
+        gores.append(s_gore)
+        for k, tr in enumerate(out):
+            if abs(tr.lo - s_gore) < 60.0 and tr.lo < s_gore - step and tr.hi > s_gore + 60.0:
+                sel = tr.s >= s_gore
+                out[k] = replace(tr, lo=s_gore, s=tr.s[sel], d=tr.d[sel])
+            elif abs(tr.hi - s_gore) < 60.0 and tr.hi > s_gore + step and tr.lo < s_gore - 60.0:
+                sel = tr.s <= s_gore
+                out[k] = replace(tr, hi=s_gore, s=tr.s[sel], d=tr.d[sel])
+    return out, np.asarray(gores, dtype=float)
 
 
 def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
@@ -481,7 +565,12 @@ def _smoothstep(x: FloatArray) -> FloatArray:
 
 
 def _taper(
-    dmat: FloatArray, k: int, grid: FloatArray, end: str, cfg: MainlineConfig
+    dmat: FloatArray,
+    k: int,
+    grid: FloatArray,
+    end: str,
+    cfg: MainlineConfig,
+    fixed: tuple[float, float] | None = None,
 ) -> tuple[float, float, int] | None:
     """Extend track ``k`` at its start/end to where it meets its nearest neighbour.
 
@@ -489,6 +578,8 @@ def _taper(
     mid-point and slope are measured where the separation passes half the full width.
     ``dmat`` is filled in place over the unobserved part of the taper. Returns
     ``(s_zero, taper_length, neighbour)`` or None if the track starts/ends at full width.
+    ``fixed = (s_zero, taper)`` imposes the taper (an inferred marking that opens with
+    an observed one) and overwrites the track over it.
     """
     n_g = grid.size
     idx = np.nonzero(np.isfinite(dmat[k]))[0]
@@ -509,6 +600,20 @@ def _taper(
     if gs.size < 10:
         return None
     w_full = float(np.percentile(sep, 90))
+    sgn = np.sign(dmat[k, i_edge] - dmat[jn, i_edge])
+    if fixed is not None and w_full >= 1.0:
+        s_zero, taper = fixed
+        if end == "start":
+            dmat[k, grid < s_zero] = np.nan
+            fill = (grid >= s_zero) & (grid < s_zero + taper)
+            x = (grid[fill] - s_zero) / taper
+        else:
+            dmat[k, grid > s_zero] = np.nan
+            fill = (grid > s_zero - taper) & (grid <= s_zero)
+            x = (s_zero - grid[fill]) / taper
+        ok = fill & np.isfinite(dmat[jn])
+        dmat[k, ok] = dmat[jn, ok] + sgn * w_full * _smoothstep(x[ok[fill]])
+        return s_zero, taper, jn
     sep0 = float(np.abs(dmat[k, i_edge] - dmat[jn, i_edge]))
     if w_full < 1.0 or sep0 > 0.7 * w_full:
         return None
@@ -520,7 +625,6 @@ def _taper(
         return None
     s50 = (0.5 * w_full - icpt) / slope
     taper = float(min(1.5 * w_full / abs(slope), cfg.lane_taper_max_m))
-    sgn = np.sign(dmat[k, i_edge] - dmat[jn, i_edge])
     s_edge = float(grid[i_edge])
     if end == "start":
         s_zero = float(np.clip(s50 - 0.5 * taper, grid[0], s_edge))
@@ -555,7 +659,9 @@ def _sections_from_tracks(
         dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
     # births / ends inside the run
     raw_events: list[tuple[int, str, float, float, int | None]] = []
-    for k in range(len(tracks)):
+    # observed markings first: an inferred (unobserved) one opens/closes like its sibling
+    order = sorted(range(len(tracks)), key=lambda k: tracks[k].n == 0)
+    for k in order:
         for end in ("start", "end"):
             idx = np.nonzero(np.isfinite(dmat[k]))[0]
             if idx.size == 0:
@@ -563,7 +669,15 @@ def _sections_from_tracks(
             i_edge = idx[0] if end == "start" else idx[-1]
             if (end == "start" and i_edge == 0) or (end == "end" and i_edge == n_g - 1):
                 continue
-            info = _taper(dmat, k, grid, end, cfg)
+            fixed = None
+            if tracks[k].n == 0:
+                sib = [
+                    (s_z, tp)
+                    for _, e2, s_z, tp, _ in raw_events
+                    if e2 == end and tp > 0.0 and abs(s_z - grid[i_edge]) < 100.0
+                ]
+                fixed = sib[0] if sib else None
+            info = _taper(dmat, k, grid, end, cfg, fixed)
             if info is None:
                 s_ev = float(grid[i_edge])
                 if breaks.size and np.min(np.abs(breaks - s_ev)) < 20.0:
@@ -573,10 +687,7 @@ def _sections_from_tracks(
                 raw_events.append((k, end, info[0], info[1], info[2]))
     # sections: runs of a constant set of tracks
     present = np.isfinite(dmat)
-    codes = np.zeros(n_g, dtype=np.int64)
-    for k in range(len(tracks)):
-        codes = codes * 2 + present[k].astype(np.int64) if len(tracks) < 60 else codes
-    change = np.nonzero(np.diff(codes) != 0)[0] + 1
+    change = np.flatnonzero(np.any(present[:, 1:] != present[:, :-1], axis=0)) + 1
     starts = [0, *change.tolist()]
     # edge steps start a section too
     forced: set[int] = set()
@@ -623,7 +734,7 @@ def _sections_from_tracks(
         bounds: list[tuple[object, object]] = []
         for i in range(n_l):
             width = np.clip(stack[i + 1] - stack[i], 0.0, None)
-            lane_type = "shoulder" if i in (0, n_l - 1) else "driving"
+            lane_type = "shoulder" if n_l >= 3 and i in (0, n_l - 1) else "driving"
             if i == n_l - 1:
                 mark = "none"
             else:
@@ -633,7 +744,9 @@ def _sections_from_tracks(
                     if gs[-1] - gs[0] >= 4 * cfg.broken_gap_m
                     else tr.mark
                 )
-            prof = fit_cubic_profile(rel, width, tolerance=cfg.lane_width_tolerance_m)
+            prof = fit_cubic_profile(
+                rel, width, tolerance=cfg.lane_width_tolerance_m, shape_preserving=True
+            )
             lid = -(i + 1) if sign > 0 else i + 1
             lanes.append(Lane(lid, lane_type, prof, (RoadMark(0.0, mark),)))  # type: ignore[arg-type]
             bounds.append((labels[i], labels[i + 1]))

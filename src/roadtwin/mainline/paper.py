@@ -44,6 +44,7 @@ FloatArray = NDArray[np.float64]
 def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]) -> _Partial:
     from sklearn.cluster import KMeans
     from sklearn.metrics import silhouette_score
+    from threadpoolctl import threadpool_limits
 
     sign = _sign(run)
     rng = np.random.default_rng(cfg.seed)
@@ -152,70 +153,77 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
     s_o, t_o = base.project(outer_pts)
     d_l, d_o = -sign * t_l, -sign * t_o
     sections: list[LaneSection] = []
-    for g in pieces:
-        lo, hi = g.s0, g.s0 + g.length
-        # outer edge (the paper does not say): cubic through the window's nearest outer-
-        # side edge points (ramp edges and outliers lie farther out)
-        so = (s_o >= lo) & (s_o < hi) & (d_o > 0.5)
-        edge_cf = None
-        if np.count_nonzero(so) >= 8:
-            be = np.arange(lo, hi + 5.0, 5.0)
-            q25 = binned_quantile(s_o[so], d_o[so], be, 0.25)
-            qb = np.clip(np.searchsorted(be, s_o[so], side="right") - 1, 0, q25.size - 1)
-            idx = np.flatnonzero(so)
-            so[idx[~(np.abs(d_o[so] - q25[qb]) < 0.5)]] = False
-            if np.count_nonzero(so) >= 4 and np.ptp(s_o[so]) > 0.6 * (hi - lo):
-                edge_cf = np.polyfit(s_o[so] - lo, d_o[so], 3)[::-1]
-            elif np.count_nonzero(so) >= 1:
-                edge_cf = np.array([float(np.median(d_o[so])), 0.0, 0.0, 0.0])
-        d_max = 30.0 if edge_cf is None else float(np.polyval(edge_cf[::-1], 0.5 * (hi - lo))) + 0.3
-        sel = (s_l >= lo) & (s_l < hi) & (d_l > -1.0) & (d_l < d_max)
-        ds_ = s_l[sel] - lo
-        dd = d_l[sel]
-        bounds: list[FloatArray] = []
-        if dd.size >= 20:
-            X = dd[:, None]
-            sub = rng.choice(dd.size, size=min(dd.size, 500), replace=False)
-            best_k, best_sc, best_lab = 1, -1.0, None
-            for k in range(2, cfg.paper_max_clusters + 1):
-                if k >= sub.size:
-                    break
-                km = KMeans(n_clusters=k, n_init=1, random_state=cfg.seed).fit(X[sub])
-                sc = silhouette_score(X[sub], km.labels_)
-                if sc > best_sc:
-                    best_k, best_sc, best_lab = k, sc, km
-            if best_lab is not None:
-                lab = best_lab.predict(X)
-                order = np.argsort(best_lab.cluster_centers_[:, 0])
-                for c_i in order:
-                    m = lab == c_i
-                    if np.count_nonzero(m) < 4:
-                        continue
-                    cf = np.polyfit(ds_[m], dd[m], 3)[::-1]
-                    bounds.append(cf)
-            del best_k
-        if edge_cf is None:
-            last = bounds[-1][0] if bounds else 3.0
-            edge_cf = np.array([last + 2.5, 0.0, 0.0, 0.0])
-        borders = [np.zeros(4), *bounds, edge_cf]
-        n_l = len(borders) - 1
-        lanes = []
-        for i in range(n_l):
-            wc = borders[i + 1] - borders[i]
-            lane_type = "shoulder" if i in (0, n_l - 1) else "driving"
-            mark = "none" if i == n_l - 1 else ("solid" if i in (0, n_l - 2) else "broken")
-            lid = -(i + 1) if sign > 0 else i + 1
-            lanes.append(
-                Lane(
-                    lid,
-                    lane_type,
-                    CubicProfile((CubicPiece(0.0, *map(float, wc)),)),  # type: ignore[arg-type]
-                    (RoadMark(0.0, mark),),
-                )  # type: ignore[arg-type]
+    # K-means on a few hundred 1-D points: OpenMP threads only add overhead (40x slower
+    # on a busy 2-core machine), so one thread
+    with threadpool_limits(limits=1):
+        for g in pieces:
+            lo, hi = g.s0, g.s0 + g.length
+            # outer edge (the paper does not say): cubic through the window's nearest outer-
+            # side edge points (ramp edges and outliers lie farther out)
+            so = (s_o >= lo) & (s_o < hi) & (d_o > 0.5)
+            edge_cf = None
+            if np.count_nonzero(so) >= 8:
+                be = np.arange(lo, hi + 5.0, 5.0)
+                q25 = binned_quantile(s_o[so], d_o[so], be, 0.25)
+                qb = np.clip(np.searchsorted(be, s_o[so], side="right") - 1, 0, q25.size - 1)
+                idx = np.flatnonzero(so)
+                so[idx[~(np.abs(d_o[so] - q25[qb]) < 0.5)]] = False
+                if np.count_nonzero(so) >= 4 and np.ptp(s_o[so]) > 0.6 * (hi - lo):
+                    edge_cf = np.polyfit(s_o[so] - lo, d_o[so], 3)[::-1]
+                elif np.count_nonzero(so) >= 1:
+                    edge_cf = np.array([float(np.median(d_o[so])), 0.0, 0.0, 0.0])
+            d_max = (
+                30.0 if edge_cf is None else float(np.polyval(edge_cf[::-1], 0.5 * (hi - lo))) + 0.3
             )
-        sections.append(
-            LaneSection(lo, right=tuple(lanes)) if sign > 0 else LaneSection(lo, left=tuple(lanes))
-        )
+            sel = (s_l >= lo) & (s_l < hi) & (d_l > -1.0) & (d_l < d_max)
+            ds_ = s_l[sel] - lo
+            dd = d_l[sel]
+            bounds: list[FloatArray] = []
+            if dd.size >= 20:
+                X = dd[:, None]
+                sub = rng.choice(dd.size, size=min(dd.size, 500), replace=False)
+                best_k, best_sc, best_lab = 1, -1.0, None
+                for k in range(2, cfg.paper_max_clusters + 1):
+                    if k >= sub.size:
+                        break
+                    km = KMeans(n_clusters=k, n_init=1, random_state=cfg.seed).fit(X[sub])
+                    sc = silhouette_score(X[sub], km.labels_)
+                    if sc > best_sc:
+                        best_k, best_sc, best_lab = k, sc, km
+                if best_lab is not None:
+                    lab = best_lab.predict(X)
+                    order = np.argsort(best_lab.cluster_centers_[:, 0])
+                    for c_i in order:
+                        m = lab == c_i
+                        if np.count_nonzero(m) < 4:
+                            continue
+                        cf = np.polyfit(ds_[m], dd[m], 3)[::-1]
+                        bounds.append(cf)
+                del best_k
+            if edge_cf is None:
+                last = bounds[-1][0] if bounds else 3.0
+                edge_cf = np.array([last + 2.5, 0.0, 0.0, 0.0])
+            borders = [np.zeros(4), *bounds, edge_cf]
+            n_l = len(borders) - 1
+            lanes = []
+            for i in range(n_l):
+                wc = borders[i + 1] - borders[i]
+                lane_type = "shoulder" if n_l >= 3 and i in (0, n_l - 1) else "driving"
+                mark = "none" if i == n_l - 1 else ("solid" if i in (0, n_l - 2) else "broken")
+                lid = -(i + 1) if sign > 0 else i + 1
+                lanes.append(
+                    Lane(
+                        lid,
+                        lane_type,
+                        CubicProfile((CubicPiece(0.0, *map(float, wc)),)),  # type: ignore[arg-type]
+                        (RoadMark(0.0, mark),),
+                    )  # type: ignore[arg-type]
+                )
+            sections.append(
+                LaneSection(lo, right=tuple(lanes))
+                if sign > 0
+                else LaneSection(lo, left=tuple(lanes))
+            )
     timings["lanes"] = time.perf_counter() - t0
     road = replace(
         base,
