@@ -243,10 +243,10 @@ BAD = {
         2,
         r"trajectory\.csv: duplicate frame 1006 in data rows 7 and 8",
     ),
-    "non-increasing t": (
+    "duplicate t": (
         _csv_edit("trajectory.csv", _t_back),
         2,
-        r"trajectory\.csv: data row 13, column 't'.*strictly increasing",
+        r"trajectory\.csv: data rows 11 and 13, column 't': both at .* one pose per time stamp",
     ),
     "trajectory jump": (
         _csv_edit("trajectory.csv", _jump),

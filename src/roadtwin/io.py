@@ -372,7 +372,7 @@ def read_trajectory(path: str | Path, *, config: LoadConfig | None = None) -> Tr
     Raises
     ------
     InputError
-        Missing columns, NaN/inf, duplicate frames, non-increasing ``t``, yaw in degrees or
+        Missing columns, NaN/inf, duplicate frames or times, yaw in degrees or
         not matching the direction of travel, jumps.
     """
     cfg = config if config is not None else LoadConfig()
@@ -400,12 +400,18 @@ def read_trajectory(path: str | Path, *, config: LoadConfig | None = None) -> Tr
     if n < 2:
         msg = f"{path}: only {n} pose(s); expected at least 2 rows"
         raise InputError(msg)
+    # Section 3 does not require rows in time order: sort them, then every pose time
+    # must be distinct.
+    by_time = np.argsort(t, kind="stable")
+    t, frame, xyz, yaw = t[by_time], frame[by_time], xyz[by_time], yaw[by_time]
+    pitch, roll = pitch[by_time], roll[by_time]
     dt = np.diff(t)
     if (dt <= 0).any():
-        row = int(np.argmax(dt <= 0)) + 1
+        k = int(np.argmax(dt <= 0))
+        rows = sorted((int(by_time[k]) + 1, int(by_time[k + 1]) + 1))
         msg = (
-            f"{path}: data row {row + 1}, column 't': {t[row]} is not after the previous "
-            f"row's {t[row - 1]} (expected strictly increasing time)"
+            f"{path}: data rows {rows[0]} and {rows[1]}, column 't': both at {t[k]} s "
+            "(expected one pose per time stamp)"
         )
         raise InputError(msg)
     _check_yaw(path, xyz[:, :2], yaw)
