@@ -1,7 +1,8 @@
 """End-to-end benchmark: time and memory of every pipeline stage on runs of 1, 10 and 100 km.
 
 Run: ``python benchmarks/bench_pipeline.py [--lengths 1 10 100] [--method default|paper]
-[--workdir DIR]``.
+[--workdir DIR] [--threads 1] [--json FILE]``; ``--only-osm`` runs the netconvert comparison
+alone, ``--no-tracemalloc`` skips the (slow) memory pass. Results: ``benchmarks/RESULTS.md``.
 
 The runs are simulated from the bundled ``long_20km`` scenario (DESIGN.md section 5 asks for
 1, 10 and 100 km): its alignment period (straight 1200 m, clothoid-arc-clothoid R 1500 m left,
@@ -25,7 +26,13 @@ one by one with ``build_map``'s wiring), write xodr / kml / geojson, check (own 
 ``check_file(external=False)``, includes reading the file back), read truth, evaluate. The
 external consumers (SUMO netconvert and the ASAM checker on ``map.xodr``) run once, on the
 length given by ``--external-km``. Then SUMO ``netconvert --osm-files map.osm
---opendrive-output x.xodr`` converts the same simulated OSM file, against our OSM stage.
+--opendrive-output x.xodr`` converts the same simulated OSM file, against our OSM stage
+(``load_osm`` in a fresh process: cold = first call including the osmnx import, warm = best
+of ``--osm-repeat`` later calls; netconvert: best of as many whole-process runs).
+
+Times are reported as wall and CPU seconds (user + system of the measuring process): on a
+machine shared with other jobs the CPU seconds are the steadier measure. ``--threads N`` sets
+the BLAS/OpenMP thread count of the measured processes.
 """
 
 from __future__ import annotations
@@ -364,14 +371,15 @@ def _consumer_text(res: Any) -> str:
 # ---------------------------------------------------------------------------
 
 
-def run_measured(cmd: list[str], **kwargs) -> tuple[int, float, float]:
-    """Run ``cmd``; return (exit code, wall seconds, the process's own peak RSS in MB)."""
+def run_measured(cmd: list[str], **kwargs) -> tuple[int, float, float, float]:
+    """Run ``cmd``; return (exit code, wall seconds, CPU seconds (user + system) and peak
+    RSS in MB of that process alone)."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, **kwargs)
     _, status, usage = os.wait4(proc.pid, 0)
     elapsed = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
-    return proc.returncode, elapsed, usage.ru_maxrss / 1024.0
+    return proc.returncode, elapsed, usage.ru_utime + usage.ru_stime, usage.ru_maxrss / 1024.0
 
 
 THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -399,7 +407,7 @@ def run_child(
         env = dict(os.environ)
         if threads:
             env.update({k: str(threads) for k in THREAD_VARS})
-        code, wall, maxrss = run_measured(cmd, env=env)
+        code, wall, _, maxrss = run_measured(cmd, env=env)
         if code != 0 or not out.is_file():
             msg = f"benchmark child failed on {run_dir} (exit {code})"
             raise RuntimeError(msg)
@@ -409,14 +417,69 @@ def run_child(
     return result
 
 
-def netconvert_osm(osm_path: Path) -> dict[str, float] | None:
+def netconvert_osm(osm_path: Path, *, repeat: int = 3) -> dict[str, float] | None:
+    """SUMO ``netconvert --osm-files OSM --opendrive-output x.xodr``: best of ``repeat``
+    runs (wall and CPU seconds of the whole process, its peak RSS)."""
     exe = shutil.which("netconvert") or str(Path(sys.executable).with_name("netconvert"))
     if not Path(exe).is_file():
         return None
+    walls, cpus, rss, code = [], [], [], 0
     with tempfile.TemporaryDirectory(prefix="bench-nc-") as tmp:
         cmd = [exe, "--osm-files", str(osm_path), "--opendrive-output", str(Path(tmp) / "x.xodr")]
-        code, wall, maxrss = run_measured(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    return {"s": wall, "maxrss_mb": maxrss, "exit": code}
+        for _ in range(max(1, repeat)):
+            code, wall, cpu, maxrss = run_measured(
+                cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+            )
+            walls.append(wall)
+            cpus.append(cpu)
+            rss.append(maxrss)
+    return {"s": min(walls), "cpu_s": min(cpus), "maxrss_mb": max(rss), "exit": code}
+
+
+def child_osm(run_dir: Path, out_json: Path, *, repeat: int) -> None:
+    """Our OSM stage alone: cold (first call in a fresh process, with the osmnx import) and
+    warm (best of ``repeat`` further calls), wall and CPU seconds."""
+    import logging
+    import warnings
+
+    logging.disable(logging.WARNING)
+    warnings.simplefilter("ignore")
+    from roadtwin.io import load_run
+
+    run = load_run(run_dir)
+    t0, c0 = time.perf_counter(), time.process_time()
+    from roadtwin.osm import load_osm
+
+    for mod in LAZY_IMPORTS[:2]:  # what load_osm pulls in lazily (osmnx, geopandas)
+        importlib.import_module(mod)
+    load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    cold = {"s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
+    walls, cpus = [], []
+    for _ in range(max(1, repeat)):
+        t0, c0 = time.perf_counter(), time.process_time()
+        load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    warm = {"s": min(walls), "cpu_s": min(cpus)}
+    out_json.write_text(json.dumps({"cold": cold, "warm": warm}), encoding="utf-8")
+
+
+def osm_compare(run_dir: Path, *, repeat: int, threads: int | None) -> dict[str, Any]:
+    """Our OSM stage (cold and warm) against netconvert on the run's ``map.osm``."""
+    with tempfile.TemporaryDirectory(prefix="bench-osm-") as tmp:
+        out = Path(tmp) / "osm.json"
+        cmd = [sys.executable, __file__, "--child-osm", str(run_dir), "--child-out", str(out)]
+        cmd += ["--osm-repeat", str(repeat)]
+        env = dict(os.environ)
+        if threads:
+            env.update({k: str(threads) for k in THREAD_VARS})
+        code, _, _, maxrss = run_measured(cmd, env=env)
+        if code != 0:
+            msg = f"OSM benchmark child failed on {run_dir} (exit {code})"
+            raise RuntimeError(msg)
+        ours = json.loads(out.read_text(encoding="utf-8"))
+    ours["maxrss_mb"] = maxrss
+    return {"ours": ours, "netconvert": netconvert_osm(run_dir / "map.osm", repeat=repeat)}
 
 
 def machine() -> dict[str, str]:
@@ -519,21 +582,27 @@ def tables(results: dict[float, dict[str, Any]]) -> str:
 
 
 def osm_table(results: dict[float, dict[str, Any]]) -> str:
-    """Markdown: our OSM stage (warm, and cold = + osmnx import) against netconvert."""
+    """Markdown: our OSM stage (warm, and cold = first call with the osmnx import) against
+    netconvert (best of N runs each)."""
     lines = [
-        "| length | OSM file KB | ours warm s | ours cold s (+imports) | netconvert s "
-        "| netconvert peak RSS MB | netconvert / ours warm | netconvert / ours cold |",
+        "| length | OSM file KB | ours warm wall s / CPU s | ours cold wall s / CPU s "
+        "| netconvert wall s / CPU s | netconvert peak RSS MB | netconvert / ours warm (CPU) "
+        "| netconvert / ours cold (CPU) |",
         "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for L in sorted(results):
         r = results[L]
-        ours = r["timing"]["stages"]["load OSM"]["s"]
-        cold = ours + r["timing"]["imports"]["s"]
-        nc = r.get("netconvert")
+        cmp_ = r.get("osm")
+        if not cmp_:
+            continue
+        warm, cold, nc = cmp_["ours"]["warm"], cmp_["ours"]["cold"], cmp_["netconvert"]
         lines.append(
-            f"| {L:g} km | {r['osm_kb']:.0f} | {ours:.2f} | {cold:.2f} | {_fmt(nc and nc['s'])} | "
-            f"{_fmt(nc and nc['maxrss_mb'], 0)} | {_fmt(nc and nc['s'] / ours, 1)} | "
-            f"{_fmt(nc and nc['s'] / cold, 1)} |"
+            f"| {L:g} km | {r['osm_kb']:.0f} | {warm['s']:.2f} / {warm['cpu_s']:.2f} | "
+            f"{cold['s']:.2f} / {cold['cpu_s']:.2f} | "
+            f"{_fmt(nc and nc['s'])} / {_fmt(nc and nc['cpu_s'])} | "
+            f"{_fmt(nc and nc['maxrss_mb'], 0)} | "
+            f"{_fmt(nc and nc['cpu_s'] / max(warm['cpu_s'], 1e-3), 1)} | "
+            f"{_fmt(nc and nc['cpu_s'] / max(cold['cpu_s'], 1e-3), 2)} |"
         )
     return "\n".join(lines)
 
@@ -555,7 +624,12 @@ def main(argv: list[str] | None = None) -> int:
         "1 gives steadier CPU times on a machine shared with other jobs)",
     )
     p.add_argument("--no-tracemalloc", action="store_true", help="skip the memory pass")
-    p.add_argument("--no-netconvert", action="store_true")
+    p.add_argument("--no-netconvert", action="store_true", help="skip the OSM comparison")
+    p.add_argument("--osm-repeat", type=int, default=3, help="runs per side in the OSM comparison")
+    p.add_argument(
+        "--only-osm", action="store_true", help="only the OSM comparison (no stage passes)"
+    )
+    p.add_argument("--child-osm", type=Path, default=None, help=argparse.SUPPRESS)
     p.add_argument("--json", type=Path, default=None, help="write the raw numbers here")
     p.add_argument("--child", type=Path, default=None, help=argparse.SUPPRESS)
     p.add_argument("--child-out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -563,6 +637,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--child-external", action="store_true", help=argparse.SUPPRESS)
     args = p.parse_args(argv)
 
+    if args.child_osm is not None:
+        child_osm(args.child_osm, args.child_out, repeat=args.osm_repeat)
+        return 0
     if args.child is not None:
         child(
             args.child,
@@ -594,42 +671,50 @@ def main(argv: list[str] | None = None) -> int:
                 + ("(cached)" if sim_s is None else f"(simulated in {sim_s:.1f} s)"),
                 flush=True,
             )
-            timing = run_child(
-                run_dir,
-                method=args.method,
-                trace=False,
-                external=args.external_km > 0 and ext_len == L,
-                threads=args.threads,
-            )
-            st = timing["stages"]
-            print(
-                f"[{L:g} km] timing pass: "
-                + ", ".join(f"{k} {v['s']:.2f}" for k, v in st.items())
-                + f"; peak RSS {timing['maxrss_mb']:.0f} MB",
-                flush=True,
-            )
             rec: dict[str, Any] = {
-                "km": timing["mainline_km"] or L,
-                "timing": timing,
+                "km": L,
                 "simulate_s": sim_s,
                 "osm_kb": (run_dir / "map.osm").stat().st_size / 1e3,
             }
-            if not args.no_tracemalloc:
-                rec["memory"] = run_child(
-                    run_dir, method=args.method, trace=True, external=False, threads=args.threads
+            if not args.only_osm:
+                timing = run_child(
+                    run_dir,
+                    method=args.method,
+                    trace=False,
+                    external=args.external_km > 0 and ext_len == L,
+                    threads=args.threads,
                 )
-                print(f"[{L:g} km] memory pass done", flush=True)
+                print(
+                    f"[{L:g} km] timing pass: "
+                    + ", ".join(f"{k} {v['s']:.2f}" for k, v in timing["stages"].items())
+                    + f"; peak RSS {timing['maxrss_mb']:.0f} MB",
+                    flush=True,
+                )
+                rec["km"] = timing["mainline_km"] or L
+                rec["timing"] = timing
+                if not args.no_tracemalloc:
+                    rec["memory"] = run_child(
+                        run_dir,
+                        method=args.method,
+                        trace=True,
+                        external=False,
+                        threads=args.threads,
+                    )
+                    print(f"[{L:g} km] memory pass done", flush=True)
             if not args.no_netconvert:
-                rec["netconvert"] = netconvert_osm(run_dir / "map.osm")
+                rec["osm"] = osm_compare(run_dir, repeat=args.osm_repeat, threads=args.threads)
+                print(f"[{L:g} km] OSM comparison done", flush=True)
             results[L] = rec
     finally:
         if tmp_ctx is not None:
             tmp_ctx.cleanup()
     print()
-    print(tables(results))
-    print()
+    if not args.only_osm:
+        print(tables(results))
+        print()
     print(osm_table(results))
-    for L, r in results.items():
+    timed = {L: r for L, r in results.items() if "timing" in r}
+    for L, r in timed.items():
         ext = r["timing"].get("external")
         if ext:
             print(
@@ -638,7 +723,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"({ext['asam']})"
             )
     print()
-    for L, r in results.items():
+    for L, r in timed.items():
         t = r["timing"]
         print(
             f"{L:g} km: {t['roads']} roads, {t['junctions']} junctions, {t['ramps']} ramps, "
