@@ -243,8 +243,11 @@ def simulate_run(
         )
         if sc.real_osm:
             real = Path(sc.real_osm)
-            osm_name = "map" + "".join(
-                real.suffixes[-2:] if real.suffix == ".gz" else real.suffixes[-1:]
+            # keep the compound suffix (.osm.gz, .osm.bz2, .osm.pbf) that load_run needs
+            name = real.name.lower()
+            osm_name = "map" + next(
+                (ext for ext in (".osm.gz", ".osm.bz2", ".osm.pbf", ".osm") if name.endswith(ext)),
+                ".osm.pbf" if name.endswith(".pbf") else ".osm",
             )
             shutil.copyfile(sc.real_osm, tmp / osm_name)
             ramp_ways = {i: list(r.osm_way_ids) for i, r in enumerate(sc.ramps)}
