@@ -322,7 +322,8 @@ def test_melbourne_left_hand_candidates():
 # ---------------------------------------------------------------------------
 
 
-def test_measured_gore_decides_station():
+def _gore_scene():
+    """A mainline with a measured exit gore at s=520 and an OSM exit leaving at s~470."""
     x = np.linspace(0.0, 1200.0, 601)
     centre = np.stack([x, 0.002 * (x - 600.0) ** 2 / 10.0], axis=1)
     traj, road = fake_run(centre)
@@ -358,6 +359,11 @@ def test_measured_gore_decides_station():
     ramp_xy = p + t_ramp[:, None] * normal
     graph.add_node(9, x=float(ramp_xy[-1, 0]), y=float(ramp_xy[-1, 1]))
     graph.add_edge(1, 9, highway="motorway_link", lanes="2", osmid=2, geometry=LineString(ramp_xy))
+    return traj, road, sections, graph
+
+
+def test_measured_gore_decides_station():
+    traj, road, sections, graph = _gore_scene()
     result = build_ramps(graph, road, trajectory_xy=traj)
     assert len(result.ramps) == 1
     ramp = result.ramps[0]
@@ -370,9 +376,22 @@ def test_measured_gore_decides_station():
     assert ramp.mainline_lane_ids == (-5,)
     assert any("mainline lane change says 1" in w for w in ramp.warnings)
     _check_attached(ramp, road, "right")
-    # the ramp's first lane takes the deceleration lane's width at the gore
-    w0 = ramp.road.lane_sections[0].right[0].width.value(np.array([0.0]))[0]
-    assert w0 == pytest.approx(3.5, abs=1e-3)
+    # mainline layout: inner shoulder opening from zero width, the driving lane taking the
+    # deceleration lane's width at the gore, the hard shoulder the mainline's (2.5 m)
+    lanes = ramp.road.lane_sections[0].right
+    assert [(x.id, x.type) for x in lanes] == [(-1, "shoulder"), (-2, "driving"), (-3, "shoulder")]
+    assert [x.road_marks[0].type for x in lanes] == ["solid", "solid", "none"]
+    w0 = [float(x.width.value(np.array([0.0]))[0]) for x in lanes]
+    assert w0 == pytest.approx([0.0, 3.5, 2.5], abs=1e-3)
+    assert ramp.shoulder_lane_id == -6
+    far = np.linspace(0.0, ramp.road.length, 200)
+    for x in lanes:
+        assert float(np.min(x.width.value(far))) >= -1e-9
+    cfg = RampConfig()
+    w_far = [float(x.width.value(np.array([ramp.road.length]))[0]) for x in lanes]
+    assert w_far == pytest.approx(
+        [cfg.inner_shoulder_width_m, cfg.lane_width_m, cfg.hard_shoulder_width_m], abs=1e-3
+    )
     # without the LiDAR evidence the OSM attachment and tags decide
     plain = Road("1", road.geometry, (sections[0],), name="mainline")
     osm_only = build_ramps(graph, plain, trajectory_xy=traj).ramps[0]
@@ -381,3 +400,108 @@ def test_measured_gore_decides_station():
     assert osm_only.station_m == pytest.approx(470.0, abs=3.0)
     assert (osm_only.lanes, osm_only.lane_rule) == (2, "lanes")
     _check_attached(osm_only, plain, "right")
+
+
+# ---------------------------------------------------------------------------
+# measured points past the gore shape the ramp and give its widths
+# ---------------------------------------------------------------------------
+
+
+def _true_ramp_points(mainline: Road, *, gore_m: float = 520.0, seed: int = 3):
+    """Points the LiDAR would see on an exit leaving the outer border of through lane -4
+    at ``gore_m`` with ``d(a) = 0.0004 a^2`` (6.8 m at a = 130 m; inner shoulder 0.6 m
+    opening over the default taper, lane 3.5 m, hard shoulder 2.2 m), seen up to 130 m
+    past the gore with 3 cm noise and 5 % outliers. Returns (edges, lanes, true reference
+    line xy)."""
+    rng = np.random.default_rng(seed)
+    taper = RampConfig().shoulder_taper_m
+    a = np.arange(5.0, 130.0, 0.5)
+    s = gore_m + a
+    t_border = mainline.lane_border_t(s, -4)
+    d = 0.0004 * a**2
+    xg = np.clip(a / taper, 0.0, 1.0)
+    w_in = 0.6 * xg * xg * (3.0 - 2.0 * xg)
+
+    def pts(tau):
+        return mainline.to_xy(s, t_border - tau - rng.normal(0.0, 0.03, a.size)).reshape(-1, 2)
+
+    edges = np.vstack([pts(d), pts(d + w_in + 3.5 + 2.2)])
+    lanes = np.vstack([pts(d + w_in), pts(d + w_in + 3.5)])
+    box_lo, box_hi = edges.min(axis=0), edges.max(axis=0)
+    edges = np.vstack([edges, rng.uniform(box_lo, box_hi, (len(edges) // 20, 2))])
+    lanes = np.vstack([lanes, rng.uniform(box_lo, box_hi, (len(lanes) // 20, 2))])
+    return edges, lanes, mainline.to_xy(s, t_border - d).reshape(-1, 2)
+
+
+def test_ramp_evidence_shapes_first_part_and_widths():
+    traj, road, _sections, graph = _gore_scene()
+    plain = build_ramps(graph, road, trajectory_xy=traj).ramps[0]
+    assert plain.evidence is None
+    edges, lanes, true_ref = _true_ramp_points(road)
+    # OSM alone is metres off the true ramp over its first 130 m
+    _, t0 = plain.road.project(true_ref)
+    assert float(np.max(np.abs(t0))) > 2.0
+    fitted = build_ramps(graph, road, trajectory_xy=traj, edge_xy=edges, lane_xy=lanes).ramps[0]
+    ev = fitted.evidence
+    assert ev is not None
+    assert ev.points > 900  # of 1000 true points (a few near the gore are the mainline's)
+    assert ev.rmse_m < 0.05
+    assert ev.span_m == pytest.approx(129.5, abs=1.0)
+    assert ev.widths == pytest.approx((0.6, 3.5, 2.2), abs=0.03)
+    # the reference line now follows the measured ramp within 3 cm (measured: 7 mm) ...
+    _, t1 = fitted.road.project(true_ref)
+    assert float(np.max(np.abs(t1))) < 0.03
+    # ... and still attaches exactly at the gore
+    _check_attached(fitted, road, "right")
+    lanes_ = fitted.road.lane_sections[0].right
+    s_far = np.array([fitted.road.length])
+    assert [float(x.width.value(s_far)[0]) for x in lanes_] == pytest.approx(
+        [0.6, 3.5, 2.2], abs=0.03
+    )
+    far = np.linspace(0.0, fitted.road.length, 400)
+    assert all(float(np.min(x.width.value(far))) >= -1e-9 for x in lanes_)
+
+
+def test_ramp_evidence_absent_or_disabled():
+    traj, road, _sections, graph = _gore_scene()
+    plain = build_ramps(graph, road, trajectory_xy=traj).ramps[0]
+    empty = np.zeros((0, 3))
+    none = build_ramps(graph, road, trajectory_xy=traj, edge_xy=empty, lane_xy=empty).ramps[0]
+    assert none.evidence is None
+    s = np.linspace(0.0, plain.road.length, 50)
+    assert np.max(np.hypot(*(none.road.xy(s) - plain.road.xy(s)).T)) < 1e-9
+    edges, lanes, _ = _true_ramp_points(road)
+    off = build_ramps(
+        graph,
+        road,
+        trajectory_xy=traj,
+        edge_xy=edges,
+        lane_xy=lanes,
+        config=RampConfig(use_evidence=False),
+    ).ramps[0]
+    assert off.evidence is None
+    # default widths where nothing was measured (AASHTO mid-range)
+    w = [
+        float(x.width.value(np.array([off.road.length]))[0])
+        for x in off.road.lane_sections[0].right
+    ]
+    assert w == pytest.approx([0.9, 3.5, 2.4], abs=1e-6)
+
+
+def test_zero_width_mainline_shoulder_is_not_continued():
+    """A mainline hard shoulder that closes to zero width at the gore is not linked to
+    the ramp's (OpenDRIVE: no link at a zero-width end); the ramp's opens from zero."""
+    from roadtwin.model import Lane
+    from roadtwin.ramps import width_transition
+
+    traj, road, sections, graph = _gore_scene()
+    gore = sections[1]
+    closing = Lane(-6, "shoulder", CubicProfile(width_transition(2.5, 0.0, 220.0)))
+    sec = LaneSection(gore.s0, right=(*gore.right[:5], closing))
+    road = Road("1", road.geometry, (sections[0], sec, sections[2]), name="mainline")
+    ramp = build_ramps(graph, road, trajectory_xy=traj).ramps[0]
+    assert ramp.station_source == "lidar gore"
+    assert ramp.shoulder_lane_id is None
+    lanes = ramp.road.lane_sections[0].right
+    w0 = [float(x.width.value(np.array([0.0]))[0]) for x in lanes]
+    assert w0 == pytest.approx([0.0, 3.5, 0.0], abs=1e-6)

@@ -108,6 +108,8 @@ def build_map(
             gores=gores_from_lane_events(
                 mainline.lane_events, mainline.road, traffic_side=run.traffic_side
             ),
+            edge_xy=run.edges,
+            lane_xy=run.lane_samples,
             config=cfg.ramps,
         )
     else:

@@ -25,12 +25,23 @@ attach to the measured road (DESIGN.md section 4):
    through lane; without a measured gore the outermost lane, which the ramp splits off)
    with the mainline's heading, blended into the OSM shape over ``blend_length_m``, the
    attachment piece made an exact Hermite ParamPoly3; the rest fitted with
-   :func:`roadtwin.fitting.fit_parampoly3_chain`. The first ramp lanes take the widths of
-   the mainline lanes they continue and blend to ``lane_width_m``.
+   :func:`roadtwin.fitting.fit_parampoly3_chain`.
+5. :func:`fit_ramp_evidence` -- the road edges and lane markings the LiDAR measured past
+   the gore (not explained by the mainline) are tracked outward from the gore and give
+   the ramp's first part (a spline offset from the through lane's outer border, tangent
+   at the gore) and its shoulder and lane widths; beyond the last measured point the
+   fitted line blends into the OSM shape. No or too little evidence: OSM shape and the
+   documented default widths (``RampConfig``).
+
+Ramp cross-section = the mainline's layout: inner shoulder (opening from zero width at
+the gore), driving lanes (the first ones starting with the widths of the mainline lanes
+they continue, blending to the ramp's lane width), hard shoulder (continuing the
+mainline's hard shoulder at a measured gore, else opening from zero width).
 
 All coordinates are in the mapping frame (metres, radians CCW from +x). Lane layout
 conventions (right-hand traffic; left-hand traffic mirrors): ramp reference line = the
-ramp's left edge, ramp lanes ``-1 .. -n`` to its right.
+ramp's left edge, ramp lanes ``-1`` (inner shoulder), ``-2 .. -(n+1)`` (driving),
+``-(n+2)`` (hard shoulder) to its right.
 """
 
 from __future__ import annotations
@@ -79,11 +90,13 @@ __all__ = [
     "Ramp",
     "RampCandidate",
     "RampChain",
+    "RampEvidence",
     "RampSet",
     "build_ramp_road",
     "build_ramps",
     "extract_ramp_chains",
     "find_candidates",
+    "fit_ramp_evidence",
     "gore_events",
     "gores_from_lane_events",
     "hermite_piece",
@@ -91,6 +104,10 @@ __all__ = [
 ]
 
 _MIN_GORE_WIDTH_M = 1.0  # a lane ending/starting wider than this ends/starts at a gore
+_MIN_BOUNDARY_POINTS = 20  # measured points on a road edge needed to measure its shoulder
+_MIN_LINK_WIDTH_M = 0.05  # a lane narrower than this at a junction opens/closes there
+_MIN_FIT_POINTS = 10  # points within the association gate needed to go on fitting
+_EVIDENCE_LATERAL_M = 30.0  # measured points this far from the gore's base line count
 
 
 # ---------------------------------------------------------------------------
@@ -162,6 +179,32 @@ class GoreEvent:
 
 
 @dataclass(frozen=True)
+class RampEvidence:
+    """The measured points past a gore fitted to a ramp (:func:`fit_ramp_evidence`).
+
+    Attributes
+    ----------
+    xy : ``(N, 2)`` corrected reference line (driving order, mapping frame, metres).
+    widths : ``(inner shoulder, driving lane, hard shoulder)`` widths, metres (measured
+        where the points saw the boundary, else the defaults given).
+    points : measured points matched to a ramp boundary.
+    counts : matched points per boundary ``(left edge, markings, right edge)``.
+    span_m : extent along the ramp of the matched points (metres from the gore).
+    max_shift_m : distance between the fitted line and the OSM shape where the blend
+        into the OSM shape begins, metres.
+    rmse_m : residual RMSE of the matched points against the fitted boundaries, metres.
+    """
+
+    xy: FloatArray = field(repr=False)
+    widths: tuple[float, float, float]
+    points: int
+    counts: tuple[int, int, int]
+    span_m: float
+    max_shift_m: float
+    rmse_m: float
+
+
+@dataclass(frozen=True)
 class Ramp:
     """One reconstructed ramp and every decision taken for it.
 
@@ -180,14 +223,18 @@ class Ramp:
         ``"osm"`` (the OSM attachment node projected on the mainline).
     mainline_lane_ids : mainline lanes the ramp lanes link to, inner to outer (the
         deceleration/acceleration lanes at a measured gore; else the outermost driving
-        lane, which the ramp then splits off). Lane ``k`` of the ramp (``-k`` for
-        right-hand traffic) continues/feeds ``mainline_lane_ids[k - 1]``; further ramp
-        lanes open from zero width.
+        lane, which the ramp then splits off). Driving lane ``k`` of the ramp (lane
+        ``-(k+1)`` for right-hand traffic; ``-1`` is the inner shoulder) continues/feeds
+        ``mainline_lane_ids[k - 1]``; further ramp driving lanes open from zero width.
     type_connectivity, type_geometry : the two merge/exit decisions.
     osm_way_ids : OSM ways of the chain.
     attach_gap_m, attach_heading_deg : position and heading mismatch of the fitted ramp
         end against the anchor on the mainline (metres, degrees).
     warnings : human-readable notes (disagreements, fallbacks).
+    shoulder_lane_id : mainline hard shoulder the ramp's hard shoulder continues/feeds at
+        a measured gore (``None``: it opens from zero width).
+    evidence : the measured points past the gore fitted to the ramp (``None``: none or
+        too few; OSM shape and default widths).
     """
 
     type: RampType
@@ -205,6 +252,8 @@ class Ramp:
     attach_gap_m: float
     attach_heading_deg: float
     warnings: tuple[str, ...] = ()
+    shoulder_lane_id: int | None = None
+    evidence: RampEvidence | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -703,6 +752,34 @@ def outer_driving_lane(road: Road, s: float, *, traffic_side: TrafficSide = "rig
     return driving[-1].id
 
 
+def _outer_shoulder(
+    road: Road,
+    station: float,
+    ramp_type: RampType,
+    source_lane_ids: tuple[int, ...],
+    traffic_side: TrafficSide,
+) -> int | None:
+    """The mainline hard shoulder just outside the gore's ending (exit) / starting (entry)
+    lanes, or ``None``."""
+    s = station - 1e-6 if ramp_type == "exit" else station + 1e-6
+    section = road.lane_sections[int(road.section_index(np.array([s]))[0])]
+    lanes_ = _traffic_lanes(section, traffic_side)
+    ids = [lane.id for lane in lanes_]
+    if not source_lane_ids or source_lane_ids[-1] not in ids:
+        return None
+    k = ids.index(source_lane_ids[-1])
+    if k + 1 < len(lanes_) and lanes_[k + 1].type == "shoulder":
+        lane_id = lanes_[k + 1].id
+        s_arr = np.array([s])
+        w = abs(
+            float(road.lane_border_t(s_arr, lane_id)[0])
+            - float(road.lane_border_t(s_arr, lane_id + (1 if lane_id < 0 else -1))[0])
+        )
+        # a shoulder of (near) zero width at the gore is opening/closing there: no link
+        return lane_id if math.isfinite(w) and w > _MIN_LINK_WIDTH_M else None
+    return None
+
+
 def _outer_border_t(road: Road, s: FloatArray, traffic_side: TrafficSide) -> FloatArray:
     """Lateral offset of the outer border of the outermost driving lane at each station."""
     out = np.full(s.shape, np.nan)
@@ -793,7 +870,339 @@ def _anchor_start(
     return out
 
 
-def build_ramp_road(
+def _mainline_boundary_distance(
+    road: Road, pts: FloatArray, *, kind: str, traffic_side: TrafficSide
+) -> FloatArray:
+    """Distance (metres) of points to the nearest mainline boundary of ``kind``
+    (``"edge"``: road edges; ``"lane"``: lane markings) at their station; ``inf`` off the
+    road's ends."""
+    s, t = road.project(pts)
+    out = np.full(s.shape, np.inf)
+    on = (s > 0.0) & (s < road.length)
+    if not np.any(on):
+        return out
+    idx = road.section_index(np.clip(s, 0.0, road.length))
+    for k in np.unique(idx[on]):
+        sel = on & (idx == k)
+        lanes_ = _traffic_lanes(road.lane_sections[int(k)], traffic_side)
+        if not lanes_:
+            continue
+        ids = [lane.id for lane in lanes_]
+        border_ids = [0, ids[-1]] if kind == "edge" else ids[:-1]
+        best = np.full(int(sel.sum()), np.inf)
+        for lane_id in border_ids:
+            tb = road.lane_border_t(s[sel], lane_id)
+            best = np.minimum(best, np.abs(t[sel] - tb))
+        out[sel] = best
+    return out
+
+
+def _base_line(
+    road: Road, station_m: float, through_lane_id: int, ramp_type: RampType, reach_m: float
+) -> PolylineFrame | None:
+    """The outer border of the through lane from the gore ``reach_m`` along the ramp's
+    direction (exit: downstream, entry: upstream), in driving order, as a Frenet frame."""
+    direction = 1.0 if ramp_type == "exit" else -1.0
+    far = float(np.clip(station_m + direction * reach_m, 0.0, road.length))
+    n = int(abs(far - station_m) / 0.5) + 1
+    if n < 8:
+        return None
+    s = np.linspace(station_m, far, n)
+    s = np.clip(s, 1e-6, road.length - 1e-6)
+    t = road.lane_border_t(s, through_lane_id)
+    if not np.all(np.isfinite(t)):
+        return None
+    xy = road.to_xy(s, t).reshape(-1, 2)
+    return PolylineFrame.from_points(xy if ramp_type == "exit" else xy[::-1])
+
+
+_KNOTS_U = np.arange(0.15, 0.95, 0.15)  # spline knots, in units of evidence_length_m
+_N_SHAPE = 2 + _KNOTS_U.size  # shape parameters of e(a) before the three widths
+
+
+def _shape_basis(u: FloatArray) -> FloatArray:
+    """``(N, _N_SHAPE)`` cubic-spline basis with ``e(0) = e'(0) = 0``: ``u^2``, ``u^3``
+    and truncated cubes ``(u - k)_+^3`` at the knots."""
+    u = np.asarray(u, dtype=float)
+    cols = [u * u, u**3, *(np.maximum(u - k, 0.0) ** 3 for k in _KNOTS_U)]
+    return np.stack(cols, axis=-1)
+
+
+def _shape_dbasis(u: FloatArray) -> FloatArray:
+    u = np.asarray(u, dtype=float)
+    cols = [2.0 * u, 3.0 * u * u, *(3.0 * np.maximum(u - k, 0.0) ** 2 for k in _KNOTS_U)]
+    return np.stack(cols, axis=-1)
+
+
+def _poly_e(p: FloatArray, u: FloatArray) -> FloatArray:
+    return _shape_basis(u) @ p[:_N_SHAPE]
+
+
+def _poly_de(p: FloatArray, u: FloatArray) -> FloatArray:
+    return _shape_dbasis(u) @ p[:_N_SHAPE]
+
+
+def _fit_boundaries(
+    a_scale: float,
+    a_p: FloatArray,
+    g_in: FloatArray,
+    tau: FloatArray,
+    is_edge: NDArray[np.bool_],
+    coef_b: FloatArray,
+    edge_b: NDArray[np.bool_],
+    prior: FloatArray,
+    prior_val: FloatArray,
+    windows: tuple[float, ...],
+) -> tuple[FloatArray, NDArray[np.int64] | None, FloatArray, NDArray[np.bool_]]:
+    """Track the ramp outward from the gore: IRLS (Huber, 0.1 m) of
+    ``[c2, c3, c4, w_in, w, w_hs]`` on the points up to each window in turn, each point
+    re-associated with the nearest boundary of its kind predicted by the previous fit.
+    Returns ``(p, assoc, resid, used)``; ``assoc`` is ``None`` when the first window has
+    fewer than ``_MIN_FIT_POINTS`` points within the gate."""
+    p = prior_val.copy()
+    u = a_p / a_scale
+    assoc = np.zeros(u.size, dtype=np.int64)
+    resid = np.full(u.size, np.inf)
+    used = np.zeros(u.size, dtype=bool)
+    good = None
+    u_lim = np.inf  # beyond the last window the prediction continues linearly
+    for k, window in enumerate(windows):
+        sel = a_p <= window
+        gates = (1.5, 1.0, 0.7, 0.5, 0.4) if k == 0 else (1.0, 0.7, 0.5, 0.4)
+        p_try = p.copy()
+        failed = False
+        for g_i, gate in enumerate(gates):
+            if g_i == 0 and np.isfinite(u_lim):
+                ul = np.array([u_lim])
+                e = np.where(
+                    u <= u_lim,
+                    _poly_e(p_try, u),
+                    _poly_e(p_try, ul)[0] + _poly_de(p_try, ul)[0] * (u - u_lim),
+                )
+            else:
+                e = _poly_e(p_try, u)
+            pred = e[:, None] + g_in[:, None] * (coef_b[:, 0] * p_try[_N_SHAPE])[None, :]
+            pred += (coef_b[:, 1:] @ p_try[_N_SHAPE + 1 :])[None, :]
+            r_all = tau[:, None] - pred
+            r_all[is_edge[:, None] != edge_b[None, :]] = np.inf
+            a_k = np.argmin(np.abs(r_all), axis=1)
+            r_k = r_all[np.arange(u.size), a_k]
+            ok = sel & (np.abs(r_k) <= gate)
+            if np.count_nonzero(ok) < _MIN_FIT_POINTS:
+                failed = True
+                break
+            w = np.where(np.abs(r_k) <= 0.1, 1.0, 0.1 / np.maximum(np.abs(r_k), 1e-9))[ok]
+            cb = coef_b[a_k[ok]]
+            cb[:, 0] *= g_in[ok]
+            uo = u[ok]
+            design = np.column_stack([_shape_basis(uo), cb])
+            sw = np.sqrt(w)
+            a_mat = np.vstack([design * sw[:, None], np.diag(np.sqrt(prior))])
+            b_vec = np.concatenate([tau[ok] * sw, np.sqrt(prior) * prior_val])
+            p_try = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0]
+        if failed:
+            break
+        p, assoc, resid, used = p_try, a_k, r_k, sel
+        good = True
+        u_lim = window / a_scale
+        if window >= float(a_p.max()):
+            break
+    if good is None:
+        return p, None, resid, used
+    return p, assoc, resid, used
+
+
+def fit_ramp_evidence(
+    ref_xy: FloatArray,
+    mainline_road: Road,
+    *,
+    ramp_type: RampType,
+    lanes: int,
+    widths: tuple[float, float, float],
+    station_m: float,
+    through_lane_id: int,
+    edge_xy: FloatArray | None,
+    lane_xy: FloatArray | None,
+    traffic_side: TrafficSide = "right",
+    config: RampConfig | None = None,
+) -> RampEvidence | None:
+    """Fit a ramp's first part to the road edges and lane markings the car measured.
+
+    Past an exit's gore (before an entry's) the LiDAR sees the ramp's diverging edges and
+    markings within its lateral range. They are modelled in the Frenet frame of the base
+    line -- the outer border of the through lane ``through_lane_id`` from the gore at
+    ``station_m`` -- with ``a`` the distance from the gore and ``tau`` the lateral offset
+    towards the ramp's lanes:
+
+    ``tau = e(a) + b_k(a)``, ``e`` a cubic spline in ``u = a / evidence_length_m`` (knots
+    every 0.15, ``e(0) = e'(0) = 0``: the ramp leaves the gore exactly, tangent to the
+    mainline),
+
+    with ``b_k`` the boundary offsets: road edges at ``0`` and ``g(a) w_in + n w + w_hs``,
+    markings at ``g(a) w_in + j w`` (``j = 0..n``), ``g`` the inner shoulder's opening
+    over ``shoulder_taper_m`` (as built). The ramp is tracked outward from the gore
+    (windows of 30, 60, ... m; in each, Huber-weighted least squares with every point
+    re-associated with the nearest boundary of its kind, gate shrinking to 0.4 m), so
+    the fit does not depend on the OSM shape. Points within ``evidence_exclude_m`` of a
+    mainline boundary of their kind are the mainline's and not used. A shoulder whose road
+    edge fewer than 20 points saw keeps its default width (weak priors hold every width
+    where nothing saw it). Beyond the last matched point (``A``) the fitted line,
+    extrapolated linearly, blends into the OSM shape ``ref_xy`` over
+    ``evidence_blend_m`` (smootherstep).
+
+    Parameters
+    ----------
+    ref_xy
+        ``(N, 2)`` dense provisional reference line (re-anchored OSM) in driving order,
+        mapping frame, metres; exits start, entries end at the gore.
+    mainline_road
+        The measured mainline.
+    widths
+        Default ``(inner shoulder, lane, hard shoulder)`` widths, metres.
+    station_m, through_lane_id
+        Mainline station of the gore and the through lane whose outer border the ramp's
+        reference line leaves from.
+    edge_xy, lane_xy
+        Measured road-edge points and lane samples, ``(N, 2+)`` mapping frame, metres.
+
+    Returns
+    -------
+    RampEvidence or None
+        ``None`` when too few points match (``evidence_min_points``,
+        ``evidence_min_span_m``) or the fitted line ends implausibly far from the OSM
+        shape (``evidence_max_shift_m`` where the blend begins) or crosses into the
+        mainline.
+    """
+    cfg = config or RampConfig()
+    ref = np.asarray(ref_xy, dtype=float)[:, :2]
+    w_in0, w0, w_hs0 = (float(x) for x in widths)
+    side = -1.0 if traffic_side == "right" else 1.0  # tau = side * t
+    reach = cfg.evidence_length_m + cfg.evidence_blend_m
+    base = _base_line(mainline_road, station_m, through_lane_id, ramp_type, reach)
+    if base is None:
+        return None
+    a_base = base.s if ramp_type == "exit" else base.length - base.s
+    near = a_base <= cfg.evidence_length_m
+    if np.count_nonzero(near) < 2:
+        return None
+    lateral = _EVIDENCE_LATERAL_M
+    kinds, pts_all = [], []
+    probe = resample_polyline(base.xy[near], 2.0)
+    for kind, pts in (("edge", edge_xy), ("lane", lane_xy)):
+        if pts is None or len(pts) == 0:
+            continue
+        pts = np.asarray(pts, dtype=float)[:, :2]
+        hits = cKDTree(pts).query_ball_point(probe, r=lateral)
+        idx = np.unique(np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64))
+        if idx.size == 0:
+            continue
+        sub = pts[idx]
+        d_main = _mainline_boundary_distance(
+            mainline_road, sub, kind=kind, traffic_side=traffic_side
+        )
+        sub = sub[d_main > cfg.evidence_exclude_m]
+        pts_all.append(sub)
+        kinds.append(np.full(sub.shape[0], kind == "edge"))
+    if not pts_all:
+        return None
+    pts = np.vstack(pts_all)
+    is_edge = np.concatenate(kinds)
+    s_p, t_p = base.project(pts)
+    a_p = s_p if ramp_type == "exit" else base.length - s_p
+    tau = side * t_p
+    keep = (s_p > 0.0) & (s_p < base.length) & (a_p > 0.0) & (a_p <= cfg.evidence_length_m)
+    keep &= (tau > -3.0) & (tau < lateral)
+    a_p, tau, is_edge = a_p[keep], tau[keep], is_edge[keep]
+    if a_p.size < cfg.evidence_min_points:
+        return None
+    # the inner shoulder opens over shoulder_taper_m from the gore (as built, C1 cubic)
+    xg = np.clip(a_p / max(cfg.shoulder_taper_m, 1e-6), 0.0, 1.0)
+    g_in = xg * xg * (3.0 - 2.0 * xg)
+    # boundary table: (is_edge, coef of w_in, coef of w, coef of w_hs, group)
+    table = [(True, 0.0, 0.0, 0.0, 0)]
+    table += [(False, 1.0, float(j), 0.0, 1) for j in range(lanes + 1)]
+    table += [(True, 1.0, float(lanes), 1.0, 2)]
+    coef_b = np.array([[c[1], c[2], c[3]] for c in table])
+    edge_b = np.array([c[0] for c in table])
+    group_b = np.array([c[4] for c in table])
+    prior_val = np.array([0.0] * _N_SHAPE + [w_in0, w0, w_hs0])
+    prior = np.array([1e-3] * _N_SHAPE + [3.0, 3.0, 3.0])  # pseudo-points of weight 1 each
+    a_scale = cfg.evidence_length_m
+    windows = tuple(
+        float(w)
+        for w in np.arange(30.0, cfg.evidence_length_m + 14.9, 15.0).clip(max=cfg.evidence_length_m)
+    )
+    for _ in range(2):
+        p, assoc, resid, used = _fit_boundaries(
+            a_scale, a_p, g_in, tau, is_edge, coef_b, edge_b, prior, prior_val, windows
+        )
+        if assoc is None:
+            return None
+        ok = used & (np.abs(resid) <= 0.4)
+        counts = tuple(int(np.count_nonzero(ok & (group_b[assoc] == g))) for g in range(3))
+        # an edge nobody saw cannot give its shoulder's width: hold the default
+        weak = [
+            k
+            for k, c in ((_N_SHAPE, counts[0]), (_N_SHAPE + 2, counts[2]))
+            if c < _MIN_BOUNDARY_POINTS
+        ]
+        if all(prior[k] > 1e5 for k in weak):
+            break
+        for k in weak:
+            prior[k] = 1e6
+    n_ok = int(np.count_nonzero(ok))
+    if n_ok < cfg.evidence_min_points:
+        return None
+    span = float(np.max(a_p[ok]))
+    if span < cfg.evidence_min_span_m:
+        return None
+    w_in = float(np.clip(p[_N_SHAPE], 0.3, 3.0))  # narrower is an edge line, not a shoulder
+    w_lane = float(np.clip(p[_N_SHAPE + 1], 2.5, 5.0))
+    w_hs = float(np.clip(p[_N_SHAPE + 2], 0.3, 4.0))
+    # the fitted line up to the span, extrapolated linearly beyond it along the base line
+    step = cfg.resample_step_m
+    blend = cfg.evidence_blend_m
+    a_max = float(a_base.max())
+    a_f = np.arange(0.0, min(span + blend, a_max) + 1e-9, step)
+    u_f = np.minimum(a_f, span) / a_scale
+    e_f = _poly_e(p, u_f)
+    e_span = float(_poly_e(p, np.array([span / a_scale]))[0])
+    de_span = float(_poly_de(p, np.array([span / a_scale]))[0]) / a_scale
+    e_f = np.where(a_f > span, e_span + de_span * (a_f - span), e_f)
+    if float(np.min(e_f[a_f <= span])) < -1.0:
+        log.warning("ramp evidence: fitted line crosses into the mainline; not used")
+        return None
+    s_f = a_f if ramp_type == "exit" else base.length - a_f
+    xy_b, tg_b = base.at(s_f)
+    normal = np.stack([-tg_b[:, 1], tg_b[:, 0]], axis=1)
+    fit_xy = xy_b + (side * e_f)[:, None] * normal  # attachment-first order
+    # the OSM shape, attachment-first, at the same distances from the gore
+    osm = ref if ramp_type == "exit" else ref[::-1]
+    a_osm = arc_length(osm)
+    osm_at = np.stack([np.interp(a_f, a_osm, osm[:, j]) for j in range(2)], axis=1)
+    join = a_f >= span
+    gap = float(np.hypot(*(fit_xy[join][0] - osm_at[join][0]))) if np.any(join) else 0.0
+    if gap > cfg.evidence_max_shift_m:
+        log.warning("ramp evidence: fitted line ends %.1f m from the OSM shape; not used", gap)
+        return None
+    wgt = _smootherstep((a_f - span) / max(blend, 1e-6))[:, None]
+    mixed = (1.0 - wgt) * fit_xy + wgt * osm_at
+    rest = osm[a_osm > a_f[-1] + 0.5 * step]
+    out = np.vstack([mixed, rest])
+    out = out if ramp_type == "exit" else out[::-1]
+    rmse = float(np.sqrt(np.mean(resid[ok] ** 2)))
+    return RampEvidence(
+        xy=out,
+        widths=(w_in, w_lane, w_hs),
+        points=n_ok,
+        counts=counts,  # type: ignore[arg-type]
+        span_m=span,
+        max_shift_m=gap,
+        rmse_m=rmse,
+    )
+
+
+def _build_ramp_road(
     chain_xy: FloatArray,
     mainline_road: Road,
     *,
@@ -803,9 +1212,13 @@ def build_ramp_road(
     source_lane_ids: tuple[int, ...],
     traffic_side: TrafficSide = "right",
     road_id: str = "ramp",
+    shoulder_lane_id: int | None = None,
+    edge_xy: FloatArray | None = None,
+    lane_xy: FloatArray | None = None,
     config: RampConfig | None = None,
-) -> tuple[Road, float, float]:
-    """Ramp road from an OSM chain polyline, re-anchored on the measured mainline.
+) -> tuple[Road, float, float, RampEvidence | None]:
+    """Ramp road from an OSM chain polyline, re-anchored on the measured mainline and
+    corrected by the measured points past the gore.
 
     Parameters
     ----------
@@ -827,8 +1240,16 @@ def build_ramp_road(
         take their widths there, blending to ``lane_width_m`` over ``blend_length_m``;
         further ramp lanes open from zero width.
     traffic_side
-        ``"right"``: reference line = ramp's left edge, lanes ``-1..-n``; ``"left"``
-        mirrored.
+        ``"right"``: reference line = ramp's left edge, lanes ``-1`` (inner shoulder),
+        ``-2 .. -(n+1)`` (driving), ``-(n+2)`` (hard shoulder); ``"left"`` mirrored.
+    shoulder_lane_id
+        Mainline hard shoulder the ramp's hard shoulder continues (exit) or feeds (entry)
+        at a measured gore; its width there is the ramp hard shoulder's start width.
+        ``None``: the ramp's hard shoulder opens from zero width.
+    edge_xy, lane_xy
+        Measured road-edge points and lane samples (``(N, 2+)``, mapping frame, metres).
+        Those past the gore on the ramp (:func:`fit_ramp_evidence`) shape the ramp's first
+        part and give its shoulder and lane widths; ``None``: OSM and defaults decide.
 
     Returns
     -------
@@ -858,7 +1279,10 @@ def build_ramp_road(
     centre = _smooth_polyline(dense, cfg)
     # reference line: median-side boundary (offset towards the mainline side)
     frame = PolylineFrame.from_points(centre if ramp_type == "exit" else centre[::-1])
-    ref = frame.offset_points(np.full(frame.s.shape, left * 0.5 * lanes * width))
+    # the OSM way runs along the middle of the driving lanes (an assumption: mappers draw
+    # the carriageway's centre); the reference line is the inner road edge
+    w_in = cfg.inner_shoulder_width_m
+    ref = frame.offset_points(np.full(frame.s.shape, left * (w_in + 0.5 * lanes * width)))
     if ramp_type == "entry":
         ref = ref[::-1]
 
@@ -925,6 +1349,44 @@ def build_ramp_road(
     ref = _anchor_start(ref, target, hdg, min(cfg.blend_length_m, 0.6 * length))
     if ramp_type == "entry":
         ref = ref[::-1]
+    w_hs = cfg.hard_shoulder_width_m
+    fit = None
+    if edge_xy is not None or lane_xy is not None:
+        fit = fit_ramp_evidence(
+            ref,
+            mainline_road,
+            ramp_type=ramp_type,
+            lanes=lanes,
+            widths=(w_in, width, w_hs),
+            station_m=s_att,
+            through_lane_id=first_id + (1 if first_id < 0 else -1),
+            edge_xy=edge_xy,
+            lane_xy=lane_xy,
+            traffic_side=traffic_side,
+            config=cfg,
+        )
+        if fit is not None:
+            ref = fit.xy
+            w_in, width, w_hs = fit.widths
+            log.info(
+                "%s: %d measured points past the gore (max correction %.2f m, residual "
+                "RMSE %.3f m); widths %.2f / %.2f / %.2f m",
+                road_id,
+                fit.points,
+                fit.max_shift_m,
+                fit.rmse_m,
+                w_in,
+                width,
+                w_hs,
+            )
+    w_hs_src = 0.0
+    if shoulder_lane_id is not None:
+        inner_id = shoulder_lane_id + (1 if shoulder_lane_id < 0 else -1)
+        w = abs(
+            float(mainline_road.lane_border_t(s_eval, shoulder_lane_id)[0])
+            - float(mainline_road.lane_border_t(s_eval, inner_id)[0])
+        )
+        w_hs_src = w if math.isfinite(w) else 0.0
     pieces = list(fit_parampoly3_chain(ref, tolerance_m=cfg.fit_tolerance_m))
     # the attachment piece again as an exact Hermite piece: anchor pose to its far pose
     anchor = (float(target[0]), float(target[1]), h_main)
@@ -947,6 +1409,9 @@ def build_ramp_road(
                 cfg,
                 source_widths=tuple(src_widths),
                 road_length=float(sum(g.length for g in geometry)),
+                inner_shoulder_m=w_in,
+                hard_shoulder_m=w_hs,
+                hard_shoulder_source_m=w_hs_src,
             ),
         ),
         name=ramp_type,
@@ -956,7 +1421,15 @@ def build_ramp_road(
     x, y, h, _ = road.evaluate(np.array([s_end]))
     gap = float(math.hypot(float(x[0]) - target[0], float(y[0]) - target[1]))
     dh = abs(float(_wrap(float(h[0]) - h_main)))
-    return road, gap, math.degrees(dh)
+    return road, gap, math.degrees(dh), fit
+
+
+def build_ramp_road(*args: Any, **kwargs: Any) -> tuple[Road, float, float]:
+    road, gap, dh, _ = _build_ramp_road(*args, **kwargs)
+    return road, gap, dh
+
+
+build_ramp_road.__doc__ = _build_ramp_road.__doc__
 
 
 def width_transition(
@@ -984,6 +1457,12 @@ def _ramp_width(
     return CubicProfile((CubicPiece(0.0, width), first, replace(second, s0=road_length)))
 
 
+def _opening(w_to: float, ramp_type: RampType, taper_m: float, road_length: float) -> CubicProfile:
+    """Width opening from zero at the gore (exit: road start; entry: closing to zero at
+    the road end) over ``taper_m`` (metres)."""
+    return _ramp_width(0.0, w_to, ramp_type, taper_m, road_length)
+
+
 def _ramp_section(
     lanes: int,
     width: float,
@@ -993,24 +1472,50 @@ def _ramp_section(
     *,
     source_widths: tuple[float, ...] = (),
     road_length: float = 0.0,
+    inner_shoulder_m: float | None = None,
+    hard_shoulder_m: float | None = None,
+    hard_shoulder_source_m: float = 0.0,
 ) -> LaneSection:
+    """The ramp's cross-section, the mainline's layout (DESIGN.md conventions): inner
+    shoulder (opening from zero width at the gore), ``lanes`` driving lanes (the first
+    ones starting with ``source_widths``, the others from zero), hard shoulder (starting
+    with ``hard_shoulder_source_m``, the width of the mainline hard shoulder it
+    continues, or zero)."""
     sign = -1 if traffic_side == "right" else 1
     lane_type = "driving"
     if cfg.lane_type == "spec":
         lane_type = "offRamp" if ramp_type == "exit" else "onRamp"
     blend = min(cfg.blend_length_m, 0.5 * road_length) if road_length > 0 else cfg.blend_length_m
-    out = []
+    taper = min(cfg.shoulder_taper_m, 0.5 * road_length) if road_length > 0 else blend
+    w_in = cfg.inner_shoulder_width_m if inner_shoulder_m is None else inner_shoulder_m
+    w_hs = cfg.hard_shoulder_width_m if hard_shoulder_m is None else hard_shoulder_m
+    out = [
+        Lane(
+            sign * 1,
+            "shoulder",
+            _opening(w_in, ramp_type, taper, road_length),
+            (RoadMark(0.0, "solid"),),
+        )
+    ]
     for k in range(1, lanes + 1):
         mark = "solid" if k == lanes else "broken"
         w_src = source_widths[k - 1] if k <= len(source_widths) else 0.0
         out.append(
             Lane(
-                sign * k,
+                sign * (k + 1),
                 lane_type,  # type: ignore[arg-type]
                 _ramp_width(w_src, width, ramp_type, blend, road_length),
                 (RoadMark(0.0, mark),),  # type: ignore[arg-type]
             )
         )
+    out.append(
+        Lane(
+            sign * (lanes + 2),
+            "shoulder",
+            _ramp_width(hard_shoulder_source_m, w_hs, ramp_type, blend, road_length),
+            (RoadMark(0.0, "none"),),
+        )
+    )
     center = Lane(0, "none", road_marks=(RoadMark(0.0, "none"),))
     if traffic_side == "right":
         return LaneSection(0.0, center=center, right=tuple(out))
@@ -1056,6 +1561,8 @@ def build_ramps(
     trajectory_xy: FloatArray,
     traffic_side: TrafficSide = "right",
     gores: tuple[GoreEvent, ...] | None = None,
+    edge_xy: FloatArray | None = None,
+    lane_xy: FloatArray | None = None,
     config: RampConfig | None = None,
 ) -> RampSet:
     """The ramp stage: OSM graph + measured mainline -> ramp roads with their decisions.
@@ -1074,6 +1581,10 @@ def build_ramps(
         Measured gores (:func:`gores_from_lane_events` on the mainline stage's lane
         events); ``None`` scans the road's lane sections (:func:`gore_events`); ``()``
         uses none (OSM decides every station).
+    edge_xy, lane_xy
+        The run's measured road-edge points and lane samples (``(N, 2+)``, mapping frame,
+        metres): those past each gore shape the ramp's first part and give its widths
+        (:func:`fit_ramp_evidence`). ``None``: OSM shape and default widths.
     config
         Ramp settings.
 
@@ -1084,6 +1595,8 @@ def build_ramps(
         with its reason (and a warning), never raised.
     """
     cfg = config or RampConfig()
+    if not cfg.use_evidence:
+        edge_xy = lane_xy = None
     candidates = find_candidates(osm_graph, trajectory_xy, config=cfg)
     chains, rejected = extract_ramp_chains(
         osm_graph, trajectory_xy, traffic_side=traffic_side, candidates=candidates, config=cfg
@@ -1095,6 +1608,21 @@ def build_ramps(
         s, _ = mainline_road.project(np.array([[node["x"], node["y"]]]))
         stations.append(float(s[0]))
     matched = _match_gores(chains, stations, events, cfg)
+    # KD-trees of the measured points, built once; each ramp gets the points near its gore
+    measured = {}
+    for key, pts in (("edge", edge_xy), ("lane", lane_xy)):
+        if pts is not None and len(pts):
+            xy = np.asarray(pts, dtype=float)[:, :2]
+            measured[key] = (xy, cKDTree(xy))
+
+    def near_gore(key: str, station: float) -> FloatArray | None:
+        if key not in measured:
+            return None
+        xy, tree = measured[key]
+        s_c = float(np.clip(station, 0.0, mainline_road.length))
+        centre = mainline_road.to_xy(np.array([s_c]), np.array([0.0])).reshape(2)
+        idx = tree.query_ball_point(centre, r=cfg.evidence_length_m + 2.0 * _EVIDENCE_LATERAL_M)
+        return xy[np.sort(np.asarray(idx, dtype=np.int64))]
 
     ramps: list[Ramp] = []
     skipped: list[tuple[str, str]] = []
@@ -1141,8 +1669,13 @@ def build_ramps(
                 warnings.append(f"skipped {what}: {exc}")
                 continue
             mainline_lanes = (through,)
+        shoulder = None
+        if source == "lidar gore":
+            shoulder = _outer_shoulder(
+                mainline_road, station, chain.type, mainline_lanes, traffic_side
+            )
         try:
-            road, gap, dh = build_ramp_road(
+            road, gap, dh, evidence = _build_ramp_road(
                 chain.xy,
                 mainline_road,
                 ramp_type=chain.type,
@@ -1151,6 +1684,9 @@ def build_ramps(
                 source_lane_ids=tuple(mainline_lanes),
                 traffic_side=traffic_side,
                 road_id=f"ramp{i}",
+                shoulder_lane_id=shoulder,
+                edge_xy=near_gore("edge", station),
+                lane_xy=near_gore("lane", station),
                 config=cfg,
             )
         except (FitError, ValueError) as exc:
@@ -1176,6 +1712,8 @@ def build_ramps(
                 attach_gap_m=gap,
                 attach_heading_deg=dh,
                 warnings=tuple(notes),
+                shoulder_lane_id=shoulder,
+                evidence=evidence,
             )
         )
     ramps.sort(key=lambda r: (r.station_m, r.type))

@@ -162,6 +162,7 @@ def hermite_road(
     junction: str = "-1",
     name: str = "connector",
     lane_type: str = "driving",
+    lane_types: Sequence[str] | None = None,
 ) -> Road:
     """A road whose reference line is one cubic Hermite ParamPoly3 between two poses.
 
@@ -176,23 +177,34 @@ def hermite_road(
         right-hand traffic, left of it for left-hand traffic.
     heights
         Elevation (metres) at the two ends; linear in between.
+    lane_type, lane_types
+        One type for every lane, or one per lane (inner to outer). Road marks follow the
+        DESIGN.md layout: a shoulder before the driving lanes carries the solid edge line,
+        driving lanes broken marks except the outermost (solid), a trailing shoulder none.
     """
     geometry = hermite_piece(start, end)
     length = geometry.length
     sign = -1 if traffic_side == "right" else 1
     lanes = []
     n = len(widths_start)
+    types = list(lane_types) if lane_types is not None else [lane_type] * n
+    driving_k = [k for k, t in enumerate(types[:n], start=1) if t != "shoulder"]
+    last_driving = driving_k[-1] if driving_k else n
     for k, (wa, wb) in enumerate(zip(widths_start, widths_end, strict=False), start=1):
         dw = float(wb) - float(wa)
         width = CubicProfile(
             (CubicPiece(0.0, float(wa), 0.0, 3.0 * dw / length**2, -2.0 * dw / length**3),)
         )
+        if types[k - 1] == "shoulder":
+            mark = "solid" if k < last_driving else "none"
+        else:
+            mark = "solid" if k == last_driving else "broken"
         lanes.append(
             Lane(
                 sign * k,
-                lane_type,  # type: ignore[arg-type]
+                types[k - 1],  # type: ignore[arg-type]
                 width,
-                (RoadMark(0.0, "solid" if k == n else "broken"),),
+                (RoadMark(0.0, mark),),  # type: ignore[arg-type]
             )
         )
     center = Lane(0, "none", road_marks=(RoadMark(0.0, "none"),))
@@ -287,6 +299,39 @@ def _border_pose(road: Road, s: float, lane_id: int) -> tuple[float, float, floa
 
 def _ramp_lane_ids(road: Road, side: TrafficSide) -> list[int]:
     return [lane.id for lane in _traffic_lanes(road.lane_sections[0], side)]
+
+
+def _ramp_lane_types(road: Road, side: TrafficSide) -> list[str]:
+    return [lane.type for lane in _traffic_lanes(road.lane_sections[0], side)]
+
+
+def _ramp_pairs(
+    road: Road,
+    section: LaneSection,
+    sources: Sequence[int],
+    shoulder: int | None,
+    side: TrafficSide,
+    *,
+    main: Road | None = None,
+    s_main: float = 0.0,
+) -> list[tuple[int, int]]:
+    """Mainline lane -> ramp lane pairs: the sources with the ramp's driving lanes (inner
+    to outer), the mainline hard shoulder at a gore with the ramp's hard shoulder. The
+    ramp's inner shoulder (and any surplus driving lane) opens from zero width: no pair."""
+    lanes_ = _traffic_lanes(road.lane_sections[0], side)
+    driving = [lane.id for lane in lanes_ if lane.type != "shoulder"]
+    pairs = list(zip(sources, driving, strict=False))
+    ids = {lane.id: lane for lane in _traffic_lanes(section, side)}
+    outer = lanes_[-1] if len(lanes_) > 1 and lanes_[-1].type == "shoulder" else None
+    if (
+        shoulder is not None
+        and outer is not None
+        and shoulder in ids
+        and ids[shoulder].type == "shoulder"
+        and (main is None or _widths(main, s_main, [shoulder])[0] > 0.05)
+    ):
+        pairs.append((shoulder, outer.id))
+    return pairs
 
 
 def _valid_sources(section: LaneSection, wanted: Sequence[int], side: TrafficSide) -> list[int]:
@@ -390,12 +435,19 @@ def build_topology(
         ramp_ids.append(ramp_id)
         road = replace(ramp.road, id=ramp_id)
         rlanes = _ramp_lane_ids(road, traffic_side)
+        rtypes = _ramp_lane_types(road, traffic_side)
+        shoulder = getattr(ramp, "shoulder_lane_id", None)
         if ramp.type == "exit":
             sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side)
+            pairs = _ramp_pairs(
+                road, up_sec, sources, shoulder, traffic_side, main=up, s_main=up.length
+            )
         else:
             sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side)
-        # ramp lane k <-> mainline source lane k; further ramp lanes open from zero width
-        pairs = list(zip(sources, rlanes, strict=False))
+            pairs = _ramp_pairs(road, down_sec, sources, shoulder, traffic_side, main=down)
+        # ramp driving lane k <-> mainline source lane k, hard shoulder <-> hard shoulder at
+        # a gore; the other ramp lanes open from (entry: close to) zero width
+        paired = {y: x for x, y in pairs}
 
         up = replace(up, successor=RoadLink("junction", jid))
         down = replace(down, predecessor=RoadLink("junction", jid))
@@ -473,7 +525,9 @@ def build_topology(
                 road = cut_road(road, cut_at, road.length, road_id=ramp_id)
                 start = _border_pose(up, up.length, sources[0])
                 end = _pose(road, 0.0)
-                w_start = _widths(up, up.length, sources) + [0.0] * (len(rlanes) - len(sources))
+                w_start = [
+                    _widths(up, up.length, [paired[i]])[0] if i in paired else 0.0 for i in rlanes
+                ]
                 w_end = _widths(road, 0.0, rlanes)
                 z = (float(up.height(np.array([up.length]))[0]), float(road.height([0.0])[0]))
                 conn_road = hermite_road(
@@ -485,6 +539,7 @@ def build_topology(
                     traffic_side=traffic_side,
                     heights=z,
                     junction=jid,
+                    lane_types=rtypes,
                 )
                 conn_road = replace(
                     conn_road,
@@ -506,7 +561,7 @@ def build_topology(
                 start = _pose(road, road.length)
                 end = _border_pose(down, 0.0, sources[0])
                 w_start = _widths(road, road.length, rlanes)
-                w_end = _widths(down, 0.0, sources) + [0.0] * (len(rlanes) - len(sources))
+                w_end = [_widths(down, 0.0, [paired[i]])[0] if i in paired else 0.0 for i in rlanes]
                 z = (float(road.height([road.length])[0]), float(down.height(np.array([0.0]))[0]))
                 conn_road = hermite_road(
                     start,
@@ -517,6 +572,7 @@ def build_topology(
                     traffic_side=traffic_side,
                     heights=z,
                     junction=jid,
+                    lane_types=rtypes,
                 )
                 conn_road = replace(
                     conn_road,
