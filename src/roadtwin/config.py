@@ -54,7 +54,15 @@ class MainlineConfig:
     elevation_tolerance_m: float = 0.005
     """Max deviation of the C1 elevation pieces from the smoothed heights (metres)."""
     superelevation_min_rad: float = 0.005
-    """Superelevation is written only if the fitted cross slope exceeds this somewhere."""
+    """Superelevation is written only where the mean cross slope over
+    ``superelevation_min_length_m`` exceeds this (radians) and is significant."""
+    superelevation_min_length_m: float = 100.0
+    """Shortest stretch of significant cross slope written as superelevation (metres)."""
+    superelevation_k_sigma: float = 5.0
+    """Significance of the cross slope: ``|mean| > k * standard error`` over a stretch
+    (standard error from the robust height noise and the lateral spread of the points)."""
+    superelevation_tolerance_rad: float = 0.001
+    """Max deviation of the superelevation pieces from the smoothed cross slope (radians)."""
     lane_column_m: float = 5.0
     """Station step of the lane-marking histogram columns (metres)."""
     lane_window_columns: int = 1
@@ -70,6 +78,9 @@ class MainlineConfig:
     """Longest stretch without observations bridged inside one track (metres)."""
     lane_min_track_m: float = 60.0
     """Marking tracks shorter than this are false positives (metres)."""
+    lane_min_cut_track_m: float = 20.0
+    """A marking track that the run's start or end cuts off only has to be this long
+    (metres): a run that starts or ends inside an auxiliary lane sees a short piece."""
     lane_assign_m: float = 0.35
     """Lane samples within this of a track belong to it (metres)."""
     lane_smoothing_m: float = 30.0
@@ -137,6 +148,41 @@ class RampConfig:
     snap_to_section_m: float = 5.0
     """Without a measured gore, an OSM attachment this close to a mainline lane-section
     boundary (metres) moves onto it (no sliver sections in the junction)."""
+    inner_shoulder_width_m: float = 0.9
+    """Default width of a ramp's inner (median-side) shoulder, metres, used where the LiDAR
+    did not see the ramp. Mid-range of the AASHTO Green Book ramp cross-section (left
+    shoulder 0.6-1.2 m, i.e. 2-4 ft; German RAA ramp cross-sections use 0.75-1.0 m)."""
+    hard_shoulder_width_m: float = 2.4
+    """Default width of a ramp's hard (outer) shoulder, metres, where the LiDAR did not see
+    it. Mid-range of the AASHTO Green Book ramp right shoulder (1.8-3.0 m, i.e. 6-10 ft;
+    German RAA: 2.0-2.5 m)."""
+    shoulder_taper_m: float = 60.0
+    """A ramp's inner shoulder opens from zero width at the gore (exit) or closes to zero
+    width there (entry) over this length, metres (the gore area, where the two edges
+    diverge)."""
+    use_evidence: bool = True
+    """Shape the ramps' first part and widths from the measured points past the gores
+    (False: OSM shape and default widths only, the paper's method)."""
+    evidence_length_m: float = 200.0
+    """Measured points (road edges, lane samples) up to this far along the ramp from its
+    gore shape the ramp's first part and estimate its lane widths (metres)."""
+    evidence_min_points: int = 40
+    """At least this many measured points must be matched to the ramp's boundaries (and
+    span ``evidence_min_span_m``) before they correct it; else OSM and defaults decide."""
+    evidence_min_span_m: float = 20.0
+    """Minimum extent along the ramp (metres) of the matched points."""
+    evidence_blend_m: float = 60.0
+    """Beyond the last measured point the fitted correction fades into the (re-anchored)
+    OSM shape over this length (metres)."""
+    evidence_max_shift_m: float = 15.0
+    """Where the fitted first part of a ramp blends into the OSM shape, a gap larger than
+    this (metres) rejects the fit (the points belong to another road). Generous on
+    purpose: the re-anchored OSM shape itself can be metres off near the gore (OSM drawn
+    with offset, an OSM attachment far from the measured gore), which is what the fit
+    corrects."""
+    evidence_exclude_m: float = 0.3
+    """Measured points within this (metres) of a mainline boundary of their kind belong to
+    the mainline and are not used as ramp evidence."""
 
 
 @dataclass(frozen=True)
