@@ -496,3 +496,27 @@ def test_projection_prefers_the_road_a_point_lies_in_the_middle_of():
     # a point on b's centre line at the crossing goes to b
     proj_b = project_points([road_a, road_b], np.array([[50.0, -1.0], [50.0, 30.0]]))
     assert proj_b.road_index.tolist() == [1, 1]
+
+
+def test_preselected_projection_equals_brute_force(truth):
+    """The KD-tree pre-selection of candidate points per road changes nothing: same road,
+    station, offset and status as projecting every point in each road's bounding box."""
+    rng = np.random.default_rng(3)
+    run = make_run(truth, edge_sigma=0.05, lane_sigma=0.10, seed=2)
+    lo = np.min(run.edges[:, :2], axis=0) - 150.0
+    hi = np.max(run.edges[:, :2], axis=0) + 150.0
+    scatter = rng.uniform(lo, hi, size=(4000, 2))
+    bad = np.array([[np.nan, 0.0], [100.0, np.inf]])  # invalid points are on no road
+    pts = np.vstack([run.edges[:, :2], run.lane_samples[:, :2], scatter, bad])
+    for roads in (mainline_roads(truth), list(truth.roads)):
+        fast = project_points(roads, pts, max_lateral_m=20.0)
+        slow = project_points(roads, pts, max_lateral_m=20.0, preselect=False)
+        np.testing.assert_array_equal(fast.road_index, slow.road_index)
+        np.testing.assert_array_equal(fast.status, slow.status)
+        np.testing.assert_allclose(fast.s, slow.s, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fast.t, slow.t, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fast.station_m, slow.station_m, rtol=0, atol=1e-9)
+        # every status occurs, so the test covers points beyond the ends and far away
+        assert set(np.unique(fast.status).tolist()) == {0, 1, 2}
+        assert fast.status[-2:].tolist() == [2, 2]
+        assert project_points(roads, bad).status.tolist() == [2, 2]

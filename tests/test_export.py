@@ -102,7 +102,8 @@ def test_geojson_lanes_and_boundaries(network, tmp_path):
     n_lanes = sum(len(s.left) + len(s.right) for r in network.roads for s in r.lane_sections)
     assert len(bounds) == n_lanes + n_sections
     ramp_lanes = [f for f in lanes if f["properties"]["road_name"] in ("exit", "entry")]
-    assert {f["properties"]["type"] for f in ramp_lanes} == {"driving"}
+    # ramps have the mainline layout: inner shoulder, driving lane(s), hard shoulder
+    assert {f["properties"]["type"] for f in ramp_lanes} == {"driving", "shoulder"}
 
 
 def test_png_and_atomic_write(network, tmp_path):
@@ -114,3 +115,29 @@ def test_png_and_atomic_write(network, tmp_path):
     with pytest.raises(IsADirectoryError):
         write_kml(network, FRAME, tmp_path / "busy.kml")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["busy.kml", "map.png"]
+
+
+def test_vectorised_coordinates_equal_per_point_formatting(network, tmp_path):
+    """The writers format all coordinates at once; the text equals per-point formatting
+    (Python ``round(v, 8)`` in GeoJSON, ``f"{lon:.8f},{lat:.8f},0"`` in KML)."""
+    geo = json.loads(write_geojson(network, FRAME, tmp_path / "m.geojson").read_text("utf-8"))
+    kml = etree.parse(str(write_kml(network, FRAME, tmp_path / "m.kml"))).getroot()
+    texts = [pm.findtext(f"{KML}LineString/{KML}coordinates") for pm in kml.iter(f"{KML}Placemark")]
+    lines = list(network_lines(network))
+    for text, (road, k, lane_id, xy) in zip(texts, lines, strict=True):
+        lon, lat = FRAME.to_lonlat(xy[:, 0], xy[:, 1])
+        assert text == " ".join(f"{a:.8f},{b:.8f},0" for a, b in zip(lon, lat, strict=True))
+        feature = next(
+            f
+            for f in geo["features"]
+            if f["properties"]["kind"] == "boundary"
+            and f["properties"]["road_id"] == road.id
+            and f["properties"]["section"] == k
+            and f["properties"]["lane_id"] == lane_id
+        )
+        expected = [[round(float(a), 8), round(float(b), 8)] for a, b in zip(lon, lat, strict=True)]
+        assert feature["geometry"]["coordinates"] == expected
+    # and on 200 000 random coordinates: numpy rounding == Python round
+    rng = np.random.default_rng(5)
+    vals = np.column_stack([rng.uniform(-180, 180, 100_000), rng.uniform(-90, 90, 100_000)])
+    assert np.round(vals, 8).tolist() == [[round(a, 8), round(b, 8)] for a, b in vals.tolist()]

@@ -132,8 +132,9 @@ def kml_bytes(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2.0)
         etree.SubElement(ls, "tessellate").text = "1"
         etree.SubElement(ls, "altitudeMode").text = "clampToGround"
         ll = _lonlat(frame, xy)
-        etree.SubElement(ls, "coordinates").text = " ".join(
-            f"{lon:.8f},{lat:.8f},0" for lon, lat in ll
+        # one C-level %-format over all points (same text as f"{lon:.8f},{lat:.8f},0")
+        etree.SubElement(ls, "coordinates").text = " ".join(["%.8f,%.8f,0"] * ll.shape[0]) % tuple(
+            ll.ravel().tolist()
         )
     return etree.tostring(kml, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
@@ -162,7 +163,30 @@ def write_kml(
 
 
 def _round(ll: NDArray[np.float64]) -> list[list[float]]:
-    return [[round(float(a), 8), round(float(b), 8)] for a, b in ll]
+    """``(N, 2)`` lon/lat rounded to 8 decimals (~1 mm) as nested lists for JSON."""
+    return np.round(ll, 8).tolist()
+
+
+class _Borders:
+    """Lane borders of one lane section at stations ``s``: offsets t (metres) and WGS84
+    lon/lat lists rounded by :func:`_round`, each computed once (a border is the ring of
+    two lanes and a boundary line)."""
+
+    def __init__(self, road: Road, s: NDArray[np.float64], frame: MappingFrame) -> None:
+        self._road, self._s, self._frame = road, s, frame
+        self._t: dict[int, NDArray[np.float64]] = {}
+        self._ll: dict[int, list[list[float]]] = {}
+
+    def t(self, lane_id: int) -> NDArray[np.float64]:
+        if lane_id not in self._t:
+            self._t[lane_id] = self._road.lane_border_t(self._s, lane_id)
+        return self._t[lane_id]
+
+    def lonlat(self, lane_id: int) -> list[list[float]]:
+        if lane_id not in self._ll:
+            xy = self._road.to_xy(self._s, self.t(lane_id))
+            self._ll[lane_id] = _round(_lonlat(self._frame, xy))
+        return self._ll[lane_id]
 
 
 def geojson_dict(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2.0) -> dict:
@@ -171,10 +195,11 @@ def geojson_dict(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2
     for road in network.roads:
         for k, sec in enumerate(road.lane_sections):
             s = _section_stations(road, k, step_m)
+            borders = _Borders(road, s, frame)
             for lane in (*reversed(sec.left), *sec.right):
                 inner_id = lane.id - 1 if lane.id > 0 else lane.id + 1
-                outer = road.lane_border_t(s, lane.id)
-                inner = road.lane_border_t(s, inner_id)
+                outer = borders.t(lane.id)
+                inner = borders.t(inner_id)
                 if not (np.all(np.isfinite(outer)) and np.all(np.isfinite(inner))):
                     continue
                 props = {
@@ -185,8 +210,7 @@ def geojson_dict(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2
                     "type": lane.type,
                 }
                 if np.max(np.abs(outer - inner)) > 1e-3:
-                    ring_xy = np.vstack([road.to_xy(s, inner), road.to_xy(s[::-1], outer[::-1])])
-                    ring = _round(_lonlat(frame, ring_xy))
+                    ring = [*borders.lonlat(inner_id), *borders.lonlat(lane.id)[::-1]]
                     ring.append(ring[0])
                     features.append(
                         {
@@ -202,11 +226,10 @@ def geojson_dict(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2
                         "properties": {"kind": "boundary", **props, "mark": mark},
                         "geometry": {
                             "type": "LineString",
-                            "coordinates": _round(_lonlat(frame, road.to_xy(s, outer))),
+                            "coordinates": borders.lonlat(lane.id),
                         },
                     }
                 )
-            t0 = road.lane_border_t(s, 0)
             features.append(
                 {
                     "type": "Feature",
@@ -221,7 +244,7 @@ def geojson_dict(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2
                     },
                     "geometry": {
                         "type": "LineString",
-                        "coordinates": _round(_lonlat(frame, road.to_xy(s, t0))),
+                        "coordinates": borders.lonlat(0),
                     },
                 }
             )

@@ -269,17 +269,114 @@ def road_band(road: Road, s: FloatArray) -> tuple[FloatArray, FloatArray]:
     return lo, hi
 
 
+def _ray_box_exit(origin: FloatArray, direction: FloatArray, lo: FloatArray, hi: FloatArray):
+    """Distance along the unit ``direction`` from ``origin`` (inside the box) to where the
+    ray leaves the axis-aligned box ``[lo, hi]`` (metres)."""
+    exits = []
+    for i in range(2):
+        if direction[i] > 1e-12:
+            exits.append((hi[i] - origin[i]) / direction[i])
+        elif direction[i] < -1e-12:
+            exits.append((lo[i] - origin[i]) / direction[i])
+    return max(0.0, min(exits)) if exits else 0.0
+
+
+@dataclass(frozen=True)
+class _PointGrid:
+    """Points bucketed into square cells of ``cell_m`` (mapping frame): ``order`` sorts
+    the point indices by cell; cell ``keys[i]`` holds ``order[start[i]:start[i] + count[i]]``."""
+
+    origin: FloatArray
+    cell_m: float
+    ny: int
+    keys: NDArray[np.int64]
+    start: NDArray[np.int64]
+    count: NDArray[np.int64]
+    order: NDArray[np.intp]
+
+    @classmethod
+    def build(cls, pts: FloatArray, cell_m: float) -> _PointGrid:
+        """Bucket the finite points of ``(N, 2)`` ``pts`` (others are in no cell)."""
+        finite = np.nonzero(np.all(np.isfinite(pts), axis=1))[0]
+        if finite.size == 0:
+            empty = np.zeros(0, dtype=np.int64)
+            return cls(np.zeros(2), cell_m, 1, empty, empty, empty, empty.astype(np.intp))
+        fpts = pts[finite]
+        origin = fpts.min(axis=0)
+        cell = np.floor((fpts - origin) / cell_m).astype(np.int64)
+        ny = int(cell[:, 1].max()) + 1
+        key = cell[:, 0] * ny + cell[:, 1]
+        order = np.argsort(key, kind="stable")
+        keys, start, count = np.unique(key[order], return_index=True, return_counts=True)
+        return cls(origin, cell_m, ny, keys, start, count, finite[order])
+
+    def near(self, centres: FloatArray, radius_m: float) -> NDArray[np.intp]:
+        """Sorted indices of the points in every cell that meets a square of half-side
+        ``radius_m`` around a centre (a superset of the points within ``radius_m``)."""
+        lo = np.floor((centres - radius_m - self.origin) / self.cell_m).astype(np.int64)
+        hi = np.floor((centres + radius_m - self.origin) / self.cell_m).astype(np.int64)
+        lo = np.maximum(lo, 0)
+        hi[:, 1] = np.minimum(hi[:, 1], self.ny - 1)
+        span = int(np.max(hi - lo, initial=0)) + 1
+        d = np.arange(span)
+        cx = lo[:, 0, None, None] + d[None, :, None]
+        cy = lo[:, 1, None, None] + d[None, None, :]
+        ok = (cx <= hi[:, 0, None, None]) & (cy <= hi[:, 1, None, None])
+        cells = np.unique((cx * self.ny + cy)[ok])
+        if self.keys.size == 0:
+            return np.zeros(0, dtype=np.intp)
+        pos = np.minimum(np.searchsorted(self.keys, cells), self.keys.size - 1)
+        pos = pos[self.keys[pos] == cells]  # cells that hold points
+        start, count = self.start[pos], self.count[pos]
+        total = int(count.sum())
+        if total == 0:
+            return np.zeros(0, dtype=np.intp)
+        rel = np.arange(total) - np.repeat(np.cumsum(count) - count, count)
+        return np.sort(self.order[np.repeat(start, count) + rel])
+
+
+def _candidate_points(
+    grid: _PointGrid,
+    road: Road,
+    box_lo: FloatArray,
+    box_hi: FloatArray,
+    reach_m: float,
+) -> NDArray[np.intp]:
+    """Sorted indices of the bucketed points that lie within ``reach_m`` of the road's
+    reference line or of its straight extensions beyond both ends (inside the box), plus
+    some more near them (a superset: callers still apply their own tests).
+
+    The reference line is sampled every ``step = reach_m``; a point within ``reach_m`` of
+    the line is within ``reach_m + step / 2`` of a sample. The extensions run along the
+    end headings until they leave the box grown by ``reach_m`` (a point in the box within
+    ``reach_m`` of an extension has its foot there).
+    """
+    step = max(reach_m, 1.0)
+    n = max(2, math.ceil(road.length / step) + 1)
+    x, y, h, _ = road.evaluate(np.linspace(0.0, road.length, n))
+    centres = [np.column_stack([x, y])]
+    for j, sign in ((0, -1.0), (-1, 1.0)):  # start runs backwards, end forwards
+        origin = np.array([x[j], y[j]])
+        direction = sign * np.array([math.cos(h[j]), math.sin(h[j])])
+        u_max = _ray_box_exit(origin, direction, box_lo - reach_m, box_hi + reach_m)
+        u = np.arange(step, u_max + step, step)
+        centres.append(origin + u[:, None] * direction)
+    return grid.near(np.vstack(centres), reach_m + 0.5 * step)
+
+
 def project_points(
     roads: Sequence[Road],
     points: FloatArray,
     *,
     max_lateral_m: float = 40.0,
     end_tolerance_m: float = 0.1,
+    preselect: bool = True,
 ) -> Projection:
     """Project mapping-frame points onto the best of several (possibly overlapping) roads.
 
     Every point is projected onto every road whose bounding box (grown by
-    ``max_lateral_m``) holds it; the loop runs over roads, vectorised over points. Among
+    ``max_lateral_m`` plus the road's widest edge offset) holds it and that it can be
+    within reach of; the loop runs over roads, vectorised over points. Among
     the roads a point projects inside (not beyond an end by more than ``end_tolerance_m``)
     the best is, in order: the smallest distance outside the road's edges (0 inside); a
     road the point is not within 1 m of an end of; the smallest distance from the middle
@@ -294,6 +391,17 @@ def project_points(
         Roads in chain order (for ``station_m``).
     points
         ``(N, 2+)`` mapping-frame points, metres.
+    max_lateral_m
+        Largest distance outside a road's edges that still counts as on the road (metres).
+    end_tolerance_m
+        How far beyond a road end a point may lie and still project onto it (metres).
+    preselect
+        ``True`` (default): per road, only the points in grid cells (points bucketed
+        once) near the sampled reference line and its extensions beyond the ends are
+        projected, so
+        the cost grows linearly with the number of roads and points. ``False``: every
+        point in a road's grown bounding box is projected (the reference implementation;
+        cost roads x points). Both give the same result.
     """
     pts = np.asarray(points, dtype=float)[:, :2]
     n = pts.shape[0]
@@ -310,6 +418,8 @@ def project_points(
     best_margin = np.full(n, -np.inf)
     tried_beyond = np.zeros(n, dtype=bool)
     tol = 0.05
+    # buckets of about the reach of a road (max_lateral_m plus its edge offsets)
+    buckets = _PointGrid.build(pts, max(max_lateral_m, 5.0) + 20.0) if preselect else None
 
     for ri, road in enumerate(roads):  # loop over roads, vectorised over points
         grid = np.linspace(0.0, road.length, max(2, math.ceil(road.length / 2.0) + 1))
@@ -318,7 +428,13 @@ def project_points(
         grow = max_lateral_m + float(np.nanmax(np.abs(np.concatenate([lo_grid, hi_grid]))))
         box_lo = xy.min(axis=0) - grow
         box_hi = xy.max(axis=0) + grow
-        idx = np.nonzero(np.all((pts >= box_lo) & (pts <= box_hi), axis=1))[0]
+        if buckets is None:
+            idx = np.nonzero(np.all((pts >= box_lo) & (pts <= box_hi), axis=1))[0]
+        else:
+            # points that can end up within reach: |t| <= grow (plus 2 m for the band
+            # between grid stations and the Newton steps), inside the box
+            idx = _candidate_points(buckets, road, box_lo, box_hi, grow + 2.0)
+            idx = idx[np.all((pts[idx] >= box_lo) & (pts[idx] <= box_hi), axis=1)]
         if idx.size == 0:
             continue
         s, t, beyond = _project_one(road, pts[idx], end_tolerance_m)

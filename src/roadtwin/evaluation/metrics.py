@@ -339,26 +339,46 @@ def _truth_mainline(
     return result, details
 
 
+def _slice_projection(proj: Projection, start: int, stop: int) -> Projection:
+    """Points ``start:stop`` of a projection."""
+    return Projection(
+        proj.road_index[start:stop],
+        proj.s[start:stop],
+        proj.t[start:stop],
+        proj.status[start:stop],
+        proj.station_m[start:stop],
+    )
+
+
 def _lane_count(
     true_roads: Sequence[Road], built: Sequence[Road], offsets: FloatArray, cfg: EvaluationConfig
 ) -> dict[str, Any]:
     """Driving-lane count of the built map against truth at every station."""
     sections = []
     all_match: list[NDArray[np.bool_]] = []
-    for i, road in enumerate(true_roads):
+    stations, centres = [], []
+    for road in true_roads:
         s = _stations(road.length, cfg.truth_step_m)
         sec_idx = road.section_index(s)
         centre = np.empty(s.size)
         for k in np.unique(sec_idx):
             sel = sec_idx == k
             centre[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
+        stations.append(s)
+        centres.append(road.to_xy(s, centre).reshape(-1, 2))
+    # one projection of all roads' points (per-point results do not depend on the batch)
+    proj_all = project_points(
+        built,
+        np.vstack(centres) if centres else np.zeros((0, 2)),
+        max_lateral_m=cfg.max_lateral_m,
+        end_tolerance_m=cfg.end_tolerance_m,
+    )
+    bounds = np.concatenate([[0], np.cumsum([s.size for s in stations])])
+    for i, road in enumerate(true_roads):
+        s = stations[i]
+        sec_idx = road.section_index(s)
         true_n = driving_lane_count(road, s, min_width_m=cfg.lane_count_min_width_m)
-        proj = project_points(
-            built,
-            road.to_xy(s, centre).reshape(-1, 2),
-            max_lateral_m=cfg.max_lateral_m,
-            end_tolerance_m=cfg.end_tolerance_m,
-        )
+        proj = _slice_projection(proj_all, int(bounds[i]), int(bounds[i + 1]))
         built_n = np.full(s.size, -1, dtype=np.int64)
         for r in np.unique(proj.road_index[proj.ok]):
             sel = proj.road_index == r
@@ -414,6 +434,7 @@ def _truth_ramps(
     xy_c, xy_b, st_c, st_b = [], [], [], []
     n_true = 0
     n_centre_points = 0
+    stations, centres = [], []
     for road in true_roads:
         s = _stations(road.length, cfg.truth_step_m)
         sec_idx = road.section_index(s)
@@ -421,16 +442,22 @@ def _truth_ramps(
         for k in np.unique(sec_idx):
             sel = sec_idx == k
             t_c[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
-        pts_c = road.to_xy(s, t_c).reshape(-1, 2)
+        stations.append(s)
+        centres.append(road.to_xy(s, t_c).reshape(-1, 2))
+    kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
+    # one projection of all ramps' centre points (per-point results do not depend on it)
+    proj_all = project_points(built, np.vstack(centres), **kw) if built and centres else None
+    bounds = np.concatenate([[0], np.cumsum([s.size for s in stations])])
+    for i, road in enumerate(true_roads):
+        s, pts_c = stations[i], centres[i]
         n_centre_points += s.size
         sb, tb, kinds_b, _, _ = _sample_boundaries(road, cfg.truth_step_m)
         kinds_b_arr = np.asarray(kinds_b)
         pts_b = road.to_xy(sb, tb).reshape(-1, 2)
         n_true += sb.size
-        if not built:
+        if proj_all is None:
             continue
-        kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
-        proj_c = project_points(built, pts_c, **kw)
+        proj_c = _slice_projection(proj_all, int(bounds[i]), int(bounds[i + 1]))
         # a boundary point goes to the built road its station's centre point went to
         station_idx = np.clip(
             np.rint((sb - 0.5 * cfg.truth_step_m) / cfg.truth_step_m), 0, s.size - 1
