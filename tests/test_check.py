@@ -331,3 +331,43 @@ def test_missing_consumers_are_reported_and_own_checks_still_run(checked, monkey
     assert report.ok
     assert report.stats["links_checked"] == 4
     assert "sumo netconvert: not installed" in report.format_text()
+
+
+def test_zero_width_lane_end_with_link_is_an_error():
+    """A lane tapering to zero width that still names a successor is caught (ASAM rule)."""
+    from dataclasses import replace
+
+    from roadtwin.check import check_network
+    from roadtwin.model import (
+        CubicPiece,
+        CubicProfile,
+        Header,
+        Lane,
+        LaneSection,
+        Line,
+        Road,
+        RoadNetwork,
+        constant_lane,
+    )
+
+    taper = CubicProfile((CubicPiece(0.0, 3.5, -3.5 / 100.0),))  # 3.5 m -> 0 m over 100 m
+    first = LaneSection(
+        0.0, right=(constant_lane(-1, 3.5), Lane(-2, "driving", taper, successor=-2))
+    )
+    second = LaneSection(100.0, right=(constant_lane(-1, 3.5), constant_lane(-2, 3.5)))
+    road = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 200.0),), (first, second))
+    network = RoadNetwork(Header(geo_reference="+proj=tmerc +lat_0=47 +lon_0=15"), (road,))
+    found = [f for f in check_network(network) if f.code == "zero_width_link"]
+    assert len(found) == 1
+    assert found[0].severity == "error"
+    assert found[0].s == pytest.approx(100.0)
+    unlinked = replace(
+        road,
+        lane_sections=(
+            replace(first, right=(first.right[0], replace(first.right[1], successor=None))),
+            second,
+        ),
+    )
+    assert not [
+        f for f in check_network(replace(network, roads=(unlinked,))) if f.code == "zero_width_link"
+    ]

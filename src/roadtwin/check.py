@@ -99,6 +99,8 @@ class CheckConfig:
     width_jump_warning_mm: float = 1.0
     width_jump_error_mm: float = 10.0
     negative_width_error_mm: float = 1.0
+    zero_width_link_m: float = 1e-4
+    """A lane end narrower than this (metres) counts as zero width: it must not be linked."""
     width_sample_step_m: float = 1.0
     consumer_timeout_s: float = 600.0
 
@@ -362,6 +364,7 @@ class _Checker:
             ds = np.linspace(0.0, span, n)
             for lane in (*sec.left, *sec.right):
                 w = lane.width.value(ds)
+                self._zero_width_links(road, sec, lane, w, ds)
                 k = int(np.argmin(w))
                 if w[k] < -1e-6:
                     sev: Severity = (
@@ -433,6 +436,28 @@ class _Checker:
                         road=road.id,
                         s=b.s0,
                     )
+
+    def _zero_width_links(self, road: Road, sec: LaneSection, lane: Lane, w, ds) -> None:
+        """A lane that starts (ends) at zero width must have no predecessor (successor):
+        the spec's rule for lanes that appear or disappear, which the ASAM checker enforces
+        and simulators rely on when they route onto a lane."""
+        zero = self.cfg.zero_width_link_m
+        for end, link, width, s in (
+            ("starts", lane.predecessor, w[0], sec.s0),
+            ("ends", lane.successor, w[-1], sec.s0 + ds[-1]),
+        ):
+            if link is not None and abs(float(width)) < zero:
+                kind = "predecessor" if end == "starts" else "successor"
+                self.add(
+                    "error",
+                    "zero_width_link",
+                    f"lane {lane.id} {end} at zero width ({1000.0 * float(width):.1f} mm) at "
+                    f"s={s:.2f} but has {kind} lane {link}; a lane that appears or ends must "
+                    "not be linked at its zero-width end",
+                    road=road.id,
+                    s=float(s),
+                    value=float(width),
+                )
 
     # -- links -------------------------------------------------------------
 
