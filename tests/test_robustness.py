@@ -264,11 +264,6 @@ def test_left_hand_demo_edge_accuracy(tmp_path):
     assert row["edge_rmse"] <= EDGE_RMSE_MAX_M, (row["edge_rmse"], row["spikes"])
 
 
-@pytest.mark.xfail(
-    reason="without OSM no ramp attaches, the auxiliary lane ends at full width inside the "
-    "mainline road at the gore: check_network ERROR width_jump (lane -6 -> -5, 2.47 m -> 0)",
-    strict=True,
-)
 def test_run_without_osm_is_valid(base):
     from roadtwin.check import check_network
     from roadtwin.pipeline import build_map

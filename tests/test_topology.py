@@ -366,3 +366,31 @@ def test_gores_from_lane_events_match_section_scan(mainline, side):
     got = gores_from_lane_events(events, mainline, traffic_side=side)
     assert got == gore_events(mainline, traffic_side=side)
     assert [g.station_m for g in got] == [500.0, 800.0]
+
+
+def test_unlink_width_jumps_drops_only_jumping_links():
+    """A lane whose width jumps at a section boundary is unlinked on both sides; a lane
+    that continues smoothly keeps its links."""
+    from roadtwin.model import CubicProfile, Lane, LaneSection, Line, Road
+    from roadtwin.topology import unlink_width_jumps
+
+    a = LaneSection(
+        0.0,
+        right=(
+            Lane(-1, "driving", CubicProfile.constant(3.5), successor=-1),
+            Lane(-2, "shoulder", CubicProfile.constant(2.5), successor=-2),
+        ),
+    )
+    b = LaneSection(
+        50.0,
+        right=(
+            Lane(-1, "driving", CubicProfile.constant(3.5), predecessor=-1),
+            Lane(-2, "shoulder", CubicProfile.constant(0.0), predecessor=-2),
+        ),
+    )
+    road = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 100.0),), (a, b))
+    out = unlink_width_jumps(road)
+    first, second = out.lane_sections
+    assert (first.right[0].successor, second.right[0].predecessor) == (-1, -1)
+    assert (first.right[1].successor, second.right[1].predecessor) == (None, None)
+    assert unlink_width_jumps(out) is out

@@ -355,6 +355,49 @@ class _Zone:
     b: float  # ... and ends (a == b for direct junctions)
 
 
+def unlink_width_jumps(road: Road, *, max_jump_m: float = 0.01) -> Road:
+    """Drop lane links between consecutive lane sections where the linked widths jump.
+
+    At a gore with no ramp attached (no OSM, or a ramp that was skipped) the auxiliary lane
+    and the hard shoulder end or start at full width inside the mainline road: the road
+    edge really jumps there. Such lanes end or start; linking them would claim a continuous
+    lane whose width jumps (an error for checkers and a trap for simulators).
+
+    Parameters
+    ----------
+    road
+        Any road; lane links across its internal section boundaries are checked.
+    max_jump_m
+        Largest width change (metres) that still counts as the same lane continuing.
+    """
+    sections = list(road.lane_sections)
+    changed = False
+    for k in range(len(sections) - 1):
+        a, b = sections[k], sections[k + 1]
+        len_a = b.s0 - a.s0
+        new_sides = {}
+        for side in ("left", "right"):
+            lanes_a = list(getattr(a, side))
+            lanes_b = list(getattr(b, side))
+            index_b = {ln.id: i for i, ln in enumerate(lanes_b)}
+            for i, la in enumerate(lanes_a):
+                if la.successor is None or la.successor not in index_b:
+                    continue
+                j = index_b[la.successor]
+                lb = lanes_b[j]
+                w_end = float(la.width.value(np.array([len_a]))[0])
+                w_start = float(lb.width.value(np.array([0.0]))[0])
+                if abs(w_end - w_start) > max_jump_m:
+                    lanes_a[i] = replace(la, successor=None)
+                    if lb.predecessor == la.id:
+                        lanes_b[j] = replace(lb, predecessor=None)
+                    changed = True
+            new_sides[side] = (tuple(lanes_a), tuple(lanes_b))
+        sections[k] = replace(a, left=new_sides["left"][0], right=new_sides["right"][0])
+        sections[k + 1] = replace(b, left=new_sides["left"][1], right=new_sides["right"][1])
+    return replace(road, lane_sections=tuple(sections)) if changed else road
+
+
 def build_topology(
     mainline_road: Road,
     ramps: Sequence[Ramp],
@@ -594,6 +637,7 @@ def build_topology(
         main_roads[k], main_roads[k + 1] = up, down
         ramp_roads.append(road)
 
+    main_roads = [unlink_width_jumps(r) for r in main_roads]
     roads = tuple(true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors))
     log.info(
         "topology: %d mainline roads, %d ramps, %d connecting roads, %d %s junctions",
