@@ -16,6 +16,7 @@ from roadtwin.fitting import (
     binned_statistics,
     fit_cubic_profile,
     fit_parampoly3_chain,
+    moving_median,
     resample_polyline,
     shift_cubic_piece,
     whittaker_smooth,
@@ -177,3 +178,37 @@ def test_polyline_frame_projection_on_arc():
         s, t = frame.project(pts)
         np.testing.assert_allclose(t, off, atol=2e-3)
         np.testing.assert_allclose(s, r * pts_th, atol=2e-2)
+
+
+def test_whittaker_banded_solve_matches_the_sparse_normal_equations():
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    rng = np.random.default_rng(5)
+    n = 400
+    y = np.sin(np.arange(n) / 30.0) + rng.normal(0.0, 0.1, n)
+    w = rng.uniform(0.2, 2.0, n)
+    w[150:220] = 0.0  # a gap bridged by the penalty
+    for order in (1, 2):
+        f = whittaker_smooth(y, w, lam=500.0, order=order)
+        coef = np.diff(np.eye(order + 1), order, axis=0)[0]
+        D = sparse.diags(
+            [np.full(n, c) for c in coef], list(range(order + 1)), shape=(n - order, n)
+        )
+        ref = spsolve((sparse.diags(w) + 500.0 * (D.T @ D)).tocsc(), w * y)
+        np.testing.assert_allclose(f, ref, atol=1e-9)
+
+
+def test_moving_median_equals_nanmedian_of_the_windows():
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    rng = np.random.default_rng(6)
+    v = rng.normal(size=500)
+    v[rng.uniform(size=500) < 0.3] = np.nan
+    v[100:140] = np.nan  # windows with no value at all
+    for window in (5, 11, 21):
+        half = window // 2
+        view = sliding_window_view(np.pad(v, half, constant_values=np.nan), 2 * half + 1)
+        with np.errstate(all="ignore"), pytest.warns(RuntimeWarning):
+            ref = np.nanmedian(view, axis=1)
+        np.testing.assert_array_equal(moving_median(v, window=window), ref)

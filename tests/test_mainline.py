@@ -19,6 +19,7 @@ from roadtwin.model import (
     Lane,
     LaneSection,
     Line,
+    ParamPoly3,
     Road,
     RoadMark,
     Spiral,
@@ -395,12 +396,28 @@ def test_cut_road_is_exact(right_case):
     assert sub.id == "7"
     assert sub.predecessor is None
     assert sub.successor is None
-    assert sub.length == pytest.approx(b - a, abs=1e-9)
+    # cut normalized ParamPoly3 pieces declare their true arc length (the ASAM checker
+    # allows 1 mm), so stations inside the sub-road may move by micrometres
+    assert sub.length == pytest.approx(b - a, abs=1e-3)
     assert sub.geometry[0].s0 == 0.0
     assert sub.lane_sections[0].s0 == 0.0
+    for g in sub.geometry:
+        if isinstance(g, ParamPoly3) and g.p_range == "normalized":
+            p = np.linspace(0.0, 1.0, 20001)
+            du = g.bU + p * (2 * g.cU + 3 * g.dU * p)
+            dv = g.bV + p * (2 * g.cV + 3 * g.dV * p)
+            speed = np.hypot(du, dv)
+            true_len = float(np.sum(0.5 * (speed[1:] + speed[:-1]) * np.diff(p)))
+            assert g.length == pytest.approx(true_len, abs=1e-6)
+    np.testing.assert_allclose(sub.xy(np.array([0.0])), road.xy(np.array([a])), atol=1e-9)
+    np.testing.assert_allclose(sub.xy(np.array([sub.length])), road.xy(np.array([b])), atol=1e-7)
+    s = np.linspace(0.0, sub.length, 300)
+    # the same curve: every point of the sub-road lies on the road's reference line
+    s_on, t_on = road.project(sub.xy(s))
+    np.testing.assert_allclose(t_on, 0.0, atol=1e-6)
+    np.testing.assert_allclose(s_on, s + a, atol=1e-3)
+    np.testing.assert_allclose(sub.heading(s), road.heading(s_on), atol=1e-6)
     s = np.linspace(0.0, b - a, 300)
-    np.testing.assert_allclose(sub.xy(s), road.xy(s + a), atol=1e-7)
-    np.testing.assert_allclose(sub.heading(s), road.heading(s + a), atol=1e-9)
     np.testing.assert_allclose(sub.height(s), road.height(s + a), atol=1e-9)
     for lid in (-1, -3, -5):
         np.testing.assert_allclose(
@@ -461,3 +478,23 @@ def test_without_lane_samples_the_road_is_one_driving_lane():
     width = sec.right[0].width.value(np.linspace(0.0, ml.road.length, 20))
     np.testing.assert_allclose(width, 14.5, atol=0.05)
     assert np.isnan(ml.residuals["lane_boundary"])
+
+
+def test_outer_edge_steps_are_located_to_the_metre_at_half_point_density():
+    from roadtwin.mainline import fit_outer_edge
+
+    rng = np.random.default_rng(11)
+    grid = np.arange(0.0, 1201.0)
+    # exit gore at 400 m (deceleration lane ends: the edge steps 6 m inwards, the ramp's
+    # edge goes on outside), entry gore at 800 m (the edge steps outwards); two points per
+    # metre with random spacing (half the simulator's density), 3 cm noise
+    s = np.arange(0.0, 1200.0, 0.5) + rng.uniform(0.0, 0.5, 2400)
+    low = (s >= 400.0) & (s < 800.0)
+    d = np.where(low, 12.0, 18.0) + rng.normal(0.0, 0.03, s.size)
+    s_r = s[low & (rng.uniform(size=s.size) < 0.5)]
+    s = np.concatenate([s, s_r])
+    d = np.concatenate([d, 18.0 + 0.02 * np.minimum(s_r - 400.0, 800.0 - s_r)])
+    edge, breaks, _, _ = fit_outer_edge(s, d, grid)
+    np.testing.assert_allclose(breaks, [400.0, 800.0], atol=0.5)
+    np.testing.assert_allclose(edge[410:790], 12.0, atol=0.03)
+    np.testing.assert_allclose(edge[:390], 18.0, atol=0.03)

@@ -26,6 +26,7 @@ from scipy.interpolate import (
     make_interp_spline,
     make_smoothing_spline,
 )
+from scipy.linalg import solveh_banded
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
@@ -242,13 +243,25 @@ def whittaker_smooth(
     y = np.where(bad, 0.0, y)
     if n <= order or not np.any(w > 0):
         raise FitError("whittaker_smooth: not enough weighted samples")
-    D = sparse.diags(
-        [np.full(n, c) for c in np.diff(np.eye(order + 1), order, axis=0)[0]],
-        list(range(order + 1)),
-        shape=(n - order, n),
-    )
-    A = sparse.diags(w) + lam * (D.T @ D)
-    return np.asarray(spsolve(A.tocsc(), w * y), dtype=float)
+    # A = diag(w) + lam D^T D is symmetric positive (semi-)definite with bandwidth
+    # ``order``: a banded Cholesky solve (upper form: row ``order - k`` = k-th diagonal)
+    coef = np.diff(np.eye(order + 1), order, axis=0)[0]
+    ab = np.zeros((order + 1, n))
+    for k in range(order + 1):
+        band = np.zeros(n - k)
+        for a in range(order + 1 - k):
+            # row r of D contributes coef[a] * coef[a + k] to (r + a, r + a + k)
+            band[a : a + n - order] += coef[a] * coef[a + k]
+        ab[order - k, k:] = lam * band
+    ab[order] += w
+    try:
+        return np.asarray(solveh_banded(ab, w * y, lower=False, check_finite=False), dtype=float)
+    except np.linalg.LinAlgError:
+        D = sparse.diags(
+            [np.full(n, c) for c in coef], list(range(order + 1)), shape=(n - order, n)
+        )
+        A = sparse.diags(w) + lam * (D.T @ D)
+        return np.asarray(spsolve(A.tocsc(), w * y), dtype=float)
 
 
 def savgol_smooth(values: ArrayLike, *, window: int, polyorder: int = 3) -> FloatArray:
@@ -264,18 +277,36 @@ def savgol_smooth(values: ArrayLike, *, window: int, polyorder: int = 3) -> Floa
 
 
 def moving_median(values: ArrayLike, *, window: int) -> FloatArray:
-    """Moving median over ``window`` samples (NaN-aware; NaN where the window is empty)."""
+    """Moving median over ``window`` samples (NaN-aware; NaN where the window is empty).
+
+    Each window is sorted once (NaN sort last) and the median read at the middle of its
+    non-NaN count: the same values as ``np.nanmedian`` without its masked-array path.
+    """
     from numpy.lib.stride_tricks import sliding_window_view
 
     y = np.asarray(values, dtype=float)
     half = window // 2
+    out = np.full(y.size, np.nan)
+    if y.size == 0:
+        return out
     padded = np.pad(y, half, constant_values=np.nan)
     view = sliding_window_view(padded, 2 * half + 1)
-    out = np.full(y.size, np.nan)
-    ok = np.any(np.isfinite(view), axis=1)
-    if np.any(ok):
-        out[ok] = np.nanmedian(view[ok], axis=1)
+    srt = np.sort(view, axis=1)
+    k = np.count_nonzero(~np.isnan(view), axis=1)
+    ok = k > 0
+    rows = np.flatnonzero(ok)
+    kk = k[ok]
+    out[ok] = 0.5 * (srt[rows, (kk - 1) // 2] + srt[rows, kk // 2])
     return out
+
+
+def _bin_value_order(b: NDArray[np.int64], y: FloatArray) -> NDArray[np.int64]:
+    """Order that sorts by bin, then by value: ``np.lexsort((y, b))``, done as one sort
+    of the values ranked within ``[0, 0.5]`` plus the bin number (the rank keeps the
+    order of values exactly, whatever their magnitude)."""
+    rank = np.empty(y.size)
+    rank[np.argsort(y, kind="stable")] = np.arange(y.size) / (2.0 * max(y.size, 1))
+    return np.argsort(b + rank, kind="stable")
 
 
 def binned_statistics(
@@ -298,7 +329,7 @@ def binned_statistics(
     mean[nz] = np.bincount(b, weights=yv, minlength=nb)[nz] / count[nz]
     med = np.full(nb, np.nan)
     if yv.size:
-        order = np.lexsort((yv, b))
+        order = _bin_value_order(b, yv)
         ys = yv[order]
         start = np.concatenate([[0], np.cumsum(count)[:-1]])
         lo = start + (count - 1) // 2
@@ -598,7 +629,7 @@ def binned_quantile(x: ArrayLike, y: ArrayLike, edges: ArrayLike, q: float) -> F
     count = np.bincount(b, minlength=nb)
     out = np.full(nb, np.nan)
     if yv.size:
-        order = np.lexsort((yv, b))
+        order = _bin_value_order(b, yv)
         ys = yv[order]
         start = np.concatenate([[0], np.cumsum(count)[:-1]])
         nz = count > 0

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from .._errors import FitError, InputError
 from ..fitting import (
+    _cubic_arc_length,
     shift_cubic_piece,
 )
 from ..model import (
@@ -23,6 +24,7 @@ from ..model import (
     ParamPoly3,
     Road,
     Spiral,
+    chain_geometry,
 )
 
 log = logging.getLogger(__name__)
@@ -30,28 +32,42 @@ log = logging.getLogger(__name__)
 FloatArray = NDArray[np.float64]
 
 
+def _shift_cubic(c: tuple[float, float, float, float], p0: float, scale: float) -> FloatArray:
+    """Coefficients of ``c(p0 + scale * q)`` in q (Taylor shift, then scaling)."""
+    a, b, cc, d = c
+    return np.array(
+        [
+            a + p0 * (b + p0 * (cc + p0 * d)),
+            (b + p0 * (2.0 * cc + 3.0 * p0 * d)) * scale,
+            (cc + 3.0 * d * p0) * scale * scale,
+            d * scale * scale * scale,
+        ]
+    )
+
+
 def _cut_geometry(g: Geometry, a: float, b: float, s_new: float) -> Geometry:
-    """The part of piece ``g`` between road stations ``a`` and ``b`` (exact)."""
-    x, y, h, k = g.evaluate(np.array([a, b]))
+    """The part of piece ``g`` between road stations ``a`` and ``b`` (exact).
+
+    A cut ``normalized`` ParamPoly3 declares the true arc length of its curve as its
+    length (the station span ``b - a`` differs from it by up to millimetres where p is
+    not exactly proportional to arc length).
+    """
     length = b - a
     if isinstance(g, ParamPoly3):
-        L = g.length
+        x, y, h, _ = g.evaluate(np.array([a]))
         if g.p_range == "normalized":
-            pa, pb = (a - g.s0) / L, (b - g.s0) / L
-            sub = np.polynomial.Polynomial([pa, pb - pa])
+            pa, scale = (a - g.s0) / g.length, length / g.length
         else:
-            pa = a - g.s0
-            sub = np.polynomial.Polynomial([pa, 1.0])
-        U = np.polynomial.Polynomial([g.aU, g.bU, g.cU, g.dU])(sub)
-        V = np.polynomial.Polynomial([g.aV, g.bV, g.cV, g.dV])(sub)
-        Uc = np.pad(U.coef, (0, 4 - U.coef.size))[:4]
-        Vc = np.pad(V.coef, (0, 4 - V.coef.size))[:4]
-        UV = np.stack([Uc, Vc], axis=1)
-        UV[0] = 0.0
+            pa, scale = a - g.s0, 1.0
+        Uc = _shift_cubic((g.aU, g.bU, g.cU, g.dU), pa, scale)
+        Vc = _shift_cubic((g.aV, g.bV, g.cV, g.dV), pa, scale)
         # rotate the old local frame to the tangent at the cut: new hdg = h[0]
         rel = float(h[0]) - g.hdg
         c, sn = math.cos(rel), math.sin(rel)
-        UVr = UV @ np.array([[c, -sn], [sn, c]])
+        U = c * Uc + sn * Vc
+        V = -sn * Uc + c * Vc
+        if g.p_range == "normalized":
+            length = _cubic_arc_length(np.stack([U, V], axis=1))
         return ParamPoly3(
             s_new,
             float(x[0]),
@@ -59,15 +75,16 @@ def _cut_geometry(g: Geometry, a: float, b: float, s_new: float) -> Geometry:
             float(h[0]),
             length,
             aU=0.0,
-            bU=float(UVr[1, 0]),
-            cU=float(UVr[2, 0]),
-            dU=float(UVr[3, 0]),
+            bU=float(U[1]),
+            cU=float(U[2]),
+            dU=float(U[3]),
             aV=0.0,
-            bV=float(UVr[1, 1]),
-            cV=float(UVr[2, 1]),
-            dV=float(UVr[3, 1]),
+            bV=float(V[1]),
+            cV=float(V[2]),
+            dV=float(V[3]),
             p_range=g.p_range,
         )
+    x, y, h, k = g.evaluate(np.array([a, b]))
     if isinstance(g, Spiral):
         return Spiral(
             s_new,
@@ -150,6 +167,8 @@ def cut_road(road: Road, s_start: float, s_end: float, *, road_id: str) -> Road:
         if hi - lo <= 1e-9:
             continue
         geo.append(_cut_geometry(g, lo, hi, lo - a))
+    # true arc lengths of cut normalized pieces: later pieces start where these end
+    geo = list(chain_geometry(geo))
     sec_s0 = np.array([sc.s0 for sc in road.lane_sections])
     i0 = max(int(np.searchsorted(sec_s0, a, side="right")) - 1, 0)
     secs = [road.lane_sections[i0]] + [

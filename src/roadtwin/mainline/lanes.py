@@ -39,24 +39,40 @@ FloatArray = NDArray[np.float64]
 class _RawTrack:
     cols: list[int]
     d: list[float]
+    slope: float = 0.0
+
+    def add(self, col: int, value: float) -> None:
+        """Append a column and update the slope (least squares over the last 4 columns,
+        clipped to +-0.5 m per column)."""
+        self.cols.append(col)
+        self.d.append(value)
+        if len(self.d) < 3:
+            return
+        c = self.cols[-4:]
+        v = self.d[-4:]
+        n = len(c)
+        cm, vm = sum(c) / n, sum(v) / n
+        var = 0.0
+        cov = 0.0
+        for ci, vi in zip(c, v, strict=True):
+            var += (ci - cm) * (ci - cm)
+            cov += (ci - cm) * (vi - vm)
+        self.slope = min(max(cov / var, -0.5), 0.5)
 
     def predict(self, col: int) -> float:
         """Offset extrapolated linearly from the last few columns to column ``col``."""
-        if len(self.d) < 3:
-            return self.d[-1]
-        c = self.cols[-4:]
-        v = self.d[-4:]
-        cm, vm = sum(c) / len(c), sum(v) / len(v)
-        var = sum((ci - cm) ** 2 for ci in c)
-        slope = sum((ci - cm) * (vi - vm) for ci, vi in zip(c, v, strict=True)) / var
-        slope = min(max(slope, -0.5), 0.5)
-        return self.d[-1] + slope * (col - self.cols[-1])
+        return self.d[-1] + self.slope * (col - self.cols[-1])
 
 
 def _find_track_peaks(
     s: FloatArray, d: FloatArray, length: float, cfg: MainlineConfig
 ) -> tuple[FloatArray, list[FloatArray]]:
-    """Marking peaks per histogram column: column centres and the peak offsets in each."""
+    """Marking peaks per histogram column: column centres and the peak offsets in each.
+
+    All columns are searched in one ``find_peaks`` call: the columns are laid end to end,
+    separated by zero padding at least as wide as the peak distance, so that neither the
+    distance nor the prominence test reaches across columns.
+    """
     from scipy.ndimage import gaussian_filter1d, uniform_filter1d
     from scipy.signal import find_peaks
 
@@ -74,20 +90,23 @@ def _find_track_peaks(
     thr = max(0.15 * strong, 1e-9)
     min_dist = max(1, int(cfg.lane_min_separation_m / cfg.lane_bin_m))
     centres = (np.arange(n_col) + 0.5) * col
-    peaks: list[FloatArray] = []
     bin_c = d_lo + (np.arange(n_bin) + 0.5) * cfg.lane_bin_m
-    for row in hist:  # loop over columns (a few thousand), vectorised inside
-        idx, _ = find_peaks(row, height=thr, distance=min_dist, prominence=0.5 * thr)
-        if idx.size == 0:
-            peaks.append(np.zeros(0))
-            continue
-        lo = np.clip(idx - 2, 0, n_bin - 1)
-        hi = np.clip(idx + 2, 0, n_bin - 1)
-        # centroid refinement over +-2 bins
-        ks = np.arange(-2, 3)
-        jj = np.clip(idx[:, None] + ks[None, :], lo[:, None], hi[:, None])
-        wts = row[jj]
-        peaks.append((wts * bin_c[jj]).sum(axis=1) / np.maximum(wts.sum(axis=1), 1e-12))
+    pad = min_dist + 1
+    stride = n_bin + pad
+    flat = np.zeros((n_col, stride))
+    flat[:, :n_bin] = hist
+    idx, _ = find_peaks(flat.ravel(), height=thr, distance=min_dist, prominence=0.5 * thr)
+    row, j = np.divmod(idx, stride)
+    # a column's first/last bin is never a peak (as for a search per column)
+    inner = (j > 0) & (j < n_bin - 1)
+    row, j = row[inner], j[inner]
+    ks = np.arange(-2, 3)
+    jj = np.clip(j[:, None] + ks[None, :], 0, n_bin - 1)
+    wts = hist[row[:, None], jj]
+    # centroid refinement over +-2 bins
+    ref = (wts * bin_c[jj]).sum(axis=1) / np.maximum(wts.sum(axis=1), 1e-12)
+    split = np.searchsorted(row, np.arange(1, n_col))
+    peaks = np.split(ref, split)
     return centres, peaks
 
 
@@ -99,21 +118,20 @@ def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack
     for c, pk in enumerate(peaks):
         active = [i for i in active if c - tracks[i].cols[-1] <= max_gap]
         used_p: set[int] = set()
-        used_t: set[int] = set()
         if active and pk.size:
+            used_t: set[int] = set()
             pred = np.array([tracks[i].predict(c) for i in active])
             cost = np.abs(pk[:, None] - pred[None, :])
-            for flat in np.argsort(cost, axis=None):
-                pi, ti = divmod(int(flat), len(active))
-                if cost[pi, ti] > cfg.lane_link_m:
-                    break
-                if pi in used_p or ti in used_t:
-                    continue
-                used_p.add(pi)
-                used_t.add(ti)
-                tr = tracks[active[ti]]
-                tr.cols.append(c)
-                tr.d.append(float(pk[pi]))
+            n_ok = int(np.count_nonzero(cost <= cfg.lane_link_m))
+            if n_ok:
+                order = np.argsort(cost, axis=None, kind="stable")[:n_ok]
+                for flat in order.tolist():
+                    pi, ti = divmod(flat, len(active))
+                    if pi in used_p or ti in used_t:
+                        continue
+                    used_p.add(pi)
+                    used_t.add(ti)
+                    tracks[active[ti]].add(c, float(pk[pi]))
         for pi in range(pk.size):
             if pi not in used_p:
                 tracks.append(_RawTrack([c], [float(pk[pi])]))
@@ -131,6 +149,27 @@ def _mark_type(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig)
     limit = max(cfg.broken_gap_m, 3.0 * spacing)
     frac = float(np.sum(gaps[gaps > limit])) / (hi - lo)
     return "broken" if frac > cfg.broken_gap_fraction else "solid"
+
+
+def _refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, starts: bool) -> float:
+    """Station (metres, sub-metre) where the low level of an outer-edge step starts
+    (``starts``: exit gore) or ends (entry gore), from the points within 10 m.
+
+    The step lies half a mean point spacing before the first (after the last) point of
+    the low level; an isolated first (last) point more than 5 m from the next one is an
+    outlier.
+    """
+    win = (np.abs(s - s_step) < 10.0) & (np.abs(d - low) < 0.5)
+    if np.count_nonzero(win) < 4:
+        return s_step
+    ss = np.sort(s[win])
+    if not starts:
+        ss = -ss[::-1]  # mirror: the last point of the low level becomes the first
+    if ss[1] - ss[0] > 5.0:
+        ss = ss[1:]
+    spacing = (ss[-1] - ss[0]) / (ss.size - 1)
+    edge = float(ss[0] - 0.5 * spacing)
+    return edge if starts else -edge
 
 
 def fit_outer_edge(
@@ -168,15 +207,12 @@ def fit_outer_edge(
     jumps = np.nonzero(np.abs(np.diff(q[qi])) > 1.0)[0]
     breaks = 0.5 * (cgrid[qi[jumps]] + cgrid[qi[jumps + 1]])
     # refine each step with the points: the low level starts (step down, an exit gore)
-    # or ends (step up, an entry gore) exactly where the edge jumps
+    # or ends (step up, an entry gore) where the edge jumps (the high level goes on as
+    # the ramp's edge, so only the low level tells)
     sv, dv = s[ok], d[ok]
     for n, j in enumerate(jumps):
         q0, q1 = q[qi[j]], q[qi[j + 1]]
-        low = min(q0, q1)
-        win = (np.abs(sv - breaks[n]) < 10.0) & (np.abs(dv - low) < 0.5)
-        if np.count_nonzero(win) >= 4:
-            ss = np.sort(sv[win])
-            breaks[n] = float(ss[1] if q1 < q0 else ss[-2])
+        breaks[n] = _refine_step(sv, dv, float(breaks[n]), min(q0, q1), starts=q1 < q0)
     # a real step has edge points right before and after it; an occlusion gap has none
     real = [
         np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
@@ -274,6 +310,7 @@ def fit_lanes(
     else:
         tracks, gores = _snap_to_hidden_gores(tracks, evidence, covered, grid, cfg)
         breaks = np.sort(np.concatenate([breaks, gores]))
+        tracks = _gores_from_shoulder_taper(tracks, d_edge, covered, grid)
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
     sections, events, out_tracks = _sections_from_tracks(tracks, grid, d_edge, breaks, sign, cfg)
@@ -305,32 +342,51 @@ def _tracks_from_samples(
     centres, peaks = _find_track_peaks(s, d, length, cfg)
     raw = _link_tracks(peaks, cfg)
     col = cfg.lane_column_m
+    s_first, s_last = float(np.min(s)), float(np.max(s))
+
+    def too_short(lo: float, hi: float) -> bool:
+        """Shorter than ``lane_min_track_m``, unless the run's start or end cuts it (then
+        it only has to be ``lane_min_cut_track_m`` long)."""
+        if hi - lo >= cfg.lane_min_track_m:
+            return False
+        cut = lo <= s_first + 2.0 * col or hi >= s_last - 2.0 * col
+        return not (cut and hi - lo >= cfg.lane_min_cut_track_m)
+
     cand: list[_Track] = []
     for tr in raw:
         lo = centres[tr.cols[0]] - 0.5 * col
         hi = centres[tr.cols[-1]] + 0.5 * col
-        if hi - lo < cfg.lane_min_track_m:
+        if too_short(lo, hi):
             continue
         cand.append(
             _Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0])
         )
     if not cand:
         return [], []
-    dist = np.full((len(cand), s.size), np.inf)
+    # each sample belongs to the nearest candidate track (the first one on ties); the
+    # samples are sorted by station so that a track only looks at its own window
+    order = np.argsort(s, kind="stable")
+    s, d = s[order], d[order]
+    best = np.full(s.size, np.inf)
+    owner = np.full(s.size, -1, dtype=np.int64)
+    windows: list[tuple[int, int]] = []
     for k, tr in enumerate(cand):
-        inside = (s >= tr.lo - col) & (s <= tr.hi + col)
-        dist[k, inside] = np.abs(d[inside] - np.interp(s[inside], tr.s, tr.d))
-    owner = np.argmin(dist, axis=0)
-    best = dist[owner, np.arange(s.size)]
+        i0 = int(np.searchsorted(s, tr.lo - col, side="left"))
+        i1 = int(np.searchsorted(s, tr.hi + col, side="right"))
+        windows.append((i0, i1))
+        dk = np.abs(d[i0:i1] - np.interp(s[i0:i1], tr.s, tr.d))
+        better = dk < best[i0:i1]
+        best[i0:i1][better] = dk[better]
+        owner[i0:i1][better] = k
     final: list[_Track] = []
     evidence: list[tuple[float, float]] = []
-    for k in range(len(cand)):
-        sel = (owner == k) & (best < cfg.lane_assign_m)
-        if np.count_nonzero(sel) < 10:
+    for k, (i0, i1) in enumerate(windows):
+        sel = i0 + np.flatnonzero((owner[i0:i1] == k) & (best[i0:i1] < cfg.lane_assign_m))
+        if sel.size < 10:
             continue
         ss_all = s[sel]
         lo, hi = float(np.min(ss_all)), float(np.max(ss_all))
-        if hi - lo < cfg.lane_min_track_m:
+        if too_short(lo, hi):
             continue
         g = grid[(grid >= lo) & (grid <= hi)]
         if g.size < 4:
@@ -352,7 +408,10 @@ def _tracks_from_samples(
             else:
                 i_g = g.size - 1 if fit[-1] < fit[0] else 0
             evidence.append((float(g[i_g]), float(fit[i_g])))
-        if np.count_nonzero(keep_g) * cfg.grid_step_m < cfg.lane_min_track_m:
+        if not keep_g.any():
+            continue
+        g_in = g[keep_g]
+        if too_short(float(g_in[0]), float(g_in[-1]) + cfg.grid_step_m):
             continue
         g, fit = g[keep_g], fit[keep_g]
         lo, hi = float(g[0]), float(g[-1])
@@ -461,6 +520,79 @@ def _snap_to_hidden_gores(
     return out, np.asarray(gores, dtype=float)
 
 
+def _gores_from_shoulder_taper(
+    tracks: list[_Track], d_edge: FloatArray, covered: NDArray[np.bool_], grid: FloatArray
+) -> list[_Track]:
+    """Gore stations inside occlusion gaps of the outer edge from the hard shoulder.
+
+    Before an entry gore the hard shoulder narrows to zero width at the gore (after an
+    exit gore it widens from zero). Where the outer edge was seen narrowing (widening) by
+    more than 0.5 m over the 20 m before (after) a gap, the narrowing is continued as a
+    cubic taper (zero slope at zero width: 1.5 x the linear run-out); an outer marking
+    that starts (ends) inside the gap within 25 m of where that taper reaches zero is
+    moved there (a ramp line joining it tangentially makes it start early, an occluded
+    piece late).
+    """
+    out = list(tracks)
+    d_last = _last_marking(tracks, grid)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if a < 26 or b + 25 >= grid.size:
+            continue
+        i0, i1 = a - 1, b
+        for end in ("start", "end"):
+            if end == "start":
+                i_w, i_a, i_b = i0 - 80, i0 - 30, i0 - 10
+            else:
+                i_w, i_a, i_b = i1 + 80, i1 + 30, i1 + 10
+            if not 0 <= i_w < grid.size or not np.all(np.isfinite(d_last[[i_w, i_a, i_b]])):
+                continue
+            w_full = d_edge[i_w] - d_last[i_w]
+            hw_a, hw_b = d_edge[i_a] - d_last[i_a], d_edge[i_b] - d_last[i_b]
+            if w_full <= 0.5 or hw_a - hw_b <= 0.5:
+                continue
+            # smoothstep taper hw = w_full (1 - S(x)), x linear in s: invert S at the two
+            # stations and run x on to 1
+            y = np.clip(1.0 - np.array([hw_a, hw_b]) / w_full, 0.02, 0.98)
+            x = 0.5 - np.sin(np.arcsin(1.0 - 2.0 * y) / 3.0)
+            if x[1] - x[0] < 0.05:
+                continue
+            run_out = (1.0 - x[1]) * abs(grid[i_b] - grid[i_a]) / (x[1] - x[0])
+            s_zero = grid[i_b] + (run_out if end == "start" else -run_out)
+            for k, tr in enumerate(out):
+                s_tr = tr.lo if end == "start" else tr.hi
+                if not (grid[a] <= s_tr <= grid[b - 1]) or abs(s_tr - s_zero) > 25.0:
+                    continue
+                if tr.s.size < 20:
+                    continue
+                if end == "start":
+                    if s_zero >= s_tr:
+                        sel = tr.s >= s_zero
+                        new_s, new_d = tr.s[sel], tr.d[sel]
+                    else:
+                        ext = grid[(grid >= s_zero) & (grid < tr.s[0])]
+                        new_s = np.concatenate([ext, tr.s])
+                        new_d = np.concatenate([np.full(ext.size, tr.d[0]), tr.d])
+                    out[k] = replace(tr, lo=float(new_s[0]), s=new_s, d=new_d)
+                else:
+                    if s_zero <= s_tr:
+                        sel = tr.s <= s_zero
+                        new_s, new_d = tr.s[sel], tr.d[sel]
+                    else:
+                        ext = grid[(grid <= s_zero) & (grid > tr.s[-1])]
+                        new_s = np.concatenate([tr.s, ext])
+                        new_d = np.concatenate([tr.d, np.full(ext.size, tr.d[-1])])
+                    out[k] = replace(tr, hi=float(new_s[-1]), s=new_s, d=new_d)
+                log.info("mainline: gore in an occlusion gap placed at s=%.1f m", s_zero)
+    return out
+
+
+def _hermite01(x: FloatArray, v0: float, m0: float) -> FloatArray:
+    """Cubic from value ``v0`` with slope ``m0`` (per unit x) at x = 0 to value 0 with
+    slope 0 at x = 1."""
+    return v0 * (1.0 - x * x * (3.0 - 2.0 * x)) + m0 * x * (1.0 - x) ** 2
+
+
 def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
     """Offset of the outermost marking track at each grid station (-inf where none)."""
     d_last = np.full(grid.size, -np.inf)
@@ -490,10 +622,33 @@ def _bridge_edge_gaps(
         inner = d_last[a:b]
         ok = np.isfinite(inner)
         hw = (1 - x) * hw0 + x * hw1
-        # a lane that starts/ends inside the gap (a gore): each side keeps its own width
+        # a lane that starts/ends inside the gap (a gore): each side keeps its own width,
+        # unless the shoulder was seen narrowing towards the gore (entry) / widening from
+        # it (exit): then it tapers linearly from / to zero width at the gore
         jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
         if jump.size == 1:
-            hw = np.where(np.arange(b - a) < jump[0], hw0, hw1)
+            j = int(jump[0])  # grid[a + j] is the last station before the gore
+            k = np.arange(b - a)
+            hw = np.where(k < j, hw0, hw1)
+            # the trend over 20 m, 5 m away from the gap (the fit bends at its ends); the
+            # taper continues with the observed slope and reaches zero width flat (cubic)
+            i_a, i_b = i0 - 25, i0 - 5
+            if i_a >= 0 and np.all(np.isfinite(d_last[[i_a, i_b]])) and j > 0:
+                narrowing = (d_edge[i_a] - d_last[i_a]) - (d_edge[i_b] - d_last[i_b])
+                if narrowing > 0.5:
+                    before = k <= j
+                    x = (k[before] + 1) / (j + 1)
+                    m0 = -narrowing / 20.0 * (grid[a + j] - grid[i0])
+                    hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
+            i_a, i_b = i1 + 5, i1 + 25
+            n_after = b - a - (j + 1)
+            if i_b < grid.size and np.all(np.isfinite(d_last[[i_a, i_b]])) and n_after > 0:
+                widening = (d_edge[i_b] - d_last[i_b]) - (d_edge[i_a] - d_last[i_a])
+                if widening > 0.5:
+                    after = k > j
+                    x = (n_after - (k[after] - j - 1)) / (n_after + 1)  # 1 at the gore
+                    m1 = -widening / 20.0 * (grid[i1] - grid[a + j + 1])
+                    hw[after] = np.maximum(_hermite01(x, hw1, m1), 0.0)
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
 
@@ -811,6 +966,12 @@ def _link_sections(
                     used.add(j)
                     break
         for i, j in mapping.items():
+            # a lane whose width jumps at the boundary (the hard shoulder at a gore: the
+            # old one leaves with the ramp, the new one starts narrow) ends there
+            w_prev = float(prev_lanes[j].width.value(prev_len))
+            w_cur = float(cur_lanes[i].width.value(0.0))
+            if abs(w_prev - w_cur) > 0.05:
+                continue
             preds[n][i] = prev_lanes[j].id
             succs[n - 1][j] = cur_lanes[i].id
     out = []
@@ -819,8 +980,35 @@ def _link_sections(
             replace(ln, predecessor=preds[n].get(i), successor=succs[n].get(i))
             for i, ln in enumerate(_side_lanes(sec))
         )
+        if n > 0:
+            # linked lanes continue with the width they had (sections are fitted one by
+            # one to 1 cm; the checker flags jumps above 1 mm)
+            prev_len = sec.s0 - sections[n - 1].s0
+            by_id = {ln.id: ln for ln in _side_lanes(out[n - 1])}
+            lanes = tuple(
+                _continue_width(ln, float(by_id[ln.predecessor].width.value(prev_len)))
+                if ln.predecessor in by_id
+                else ln
+                for ln in lanes
+            )
         out.append(replace(sec, right=lanes) if sec.right else replace(sec, left=lanes))
     return out
+
+
+def _continue_width(lane: Lane, w_start: float) -> Lane:
+    """``lane`` with its first width piece corrected to start at ``w_start`` (metres); the
+    correction fades out linearly over that piece."""
+    pieces = lane.width.pieces
+    if not pieces:
+        return lane
+    p0 = pieces[0]
+    delta = w_start - p0.a
+    if abs(delta) < 1e-7:
+        return lane
+    span = (pieces[1].s0 if len(pieces) > 1 else p0.s0 + 1e9) - p0.s0
+    slope = -delta / span if len(pieces) > 1 else 0.0
+    first = replace(p0, a=p0.a + delta, b=p0.b + slope)
+    return replace(lane, width=replace(lane.width, pieces=(first, *pieces[1:])))
 
 
 def _events(

@@ -180,7 +180,65 @@ def fit_elevation(
         mad = float(np.median(np.abs(res))) * 1.4826
         keep = np.abs(res) <= max(4.0 * mad, 0.05)
     elevation = fit_cubic_profile(grid, e, tolerance=cfg.elevation_tolerance_m)
-    superelevation = None
-    if float(np.max(np.abs(g))) > cfg.superelevation_min_rad:
-        superelevation = fit_cubic_profile(grid, np.arctan(g), tolerance=1e-4)
+    # cross slope per bin and its weight sum_w (t - mean t)^2 (kept points only)
+    w = keep.astype(float)
+    sw = np.bincount(b, w, n)
+    st = np.bincount(b, w * t, n)
+    sz = np.bincount(b, w * z, n)
+    stt = np.bincount(b, w * t * t, n)
+    stz = np.bincount(b, w * t * z, n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mt, mz = st / sw, sz / sw
+        sxx = np.where(sw > 0, stt - sw * mt * mt, 0.0)
+        g_bin = np.where(sxx > sw, (stz - sw * mt * mz) / sxx, 0.0)
+    sxx = np.where(sxx > sw, sxx, 0.0)
+    sigma_z = max(float(np.median(np.abs(res[keep]))) * 1.4826, 1e-4) if np.any(keep) else 1.0
+    superelevation = _significant_cross_slope(grid, g, g_bin, sxx, sigma_z, cfg)
     return elevation, superelevation
+
+
+def _significant_cross_slope(
+    grid: FloatArray,
+    g_smooth: FloatArray,
+    g_bin: FloatArray,
+    sxx: FloatArray,
+    sigma_z: float,
+    cfg: MainlineConfig,
+) -> CubicProfile | None:
+    """Superelevation profile (radians) where the cross slope is real, else None.
+
+    Over every window of ``superelevation_min_length_m`` the least-squares cross slope
+    (``sum sxx_i g_i / sum sxx_i``) is compared with its standard error
+    ``sigma_z / sqrt(sum sxx_i)`` (``sigma_z``: robust height noise, metres). A stretch
+    counts where ``|mean| > superelevation_k_sigma * se`` and
+    ``|mean| > superelevation_min_rad`` for at least that length; elsewhere the slope is 0
+    (the height noise alone gives ~1e-4 rad wobble, not superelevation). Inside a stretch
+    the smoothed slope is kept; the profile eases in and out over half a window and is
+    fitted to ``superelevation_tolerance_rad`` (a few smooth cubic pieces).
+    """
+    step = float(grid[1] - grid[0])
+    n_win = max(3, round(cfg.superelevation_min_length_m / step))
+    if grid.size < n_win:
+        return None
+    cw = np.concatenate([[0.0], np.cumsum(sxx)])
+    cg = np.concatenate([[0.0], np.cumsum(sxx * g_bin)])
+    tot = cw[n_win:] - cw[:-n_win]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(tot > 0, (cg[n_win:] - cg[:-n_win]) / tot, 0.0)
+        se = np.where(tot > 0, sigma_z / np.sqrt(tot), np.inf)
+    sig_win = (np.abs(mean) > cfg.superelevation_k_sigma * se) & (
+        np.abs(mean) > cfg.superelevation_min_rad
+    )
+    if not np.any(sig_win):
+        return None
+    # bins covered by a significant window
+    cover = np.convolve(sig_win.astype(float), np.ones(n_win))[: grid.size] > 0
+    weight = np.convolve(cover.astype(float), np.ones(n_win) / n_win, mode="same")
+    weight = np.clip(weight, 0.0, 1.0)
+    value = np.arctan(g_smooth) * weight
+    log.info(
+        "mainline: superelevation over %.0f m (max |%.4f| rad)",
+        float(np.count_nonzero(cover)) * step,
+        float(np.max(np.abs(value))),
+    )
+    return fit_cubic_profile(grid, value, tolerance=cfg.superelevation_tolerance_rad)
