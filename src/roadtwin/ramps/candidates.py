@@ -1,0 +1,350 @@
+"""Algorithm 1 of the paper and ramp chains: directed OSM ``*_link`` edges near the
+trajectory, merged into chains, with the direction and side checks.
+
+All coordinates are in the mapping frame (metres, radians CCW from +x).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any
+
+import networkx as nx
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+
+from .._errors import InputError
+from ..config import RampConfig
+from ..fitting import PolylineFrame, arc_length, resample_polyline, savgol_smooth
+from .lanes import _first_value
+from .records import EdgeKey, FloatArray, RampCandidate, RampChain, RampType, TrafficSide
+
+log = logging.getLogger(__name__)
+
+# ---------------------------------------------------------------------------
+# the trajectory as a Frenet frame
+# ---------------------------------------------------------------------------
+
+
+class _Track:
+    """The driven path as a smooth 1 m Frenet frame with a KD-tree built once."""
+
+    def __init__(self, trajectory_xy: FloatArray) -> None:
+        xy = _dedupe_xy(np.asarray(trajectory_xy, dtype=float)[:, :2])
+        dense = resample_polyline(xy, 1.0)
+        smooth = savgol_smooth(dense, window=21, polyorder=2)
+        smooth[0], smooth[-1] = dense[0], dense[-1]
+        self.frame = PolylineFrame.from_points(smooth)
+        self.tree = cKDTree(self.frame.xy)
+        self.length = self.frame.length
+
+    def project(self, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Frenet ``(s, t)`` of ``(N, 2)`` points (metres; t left positive)."""
+        pts = np.asarray(points, dtype=float)[:, :2]
+        _, idx = self.tree.query(pts)
+        f = self.frame
+        s = f.s[idx] + np.einsum("ij,ij->i", pts - f.xy[idx], f.tangent[idx])
+        xy_r, tg_r = f.at(np.clip(s, 0.0, f.length))
+        s = np.where((s >= 0.0) & (s <= f.length), s + np.einsum("ij,ij->i", pts - xy_r, tg_r), s)
+        xy_r, tg_r = f.at(np.clip(s, 0.0, f.length))
+        d = pts - xy_r
+        return s, tg_r[:, 0] * d[:, 1] - tg_r[:, 1] * d[:, 0]
+
+    def heading(self, s: FloatArray) -> FloatArray:
+        """Heading (radians) of the driven path at stations ``s``."""
+        _, tg = self.frame.at(np.clip(s, 0.0, self.length))
+        return np.arctan2(tg[..., 1], tg[..., 0])
+
+
+def _wrap(angle: FloatArray | float) -> FloatArray | float:
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _edge_xy(graph: nx.MultiDiGraph, u: Any, v: Any, key: int) -> FloatArray:
+    data = graph.edges[u, v, key]
+    geom = data.get("geometry")
+    if geom is not None:
+        return np.asarray(geom.coords, dtype=float)[:, :2]
+    nu, nv = graph.nodes[u], graph.nodes[v]
+    return np.array([[nu["x"], nu["y"]], [nv["x"], nv["y"]]], dtype=float)
+
+
+def _end_heading(xy: FloatArray, *, at_start: bool, reach_m: float = 8.0) -> float:
+    """Heading of a polyline at its start (pointing forward) or end, over ``reach_m``."""
+    s = arc_length(xy)
+    if at_start:
+        j = int(min(np.searchsorted(s, min(reach_m, s[-1])), len(s) - 1))
+        d = xy[j] - xy[0]
+    else:
+        j = int(max(np.searchsorted(s, max(s[-1] - reach_m, 0.0), side="right") - 1, 0))
+        d = xy[-1] - xy[j]
+    return math.atan2(d[1], d[0])
+
+
+def _dedupe_xy(xy: FloatArray) -> FloatArray:
+    keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-9])
+    out = xy[keep]
+    if out.shape[0] < 2:
+        msg = "ramps: the trajectory needs at least two distinct poses"
+        raise InputError(msg)
+    return out
+
+
+def _is_link(data: dict[str, Any]) -> bool:
+    hw = data.get("highway", "")
+    hw = " ".join(hw) if isinstance(hw, (list, tuple)) else str(hw)
+    return "_link" in hw
+
+
+# ---------------------------------------------------------------------------
+# Algorithm 1 and chains
+# ---------------------------------------------------------------------------
+
+
+def find_candidates(
+    osm_graph: nx.MultiDiGraph, trajectory_xy: FloatArray, *, config: RampConfig | None = None
+) -> tuple[RampCandidate, ...]:
+    """Algorithm 1: directed ``*_link`` edges within ``d_r`` of the trajectory.
+
+    Parameters
+    ----------
+    osm_graph
+        OSM graph projected into the mapping frame (``roadtwin.osm.load_osm``).
+    trajectory_xy
+        ``(N, 2)`` vehicle positions, mapping frame, metres.
+    config
+        ``candidate_distance_m`` is ``d_r``.
+
+    Returns
+    -------
+    Candidates sorted by (distance, way id) -- deterministic.
+    """
+    cfg = config or RampConfig()
+    traj_xy = _dedupe_xy(np.asarray(trajectory_xy, dtype=float)[:, :2])
+    # coarse distances from a KD-tree of the trajectory resampled at 1 m (error < 0.5 m),
+    # exact ones (shapely) only near d_r, against the stretch of trajectory concerned
+    traj_s = arc_length(traj_xy)
+    step = 1.0
+    n = max(2, math.ceil(traj_s[-1] / step) + 1)
+    dense_s = np.linspace(0.0, traj_s[-1], n)
+    dense = np.stack([np.interp(dense_s, traj_s, traj_xy[:, j]) for j in range(2)], axis=1)
+    tree = cKDTree(dense)
+    out = []
+    for u, v, k, data in osm_graph.edges(keys=True, data=True):
+        if not _is_link(data):
+            continue
+        xy = _edge_xy(osm_graph, u, v, k)
+        coarse, idx = tree.query(resample_polyline(xy, step))
+        if float(coarse.min()) > cfg.candidate_distance_m + step:
+            continue
+        s_lo, s_hi = dense_s[max(int(idx.min()) - 2, 0)], dense_s[min(int(idx.max()) + 2, n - 1)]
+        a = max(int(np.searchsorted(traj_s, s_lo, side="right")) - 2, 0)
+        b = min(int(np.searchsorted(traj_s, s_hi)) + 2, len(traj_s))
+        d = shapely.distance(shapely.LineString(xy), shapely.LineString(traj_xy[a:b]))
+        if d <= cfg.candidate_distance_m:
+            data = osm_graph.edges[u, v, k]
+            hw = data.get("highway", "")
+            out.append(
+                RampCandidate(
+                    u,
+                    v,
+                    k,
+                    " ".join(hw) if isinstance(hw, list) else str(hw),
+                    _first_value(data.get("osmid")),
+                    float(d),
+                )
+            )
+    out.sort(key=lambda c: (round(c.distance_m, 6), str(c.osm_way_id), str(c.u), str(c.v)))
+    return tuple(out)
+
+
+def _mainline_nodes(
+    osm_graph: nx.MultiDiGraph, track: _Track, cfg: RampConfig
+) -> dict[Any, EdgeKey]:
+    """OSM nodes on the driven carriageway -> one aligned non-link edge at that node."""
+    max_dh = math.radians(cfg.max_heading_diff_deg)
+    node_ids = list(osm_graph.nodes)
+    if not node_ids:
+        return {}
+    pts = np.array([[osm_graph.nodes[n]["x"], osm_graph.nodes[n]["y"]] for n in node_ids])
+    s, t = track.project(pts)
+    near = (np.abs(t) <= cfg.mainline_match_m) & (s >= -cfg.mainline_match_m)
+    near &= s <= track.length + cfg.mainline_match_m
+    near_nodes = {n: float(si) for n, si, ok in zip(node_ids, s, near, strict=False) if ok}
+    out: dict[Any, EdgeKey] = {}
+    for n, sn in near_nodes.items():
+        h_track = float(track.heading(np.array([sn]))[0])
+        edges = [(u, v, k, True) for u, v, k in osm_graph.out_edges(n, keys=True)]
+        edges += [(u, v, k, False) for u, v, k in osm_graph.in_edges(n, keys=True)]
+        for u, v, k, outgoing in sorted(edges, key=lambda e: (str(e[0]), str(e[1]), e[2])):
+            data = osm_graph.edges[u, v, k]
+            if _is_link(data):
+                continue
+            xy = _edge_xy(osm_graph, u, v, k)
+            h = _end_heading(xy, at_start=outgoing)
+            if abs(float(_wrap(h - h_track))) <= max_dh:
+                out[n] = (u, v, k)
+                break
+    return out
+
+
+def _follow(
+    osm_graph: nx.MultiDiGraph,
+    first: EdgeKey,
+    *,
+    forward: bool,
+    stop_nodes: dict[Any, EdgeKey],
+    max_length_m: float,
+) -> list[EdgeKey]:
+    """Link edges from ``first`` onward (or backward) until a junction, the carriageway or
+    ``max_length_m``."""
+    chain = [first]
+    length = float(arc_length(_edge_xy(osm_graph, *first))[-1])
+    seen = {first[0], first[1]}
+    while length < max_length_m:
+        node = chain[-1][1] if forward else chain[-1][0]
+        if node in stop_nodes:
+            break
+        outs = [e for e in osm_graph.out_edges(node, keys=True) if _is_link(osm_graph.edges[e])]
+        ins = [e for e in osm_graph.in_edges(node, keys=True) if _is_link(osm_graph.edges[e])]
+        # a junction: any non-link road meets here, or the link forks/joins
+        others = [
+            e
+            for e in (*osm_graph.out_edges(node, keys=True), *osm_graph.in_edges(node, keys=True))
+            if not _is_link(osm_graph.edges[e])
+        ]
+        if others or len(outs) != 1 or len(ins) != 1:
+            break
+        nxt = outs[0] if forward else ins[0]
+        far = nxt[1] if forward else nxt[0]
+        if far in seen:
+            break
+        seen.add(far)
+        chain.append(nxt)
+        length += float(arc_length(_edge_xy(osm_graph, *nxt))[-1])
+    return chain if forward else chain[::-1]
+
+
+def _chain_xy(osm_graph: nx.MultiDiGraph, edges: list[EdgeKey]) -> FloatArray:
+    parts = [_edge_xy(osm_graph, *e) for e in edges]
+    xy = np.vstack([parts[0], *[p[1:] for p in parts[1:]]])
+    keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-6])
+    return xy[keep]
+
+
+def extract_ramp_chains(
+    osm_graph: nx.MultiDiGraph,
+    trajectory_xy: FloatArray,
+    *,
+    traffic_side: TrafficSide = "right",
+    candidates: tuple[RampCandidate, ...] | None = None,
+    config: RampConfig | None = None,
+) -> tuple[tuple[RampChain, ...], tuple[tuple[str, str], ...]]:
+    """Merge candidate link edges into ramp chains attached to the driven carriageway.
+
+    A candidate attaches where one of its nodes is on the driven carriageway (an OSM node
+    near the trajectory with a non-link edge in the driven direction). Paper's rule: the
+    ramp is a merge (``"entry"``) if its edge ends on the carriageway (``v_r`` in
+    ``{u_m, v_m}``), else an exit. The chain is followed away from the carriageway along
+    link edges up to ``max_ramp_length_m`` or the next junction. Chains are rejected when
+    the ramp's heading at the attachment differs from the driven direction by more than
+    ``max_heading_diff_deg`` or when the ramp lies on the wrong side of the trajectory
+    (left for right-hand traffic).
+
+    Returns
+    -------
+    (chains, rejected)
+        Chains sorted by attachment station; ``rejected`` lists ``(what, reason)``.
+    """
+    cfg = config or RampConfig()
+    if candidates is None:
+        candidates = find_candidates(osm_graph, trajectory_xy, config=cfg)
+    track = _Track(trajectory_xy)
+    on_carriageway = _mainline_nodes(osm_graph, track, cfg)
+    side_sign = -1.0 if traffic_side == "right" else 1.0
+    max_dh = math.radians(cfg.max_heading_diff_deg)
+
+    chains: list[tuple[float, RampChain]] = []
+    rejected: list[tuple[str, str]] = []
+    covered: set[EdgeKey] = set()
+    attached = []
+    for cand in candidates:
+        e = (cand.u, cand.v, cand.key)
+        u_on, v_on = cand.u in on_carriageway, cand.v in on_carriageway
+        if u_on and v_on:
+            rejected.append((f"way {cand.osm_way_id}", "both ends on the driven carriageway"))
+            covered.add(e)
+        elif u_on or v_on:
+            attached.append((cand, "entry" if v_on else "exit"))
+    for cand, ramp_type in attached:
+        e = (cand.u, cand.v, cand.key)
+        if e in covered:
+            continue
+        attach = cand.v if ramp_type == "entry" else cand.u
+        edges = _follow(
+            osm_graph,
+            e,
+            forward=ramp_type == "exit",
+            stop_nodes=on_carriageway,
+            max_length_m=cfg.max_ramp_length_m,
+        )
+        covered.update(edges)
+        xy = _chain_xy(osm_graph, edges)
+        ways = tuple(dict.fromkeys(_first_value(osm_graph.edges[x].get("osmid")) for x in edges))
+        what = f"ways {', '.join(str(w) for w in ways)} ({ramp_type})"
+        # direction check at the attachment
+        node_xy = np.array([[osm_graph.nodes[attach]["x"], osm_graph.nodes[attach]["y"]]])
+        s_att, _ = track.project(node_xy)
+        h_track = float(track.heading(s_att)[0])
+        h_ramp = _end_heading(xy, at_start=ramp_type == "exit")
+        dh = abs(float(_wrap(h_ramp - h_track)))
+        if dh > max_dh:
+            rejected.append(
+                (what, f"heading at the attachment {math.degrees(dh):.0f} deg off the drive")
+            )
+            continue
+        # side check on the part away from the attachment
+        s_pts, t_pts = track.project(xy)
+        along = arc_length(xy)
+        dist_from_attach = along if ramp_type == "exit" else along[-1] - along
+        away = dist_from_attach > min(20.0, 0.5 * along[-1])
+        t_away = t_pts[away] if np.any(away) else t_pts
+        if float(np.median(t_away)) * side_sign <= 0.0:
+            side = "left" if side_sign < 0 else "right"
+            rejected.append((what, f"lies {side} of the drive (opposite carriageway side)"))
+            continue
+        # geometry cross-check: which end lies nearer the trajectory
+        d_start, d_end = abs(float(t_pts[0])), abs(float(t_pts[-1]))
+        in_start = -5.0 <= s_pts[0] <= track.length + 5.0
+        in_end = -5.0 <= s_pts[-1] <= track.length + 5.0
+        if in_start and not in_end:
+            d_end = math.inf
+        elif in_end and not in_start:
+            d_start = math.inf
+        type_geometry: RampType = "exit" if d_start <= d_end else "entry"
+        tags = dict(osm_graph.edges[edges[0] if ramp_type == "exit" else edges[-1]])
+        tags.pop("geometry", None)
+        chain = RampChain(
+            edges=tuple(edges),
+            osm_way_ids=ways,
+            attach_node=attach,
+            mainline_edge=on_carriageway[attach],
+            type=ramp_type,  # type: ignore[arg-type]
+            type_geometry=type_geometry,
+            xy=xy,
+            tags=tags,
+        )
+        chains.append((float(s_att[0]), chain))
+    for cand in candidates:
+        if (cand.u, cand.v, cand.key) not in covered:
+            rejected.append((f"way {cand.osm_way_id}", "not attached to the driven carriageway"))
+    chains.sort(key=lambda c: (c[0], c[1].type))
+    log.info(
+        "ramp chains: %d from %d candidates (%d rejected)",
+        len(chains),
+        len(candidates),
+        len(rejected),
+    )
+    return tuple(c for _, c in chains), tuple(rejected)
