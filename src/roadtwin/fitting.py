@@ -358,6 +358,43 @@ def _cubic_eval(coef: FloatArray, p: FloatArray) -> FloatArray:
     return coef[0] + p[:, None] * (coef[1] + p[:, None] * (coef[2] + p[:, None] * coef[3]))
 
 
+def local_cubic_piece(
+    s0: float, start_xy: ArrayLike, hdg_rad: float, coef_local: FloatArray, length_m: float
+) -> ParamPoly3:
+    """A normalized ParamPoly3 from a cubic already expressed in its local frame.
+
+    Parameters
+    ----------
+    s0
+        Road station of the piece start (metres).
+    start_xy
+        Start point, mapping frame (metres).
+    hdg_rad
+        Heading of the local u axis (radians); the curve must start along it, so
+        ``coef_local[0] == 0`` and ``coef_local[1, 1] == 0``.
+    coef_local
+        ``(4, 2)`` power-basis coefficients of ``(u(p), v(p))`` for ``p`` in ``[0, 1]``.
+    length_m
+        True arc length of the piece (metres).
+    """
+    return ParamPoly3(
+        s0,
+        float(start_xy[0]),
+        float(start_xy[1]),
+        hdg_rad,
+        length_m,
+        aU=0.0,
+        bU=float(coef_local[1, 0]),
+        cU=float(coef_local[2, 0]),
+        dU=float(coef_local[3, 0]),
+        aV=0.0,
+        bV=0.0,
+        cV=float(coef_local[2, 1]),
+        dV=float(coef_local[3, 1]),
+        p_range="normalized",
+    )
+
+
 def _cubic_arc_length(coef: FloatArray) -> float:
     """True arc length of a planar cubic on p in [0, 1] (Gauss-Legendre, 4 sub-intervals)."""
     total = 0.0
@@ -469,24 +506,7 @@ def fit_parampoly3_chain(
         loc = coef @ rot.T
         loc[0] = 0.0
         length = _cubic_arc_length(coef)
-        out.append(
-            ParamPoly3(
-                s0,
-                float(p0[0]),
-                float(p0[1]),
-                hdg,
-                length,
-                aU=0.0,
-                bU=float(loc[1, 0]),
-                cU=float(loc[2, 0]),
-                dU=float(loc[3, 0]),
-                aV=0.0,
-                bV=0.0,
-                cV=float(loc[2, 1]),
-                dV=float(loc[3, 1]),
-                p_range="normalized",
-            )
-        )
+        out.append(local_cubic_piece(s0, p0, hdg, loc, length))
         s0 += length
     return tuple(out)
 

@@ -15,6 +15,7 @@ from ..config import MainlineConfig
 from ..fitting import (
     PolylineFrame,
     binned_quantile,
+    local_cubic_piece,
     resample_polyline,
     savgol_smooth,
 )
@@ -25,7 +26,6 @@ from ..model import (
     Geometry,
     Lane,
     LaneSection,
-    ParamPoly3,
     Road,
     RoadMark,
 )
@@ -98,24 +98,7 @@ def _build_paper(run: MappingRun, cfg: MainlineConfig, timings: dict[str, float]
 
         coef_g = np.stack([UVr[:, 0], UVr[:, 1]], axis=1)
         length = _cubic_arc_length(coef_g)
-        pieces.append(
-            ParamPoly3(
-                s0,
-                float(x0[0]),
-                float(x0[1]),
-                ang + hdg_loc,
-                length,
-                aU=0.0,
-                bU=float(UVr[1, 0]),
-                cU=float(UVr[2, 0]),
-                dU=float(UVr[3, 0]),
-                aV=0.0,
-                bV=0.0,
-                cV=float(UVr[2, 1]),
-                dV=float(UVr[3, 1]),
-                p_range="normalized",
-            )
-        )
+        pieces.append(local_cubic_piece(s0, x0, ang + hdg_loc, UVr, length))
         s0 += length
     if not pieces:
         raise InputError("mainline (paper): no window has enough median-side edge points")
