@@ -249,14 +249,9 @@ def test_run_ending_just_after_the_exit_gore(base):
     assert row["edge_rmse"] <= EDGE_RMSE_MAX_M, (row["edge_rmse"], row["spikes"])
 
 
-@pytest.mark.xfail(
-    reason="left_hand_2km entry gore (1250 m) lies in a truck occlusion of the outer edge "
-    "(1218-1280 m): mainline.lanes._gores_from_shoulder_taper extrapolates the smoothed "
-    "hard-shoulder taper from two stations and places the gore at 1253 m, so the outer "
-    "edge is metres off near the gore (outer-edge RMSE 0.27 m)",
-    strict=True,
-)
 def test_left_hand_demo_edge_accuracy(tmp_path):
+    """left_hand_2km's entry gore (1250 m) lies in a truck occlusion of the outer edge
+    (1213-1283 m); the marking's solid/broken change and the hard-shoulder taper place it."""
     run_dir = rb.simulate_base("left_hand_2km", tmp_path / "run")
     row = rb.build_and_evaluate(run_dir, tmp_path / "out", roundtrip=False)
     assert row["ok"], row.get("error")

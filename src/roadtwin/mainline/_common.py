@@ -154,13 +154,19 @@ def robust_offset_fit(
     mad_k: float,
     min_threshold_m: float,
     iterations: int = 2,
+    local_sigma_ends_m: float | None = None,
 ) -> tuple[FloatArray, NDArray[np.bool_], FloatArray]:
     """Smooth function t(s) on a regular grid from scattered samples, robustly.
 
     First a per-bin median and a moving median give a robust prior; samples farther from
-    it than ``mad_k`` local robust sigmas (and ``min_threshold_m``) are dropped; inlier bin
+    it than ``mad_k`` robust sigmas (and ``min_threshold_m``) are dropped; inlier bin
     means weighted by counts are smoothed by a Whittaker smoother (gaps bridged); the
-    rejection is repeated against the smooth fit.
+    rejection is repeated against the smooth fit. The sigma is local (a moving median of
+    the absolute residuals). With ``local_sigma_ends_m`` (metres) it is local only that
+    close to the first and last sample and one sigma for all samples in between, so that a
+    second line running close beside the fitted one over a short stretch (a ramp marking
+    joining a lane marking) cannot inflate it there, while a taper at an end of a marking,
+    which the smoother follows late, keeps its samples.
 
     Returns
     -------
@@ -182,7 +188,11 @@ def robust_offset_fit(
         absres = np.abs(res)
         med_abs, _, _ = binned_statistics(s, absres, edges)
         sigma = 1.4826 * _fill_nan(grid, moving_median(med_abs, window=max(win, 11)))
-        thr = np.maximum(mad_k * np.interp(s, grid, sigma), min_threshold_m)
+        sigma_s = np.interp(s, grid, sigma)
+        if local_sigma_ends_m is not None:
+            inside = (s > s.min() + local_sigma_ends_m) & (s < s.max() - local_sigma_ends_m)
+            sigma_s[inside] = 1.4826 * float(np.median(absres))
+        thr = np.maximum(mad_k * sigma_s, min_threshold_m)
         inlier = absres <= thr
         _, mean, count = binned_statistics(s[inlier], t[inlier], edges)
         w = count.astype(float)

@@ -136,6 +136,10 @@ def _cut_lane(lane: Lane, ds: float, keep_pred: bool, keep_succ: bool, span: flo
     )
 
 
+_SECTION_TOL_M = 1e-3
+"""Lane sections shorter than this (metres) are not cut off at a road's ends."""
+
+
 def cut_road(road: Road, s_start: float, s_end: float, *, road_id: str) -> Road:
     """The exact part of ``road`` between stations ``s_start`` and ``s_end``.
 
@@ -169,14 +173,16 @@ def cut_road(road: Road, s_start: float, s_end: float, *, road_id: str) -> Road:
         geo.append(_cut_geometry(g, lo, hi, lo - a))
     # true arc lengths of cut normalized pieces: later pieces start where these end
     geo = list(chain_geometry(geo))
+    # a section that starts within a millimetre of a cut (a cut at a gore, where a section
+    # starts too) belongs to the side it starts on: no zero-length sections
     sec_s0 = np.array([sc.s0 for sc in road.lane_sections])
-    i0 = max(int(np.searchsorted(sec_s0, a, side="right")) - 1, 0)
+    i0 = max(int(np.searchsorted(sec_s0, a + _SECTION_TOL_M, side="right")) - 1, 0)
     secs = [road.lane_sections[i0]] + [
-        sc for sc in road.lane_sections[i0 + 1 :] if sc.s0 < b - 1e-9
+        sc for sc in road.lane_sections[i0 + 1 :] if sc.s0 < b - _SECTION_TOL_M
     ]
     new_secs: list[LaneSection] = []
     for j, sc in enumerate(secs):
-        sa = max(sc.s0, a)
+        sa = a if j == 0 else sc.s0
         nxt = secs[j + 1].s0 if j + 1 < len(secs) else b
         span = min(nxt, b) - sa
         ds = sa - sc.s0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -29,6 +29,7 @@ from ._common import (
     _grid,
     robust_offset_fit,
 )
+from .gores import ShoulderTaper, fit_shoulder_taper, fuse_gore_estimates, marking_gore_interval
 
 log = logging.getLogger(__name__)
 
@@ -173,14 +174,22 @@ def _refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, sta
 
 
 def fit_outer_edge(
-    s: FloatArray, d: FloatArray, grid: FloatArray, *, config: MainlineConfig | None = None
-) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    s: FloatArray,
+    d: FloatArray,
+    grid: FloatArray,
+    *,
+    config: MainlineConfig | None = None,
+    hidden_steps: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
     """Outer road edge ``d_E(s)`` on ``grid`` from the outer-side edge points.
 
     The outer side also holds ramp edges beyond a gore and outward outliers (guardrails,
     vegetation), so the mainline edge is taken as the LOWEST cluster of offsets (near the
     first quartile of each bin). Steps (gores, where the edge jumps by a lane) split the
     fit into independent segments.
+
+    ``hidden_steps`` (metres) are steps that an occlusion hid (gores placed from other
+    evidence); the fit is split there too, so that it does not bend across them.
 
     Returns
     -------
@@ -190,7 +199,6 @@ def fit_outer_edge(
     covered : (G,) grid stations with edge points within 3 m (False in occlusion gaps).
     """
     cfg = config or MainlineConfig()
-    step = float(grid[1] - grid[0])
     used = np.zeros(s.size, dtype=bool)
     ok = np.isfinite(s) & np.isfinite(d) & (d > 0.5)
     if np.count_nonzero(ok) < 10:
@@ -220,8 +228,10 @@ def fit_outer_edge(
         for b in breaks
     ]
     breaks = breaks[np.asarray(real, dtype=bool)] if breaks.size else breaks
-    # on the grid, so that edge segments and lane sections start at the same station
-    breaks = grid[0] + step * np.rint((breaks - grid[0]) / step)
+    if hidden_steps is not None and len(hidden_steps):
+        breaks = np.sort(np.concatenate([breaks, np.asarray(hidden_steps, dtype=float)]))
+    # kept off the grid: a lane section starts exactly at a step (the first grid station of
+    # its segment is the first one at or after it), as its edge segment does
     bounds = np.concatenate([[grid[0] - 1.0], breaks, [grid[-1] + 1.0]])
     # lower-cluster reference per segment (the moving median must not mix the levels of
     # two sides of a step)
@@ -309,9 +319,19 @@ def fit_lanes(
         breaks = np.zeros(0)
     else:
         tracks, gores = _snap_to_hidden_gores(tracks, evidence, covered, grid, cfg)
-        breaks = np.sort(np.concatenate([breaks, gores]))
-        tracks = _gores_from_shoulder_taper(tracks, d_edge, covered, grid)
-        d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+        taper_length = _visible_taper_length(
+            breaks, d_edge, tracks, s_outer[used], d_outer[used], grid
+        )
+        tracks, placed, tapers = _place_hidden_gores(
+            tracks, s_outer[used], d_outer[used], covered, grid, taper_length
+        )
+        # a placed gore replaces the ramp-line estimate of the same gore
+        hidden = [g for g in gores if all(abs(g - p) > 40.0 for p in placed)] + placed
+        if hidden:
+            d_edge, breaks, used, covered = fit_outer_edge(
+                s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden)
+            )
+        d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
     sections, events, out_tracks = _sections_from_tracks(tracks, grid, d_edge, breaks, sign, cfg)
     return sections, events, out_tracks, used
@@ -326,7 +346,8 @@ class _Track:
     d: FloatArray
     mark: str
     n: int
-    s_samples: FloatArray
+    s_samples: FloatArray  # stations of the inlier samples, sorted
+    d_samples: FloatArray = field(default_factory=lambda: np.zeros(0))  # their offsets
 
 
 def _tracks_from_samples(
@@ -398,6 +419,7 @@ def _tracks_from_samples(
             cutoff_m=cfg.lane_smoothing_m,
             mad_k=cfg.edge_outlier_mad,
             min_threshold_m=cfg.edge_outlier_min_m,
+            local_sigma_ends_m=2.0 * cfg.lane_smoothing_m,
         )
         keep_g = _trim_ramp_lines(g, fit, cfg)
         if not keep_g[-1] or not keep_g[0]:
@@ -415,10 +437,11 @@ def _tracks_from_samples(
             continue
         g, fit = g[keep_g], fit[keep_g]
         lo, hi = float(g[0]), float(g[-1])
-        ss = ss_all[inl]
-        ss = ss[(ss >= lo - 1.0) & (ss <= hi + 1.0)]
+        ss, dd = ss_all[inl], d[sel][inl]
+        within = (ss >= lo - 1.0) & (ss <= hi + 1.0)
+        ss, dd = ss[within], dd[within]  # sorted by station already
         mark = _mark_type(ss, lo, hi, cfg)
-        final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), np.sort(ss)))
+        final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
     return _merge_collinear(final, cfg), evidence
 
 
@@ -520,71 +543,145 @@ def _snap_to_hidden_gores(
     return out, np.asarray(gores, dtype=float)
 
 
-def _gores_from_shoulder_taper(
-    tracks: list[_Track], d_edge: FloatArray, covered: NDArray[np.bool_], grid: FloatArray
-) -> list[_Track]:
-    """Gore stations inside occlusion gaps of the outer edge from the hard shoulder.
+def _gap_runs(covered: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Index ranges ``[a, b)`` of the grid stations without outer-edge points."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
-    Before an entry gore the hard shoulder narrows to zero width at the gore (after an
-    exit gore it widens from zero). Where the outer edge was seen narrowing (widening) by
-    more than 0.5 m over the 20 m before (after) a gap, the narrowing is continued as a
-    cubic taper (zero slope at zero width: 1.5 x the linear run-out); an outer marking
-    that starts (ends) inside the gap within 25 m of where that taper reaches zero is
-    moved there (a ramp line joining it tangentially makes it start early, an occluded
-    piece late).
+
+def _place_hidden_gores(
+    tracks: list[_Track],
+    s_out: FloatArray,
+    d_out: FloatArray,
+    covered: NDArray[np.bool_],
+    grid: FloatArray,
+    taper_length_m: float | None = None,
+) -> tuple[list[_Track], list[float], list[ShoulderTaper]]:
+    """Gore stations inside occlusion gaps of the outer edge.
+
+    For an outer marking that starts (entry) or ends (exit) inside a gap while the through
+    lanes' outer marking runs on, the gore is placed by the marking's solid/broken change
+    and the hard-shoulder taper seen before (entry) / after (exit) the gap
+    (:mod:`roadtwin.mainline.gores`), and the marking is cut or extended to it. ``s_out``,
+    ``d_out``: the outer-edge points of the mainline edge (metres, reference frame).
+    Where the taper was not seen at all, the run's own taper length at gores that were
+    seen (``taper_length_m``) shapes it, if the shoulder was seen at full width up to
+    where that taper would begin.
+    Returns the tracks, the gore stations placed and the shoulder tapers.
     """
     out = list(tracks)
-    d_last = _last_marking(tracks, grid)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
-        if a < 26 or b + 25 >= grid.size:
+    placed: list[float] = []
+    tapers: list[ShoulderTaper] = []
+    step = float(grid[1] - grid[0])
+    for a, b in _gap_runs(covered):
+        if a == 0 or b >= grid.size:
             continue
-        i0, i1 = a - 1, b
-        for end in ("start", "end"):
-            if end == "start":
-                i_w, i_a, i_b = i0 - 80, i0 - 30, i0 - 10
-            else:
-                i_w, i_a, i_b = i1 + 80, i1 + 30, i1 + 10
-            if not 0 <= i_w < grid.size or not np.all(np.isfinite(d_last[[i_w, i_a, i_b]])):
-                continue
-            w_full = d_edge[i_w] - d_last[i_w]
-            hw_a, hw_b = d_edge[i_a] - d_last[i_a], d_edge[i_b] - d_last[i_b]
-            if w_full <= 0.5 or hw_a - hw_b <= 0.5:
-                continue
-            # smoothstep taper hw = w_full (1 - S(x)), x linear in s: invert S at the two
-            # stations and run x on to 1
-            y = np.clip(1.0 - np.array([hw_a, hw_b]) / w_full, 0.02, 0.98)
-            x = 0.5 - np.sin(np.arcsin(1.0 - 2.0 * y) / 3.0)
-            if x[1] - x[0] < 0.05:
-                continue
-            run_out = (1.0 - x[1]) * abs(grid[i_b] - grid[i_a]) / (x[1] - x[0])
-            s_zero = grid[i_b] + (run_out if end == "start" else -run_out)
-            for k, tr in enumerate(out):
-                s_tr = tr.lo if end == "start" else tr.hi
-                if not (grid[a] <= s_tr <= grid[b - 1]) or abs(s_tr - s_zero) > 25.0:
+        s_a, s_b = float(grid[a]), float(grid[b - 1])
+        for k in range(len(out)):
+            for entry in (True, False):
+                tr = out[k]
+                s_tip = tr.lo if entry else tr.hi
+                beyond = tr.hi - s_b if entry else s_a - tr.lo
+                if not (s_a - step <= s_tip <= s_b + step) or tr.s.size < 20 or beyond < 20.0:
                     continue
-                if tr.s.size < 20:
+                d_tip = float(tr.d[0] if entry else tr.d[-1])
+                through = [
+                    t
+                    for t in out
+                    if t is not tr
+                    and t.lo <= s_tip - 40.0
+                    and t.hi >= s_tip + 40.0
+                    and np.interp(s_tip, t.s, t.d) < d_tip - 1.0
+                ]
+                if not through:
                     continue
-                if end == "start":
-                    if s_zero >= s_tr:
-                        sel = tr.s >= s_zero
-                        new_s, new_d = tr.s[sel], tr.d[sel]
-                    else:
-                        ext = grid[(grid >= s_zero) & (grid < tr.s[0])]
-                        new_s = np.concatenate([ext, tr.s])
-                        new_d = np.concatenate([np.full(ext.size, tr.d[0]), tr.d])
-                    out[k] = replace(tr, lo=float(new_s[0]), s=new_s, d=new_d)
+                nb = max(through, key=lambda t: float(np.interp(s_tip, t.s, t.d)))
+                interval = marking_gore_interval(nb.s_samples, s_tip, entry=entry)
+                if entry:
+                    sel = (s_out > max(s_a - 200.0, nb.lo)) & (s_out < s_a)
                 else:
-                    if s_zero <= s_tr:
-                        sel = tr.s <= s_zero
-                        new_s, new_d = tr.s[sel], tr.d[sel]
-                    else:
-                        ext = grid[(grid <= s_zero) & (grid > tr.s[-1])]
-                        new_s = np.concatenate([tr.s, ext])
-                        new_d = np.concatenate([tr.d, np.full(ext.size, tr.d[-1])])
-                    out[k] = replace(tr, hi=float(new_s[-1]), s=new_s, d=new_d)
-                log.info("mainline: gore in an occlusion gap placed at s=%.1f m", s_zero)
-    return out
+                    sel = (s_out > s_b) & (s_out < min(s_b + 200.0, nb.hi))
+                width = d_out[sel] - np.interp(s_out[sel], nb.s, nb.d)
+                taper = fit_shoulder_taper(s_out[sel], width, entry=entry)
+                if interval is None and taper is None:
+                    continue
+                s_gore = fuse_gore_estimates(interval, taper, s_tip)
+                if abs(s_gore - s_tip) > 40.0:
+                    continue
+                out[k] = _move_track_end(tr, s_gore, grid, start=entry)
+                placed.append(s_gore)
+                if taper is not None:
+                    tapers.append(replace(taper, s_gore=s_gore))
+                elif taper_length_m is not None and width.size >= 10:
+                    s_w = s_out[sel]
+                    near = np.abs(s_w - (s_a if entry else s_b)) < 30.0
+                    begins = s_gore - taper_length_m if entry else s_gore + taper_length_m
+                    seen_flat = begins >= s_a - 10.0 if entry else begins <= s_b + 10.0
+                    if np.count_nonzero(near) >= 10 and seen_flat:
+                        full = float(np.median(width[near]))
+                        tapers.append(ShoulderTaper(s_gore, taper_length_m, full, entry, math.nan))
+                log.info(
+                    "mainline: %s gore in an occlusion gap at s=%.1f m (marking interval %s, "
+                    "shoulder taper %s)",
+                    "entry" if entry else "exit",
+                    s_gore,
+                    "none" if interval is None else f"{interval[0]:.1f}..{interval[1]:.1f}",
+                    "none" if taper is None else f"{taper.s_gore:.1f}",
+                )
+    return out, placed, tapers
+
+
+def _visible_taper_length(
+    steps: FloatArray,
+    d_edge: FloatArray,
+    tracks: list[_Track],
+    s_out: FloatArray,
+    d_out: FloatArray,
+    grid: FloatArray,
+) -> float | None:
+    """Median length (metres) of the hard-shoulder tapers fitted at the seen edge steps
+    (gores), or None if none could be fitted."""
+    d_last = _last_marking(tracks, grid)
+    lengths = []
+    for b in steps:
+        i = int(np.searchsorted(grid, b))
+        if i < 5 or i + 5 >= grid.size:
+            continue
+        entry = bool(d_edge[i + 3] > d_edge[i - 3])  # the edge steps out: a lane begins
+        sel = (s_out > b - 200.0) & (s_out < b) if entry else (s_out > b) & (s_out < b + 200.0)
+        mark = np.interp(s_out[sel], grid, d_last)
+        ok = np.isfinite(mark)
+        fit = fit_shoulder_taper(s_out[sel][ok], d_out[sel][ok] - mark[ok], entry=entry)
+        if fit is not None and abs(fit.s_gore - b) < 5.0:
+            lengths.append(fit.length_m)
+    return float(np.median(lengths)) if lengths else None
+
+
+def _move_track_end(tr: _Track, s_new: float, grid: FloatArray, *, start: bool) -> _Track:
+    """``tr`` cut or extended (at its end offset) so that it starts/ends at ``s_new``."""
+    if start:
+        if s_new >= tr.lo:
+            sel = tr.s >= s_new
+            new_s, new_d = tr.s[sel], tr.d[sel]
+            if new_s.size == 0 or new_s[0] > s_new:
+                new_s = np.concatenate([[s_new], new_s])
+                new_d = np.concatenate([[np.interp(s_new, tr.s, tr.d)], new_d])
+        else:
+            ext = np.concatenate([[s_new], grid[(grid > s_new) & (grid < tr.s[0])]])
+            new_s = np.concatenate([ext, tr.s])
+            new_d = np.concatenate([np.full(ext.size, tr.d[0]), tr.d])
+        return replace(tr, lo=s_new, s=new_s, d=new_d)
+    if s_new <= tr.hi:
+        sel = tr.s <= s_new
+        new_s, new_d = tr.s[sel], tr.d[sel]
+        if new_s.size == 0 or new_s[-1] < s_new:
+            new_s = np.concatenate([new_s, [s_new]])
+            new_d = np.concatenate([new_d, [np.interp(s_new, tr.s, tr.d)]])
+    else:
+        ext = np.concatenate([grid[(grid < s_new) & (grid > tr.s[-1])], [s_new]])
+        new_s = np.concatenate([tr.s, ext])
+        new_d = np.concatenate([tr.d, np.full(ext.size, tr.d[-1])])
+    return replace(tr, hi=s_new, s=new_s, d=new_d)
 
 
 def _hermite01(x: FloatArray, v0: float, m0: float) -> FloatArray:
@@ -603,15 +700,19 @@ def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
 
 
 def _bridge_edge_gaps(
-    d_edge: FloatArray, covered: NDArray[np.bool_], tracks: list[_Track], grid: FloatArray
+    d_edge: FloatArray,
+    covered: NDArray[np.bool_],
+    tracks: list[_Track],
+    grid: FloatArray,
+    tapers: list[ShoulderTaper] | None = None,
 ) -> FloatArray:
     """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
     outermost marking) linear between the gap ends instead of the edge offset itself, so
-    the edge follows markings that were seen (tapers, gores inside the gap)."""
+    the edge follows markings that were seen (tapers, gores inside the gap). A shoulder
+    taper fitted at a gore in the gap (``tapers``) gives the width on its side."""
     d_last = _last_marking(tracks, grid)
     out = d_edge.copy()
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
+    for a, b in _gap_runs(covered):
         if a == 0 or b >= grid.size or b - a < 5:
             continue
         i0, i1 = a - 1, b
@@ -627,9 +728,17 @@ def _bridge_edge_gaps(
         # it (exit): then it tapers linearly from / to zero width at the gore
         jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
         if jump.size == 1:
-            j = int(jump[0])  # grid[a + j] is the last station before the gore
+            j = int(jump[0])  # grid[a + j] is the first station after the gore
             k = np.arange(b - a)
             hw = np.where(k < j, hw0, hw1)
+            s_jump = 0.5 * (grid[i0 + j] + grid[i0 + j + 1])
+            fitted = [tp for tp in tapers or () if abs(tp.s_gore - s_jump) <= grid[1] - grid[0]]
+            for tp in fitted:
+                side = k < j if tp.entry else k >= j
+                hw[side] = tp.width(grid[a:b][side])
+            if fitted:
+                out[a:b][ok] = inner[ok] + hw[ok]
+                continue
             # the trend over 20 m, 5 m away from the gap (the fit bends at its ends); the
             # taper continues with the observed slope and reaches zero width flat (cubic)
             i_a, i_b = i0 - 25, i0 - 5
@@ -705,6 +814,7 @@ def _merge_collinear(tracks: list[_Track], cfg: MainlineConfig) -> list[_Track]:
                     a.mark if a.n >= b.n else b.mark,
                     a.n + b.n,
                     np.concatenate([a.s_samples, b.s_samples]),
+                    np.concatenate([a.d_samples, b.d_samples]),
                 )
                 del tracks[j]
                 merged = True
@@ -726,6 +836,7 @@ def _taper(
     end: str,
     cfg: MainlineConfig,
     fixed: tuple[float, float] | None = None,
+    samples: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[float, float, int] | None:
     """Extend track ``k`` at its start/end to where it meets its nearest neighbour.
 
@@ -734,7 +845,9 @@ def _taper(
     ``dmat`` is filled in place over the unobserved part of the taper. Returns
     ``(s_zero, taper_length, neighbour)`` or None if the track starts/ends at full width.
     ``fixed = (s_zero, taper)`` imposes the taper (an inferred marking that opens with
-    an observed one) and overwrites the track over it.
+    an observed one) and overwrites the track over it. With the track's raw ``samples``
+    (stations, offsets) the taper's zero station and length are refined by a least-squares
+    fit of the cubic taper to them (:func:`_fit_taper`).
     """
     n_g = grid.size
     idx = np.nonzero(np.isfinite(dmat[k]))[0]
@@ -755,7 +868,9 @@ def _taper(
     if gs.size < 10:
         return None
     w_full = float(np.percentile(sep, 90))
-    sgn = np.sign(dmat[k, i_edge] - dmat[jn, i_edge])
+    # the side of the neighbour the track runs on where it is open (at its very end the
+    # two may have met)
+    sgn = float(np.sign(np.median((dmat[k, sl] - dmat[jn, sl])[both])))
     if fixed is not None and w_full >= 1.0:
         s_zero, taper = fixed
         if end == "start":
@@ -783,15 +898,71 @@ def _taper(
     s_edge = float(grid[i_edge])
     if end == "start":
         s_zero = float(np.clip(s50 - 0.5 * taper, grid[0], s_edge))
-        fill = (grid >= s_zero) & (grid < s_edge)
-        x = (grid[fill] - s_zero) / taper
     else:
         s_zero = float(np.clip(s50 + 0.5 * taper, s_edge, grid[-1]))
+    refined = _fit_taper(samples, dmat[jn], grid, s_zero, taper, w_full, end, cfg)
+    if refined is not None:
+        # the taper model replaces the smoothed track over the whole taper: the smoother
+        # rounds a taper's steep start off
+        s_zero, taper = refined
+        if end == "start":
+            dmat[k, grid < s_zero] = np.nan
+            fill = (grid >= s_zero) & (grid < s_zero + taper)
+        else:
+            dmat[k, grid > s_zero] = np.nan
+            fill = (grid > s_zero - taper) & (grid <= s_zero)
+    elif end == "start":
+        fill = (grid >= s_zero) & (grid < s_edge)
+    else:
         fill = (grid > s_edge) & (grid <= s_zero)
-        x = (s_zero - grid[fill]) / taper
+    x = (grid[fill] - s_zero) / taper if end == "start" else (s_zero - grid[fill]) / taper
     ok = fill & np.isfinite(dmat[jn])
     dmat[k, ok] = dmat[jn, ok] + sgn * w_full * _smoothstep(x[ok[fill]])
     return s_zero, taper, jn
+
+
+def _fit_taper(
+    samples: tuple[FloatArray, FloatArray] | None,
+    d_neighbour: FloatArray,
+    grid: FloatArray,
+    s_zero: float,
+    taper: float,
+    w_full: float,
+    end: str,
+    cfg: MainlineConfig,
+) -> tuple[float, float] | None:
+    """Zero-width station and length (metres) of a cubic lane taper fitted to the raw
+    samples of the opening (``end == "start"``) or closing marking, as separations from
+    its neighbour (offsets ``d_neighbour`` on ``grid``, NaN where it is absent), starting
+    from ``(s_zero, taper)``. None if there are too few samples in the taper or the fit
+    leaves the plausible range."""
+    from scipy.optimize import least_squares
+
+    if samples is None or samples[0].size < 15:
+        return None
+    s_raw, d_raw = samples
+    lo, hi = (s_zero, s_zero + taper) if end == "start" else (s_zero - taper, s_zero)
+    have = np.isfinite(d_neighbour)
+    if np.count_nonzero(have) < 2:
+        return None
+    win = (s_raw >= lo - 0.25 * taper) & (s_raw <= hi + 0.25 * taper)
+    s_w = s_raw[win]
+    sep = np.abs(d_raw[win] - np.interp(s_w, grid[have], d_neighbour[have]))
+    # the taper itself must be seen, not only the full-width lane beside it
+    if np.count_nonzero((sep > 0.2 * w_full) & (sep < 0.8 * w_full)) < 10:
+        return None
+    sgn = 1.0 if end == "start" else -1.0
+
+    def residual(p: FloatArray) -> FloatArray:
+        return sep - w_full * _smoothstep(sgn * (s_w - p[0]) / max(p[1], 1.0))
+
+    res = least_squares(
+        residual, np.array([s_zero, taper]), loss="soft_l1", f_scale=0.1, x_scale=10.0
+    )
+    s_fit, l_fit = float(res.x[0]), float(res.x[1])
+    if not (5.0 <= l_fit <= cfg.lane_taper_max_m) or abs(s_fit - s_zero) > taper:
+        return None
+    return s_fit, l_fit
 
 
 def _sections_from_tracks(
@@ -832,7 +1003,8 @@ def _sections_from_tracks(
                     if e2 == end and tp > 0.0 and abs(s_z - grid[i_edge]) < 100.0
                 ]
                 fixed = sib[0] if sib else None
-            info = _taper(dmat, k, grid, end, cfg, fixed)
+            raw = (tracks[k].s_samples, tracks[k].d_samples)
+            info = _taper(dmat, k, grid, end, cfg, fixed, raw)
             if info is None:
                 s_ev = float(grid[i_edge])
                 if breaks.size and np.min(np.abs(breaks - s_ev)) < 20.0:
@@ -846,8 +1018,10 @@ def _sections_from_tracks(
     starts = [0, *change.tolist()]
     # edge steps start a section too
     forced: set[int] = set()
+    s0_at: dict[int, float] = {}  # a section that starts at an edge step starts exactly there
     for b in breaks:
-        i_b = int(np.clip(np.rint((b - grid[0]) / cfg.grid_step_m), 1, n_g - 1))
+        i_b = int(np.clip(np.ceil((b - grid[0]) / cfg.grid_step_m - 1e-9), 1, n_g - 1))
+        s0_at[i_b] = float(min(b, grid[i_b]))
         # track changes next to an edge step belong to the gore: move them onto the step
         starts = [i for i in starts if i == 0 or abs(i - i_b) * cfg.grid_step_m >= 20.0]
         starts.append(i_b)
@@ -872,7 +1046,8 @@ def _sections_from_tracks(
         members = [k for k in range(len(tracks)) if votes[k] > 0.5]
         members.sort(key=lambda k: float(np.nanmedian(dmat[k, a:b])))
         gs = grid[a:b_inc]
-        rel = gs - grid[a]
+        s0 = s0_at.get(a, float(grid[a]))
+        rel = gs - s0
         rows = [np.zeros(gs.size)]
         labels: list[object] = ["ref"]
         for k in members:
@@ -905,7 +1080,7 @@ def _sections_from_tracks(
             lid = -(i + 1) if sign > 0 else i + 1
             lanes.append(Lane(lid, lane_type, prof, (RoadMark(0.0, mark),)))  # type: ignore[arg-type]
             bounds.append((labels[i], labels[i + 1]))
-        sections.append(_make_section(float(grid[a]), lanes, sign))
+        sections.append(_make_section(s0, lanes, sign))
         bounds_per.append(bounds)
         members_per.append(members)
     sections = _link_sections(sections, bounds_per)
