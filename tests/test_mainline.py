@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from roadtwin.config import MainlineConfig
+from roadtwin.evaluation.mainline_truth import compare_mainline_road, geometry_continuity, rmse
 from roadtwin.frames import MappingFrame, Origin
 from roadtwin.io import MappingRun, Trajectory
 from roadtwin.mainline import build_mainline, cut_road
@@ -187,72 +188,12 @@ def sample_run(
 # ---------------------------------------------------------------------------
 
 
-def _borders(road: Road, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per station: reference edge t, outer edge t, and a (K, N) matrix of lane-marking t
-    (NaN where a section has fewer markings); also the lane count per station."""
-    sec_idx = road.section_index(s)
-    kmax = max(len(sec.right or sec.left) for sec in road.lane_sections)
-    marks = np.full((kmax, s.size), np.nan)
-    outer = np.full(s.size, np.nan)
-    count = np.zeros(s.size, int)
-    for k in np.unique(sec_idx):
-        sec = road.lane_sections[int(k)]
-        sel = sec_idx == k
-        ids = _lane_ids(sec)
-        count[sel] = len(ids)
-        outer[sel] = road.lane_border_t(s[sel], ids[-1])
-        for j, lid in enumerate(ids[:-1]):
-            marks[j, sel] = road.lane_border_t(s[sel], lid)
-    return road.lane_border_t(s, 0), outer, marks, count
-
-
-def compare_to_truth(built: Road, truth: Road, *, step_m: float = 1.0, trim_m: float = 30.0):
-    """Lateral errors (metres) of the built road against the truth road: road edges, lane
-    markings (same index where the lane counts agree, else the nearest marking), elevation,
-    and the fraction of stations where the lane count agrees."""
-    s_t = np.arange(trim_m + 0.5 * step_m, truth.length - trim_m, step_m)  # off boundaries
-    ref_t, out_t, marks_t, count_t = _borders(truth, s_t)
-    res = {}
-    pts_ref = truth.to_xy(s_t, ref_t)
-    s_b, t_b = built.project(pts_ref)
-    res["ref_edge"] = t_b - _borders(built, s_b)[0]
-    pts_out = truth.to_xy(s_t, out_t)
-    s_b, t_b = built.project(pts_out)
-    res["outer_edge"] = t_b - _borders(built, s_b)[1]
-    errs = []
-    for j in range(marks_t.shape[0]):
-        ok = np.isfinite(marks_t[j])
-        if not np.any(ok):
-            continue
-        pts = truth.to_xy(s_t[ok], marks_t[j, ok])
-        s_b, t_b = built.project(pts)
-        _, _, marks_b, count_b = _borders(built, s_b)
-        same = count_b == count_t[ok]
-        by_index = marks_b[j] if j < marks_b.shape[0] else np.full(s_b.size, np.nan)
-        nearest = np.nanmin(np.abs(marks_b - t_b[None, :]), axis=0)
-        e = np.where(same & np.isfinite(by_index), np.abs(t_b - by_index), nearest)
-        errs.append(e)
-    res["lane_boundary"] = np.concatenate(errs)
-    s_b, _ = built.project(pts_ref)
-    res["elevation"] = built.height(s_b) - truth.height(s_t)
-    count_b = _borders(built, s_b)[3]
-    res["lane_count_agreement"] = float(np.mean(count_b == count_t))
+def compare_to_truth(built: Road, truth: Road, *, trim_m: float = 30.0) -> dict:
+    """Errors (metres) of the built road against the truth road, ``trim_m`` kept off both
+    ends, plus the fraction of stations where the lane count agrees."""
+    res = compare_mainline_road(built, truth, s_lo=trim_m, s_hi=truth.length - trim_m)
+    res["lane_count_agreement"] = float(np.mean(res["lane_count"]))
     return res
-
-
-def rmse(e) -> float:
-    e = np.asarray(e, float)
-    return float(np.sqrt(np.mean(e * e)))
-
-
-def continuity(road: Road) -> tuple[float, float]:
-    """Largest gap (m) and kink (deg) between consecutive geometry pieces."""
-    gap = kink = 0.0
-    for a, b in zip(road.geometry[:-1], road.geometry[1:], strict=True):
-        x, y, h = a.end_pose()
-        gap = max(gap, float(np.hypot(x - b.x0, y - b.y0)))
-        kink = max(kink, abs(float(np.degrees((h - b.hdg + np.pi) % (2 * np.pi) - np.pi))))
-    return gap, kink
 
 
 # ---------------------------------------------------------------------------
@@ -278,7 +219,7 @@ def test_default_method_matches_truth(right_case):
     assert rmse(res["lane_boundary"]) < 0.03
     assert rmse(res["elevation"]) < 0.01
     assert res["lane_count_agreement"] > 0.98
-    gap, kink = continuity(road)
+    gap, kink = geometry_continuity(road)
     assert gap < 1e-3
     assert kink < 0.01
     assert road.length == pytest.approx(truth.length, abs=0.5)
@@ -370,7 +311,7 @@ def test_paper_method_is_windowed():
     # one piece and one lane section per 100 m window
     assert len(road.geometry) == pytest.approx(6, abs=1)
     assert len(road.lane_sections) == len(road.geometry)
-    gap, _ = continuity(road)
+    gap, _ = geometry_continuity(road)
     assert gap > 1e-3  # independent windows do not meet exactly
     res = compare_to_truth(road, truth)
     assert rmse(res["ref_edge"]) < 0.2
@@ -426,7 +367,7 @@ def test_cut_road_is_exact(right_case):
     assert [sc.s0 + a for sc in sub.lane_sections[1:]] == pytest.approx(
         [sc.s0 for sc in road.lane_sections if a < sc.s0 < b]
     )
-    gap, kink = continuity(sub)
+    gap, kink = geometry_continuity(sub)
     assert gap < 1e-6
     assert kink < 1e-6
     first = sub.lane_sections[0].right
