@@ -237,10 +237,19 @@ def test_run_from_gore_area_to_gore_area(demo):
     assert row["edge_rmse"] <= EDGE_RMSE_MAX_M
 
 
+def test_run_ending_shortly_after_the_exit_gore(base):
+    """The run ends 25 m after the exit gore (the median-side edge is occluded over its last
+    80 m): the mainline reaches the run's end and the exit gets a shortened junction."""
+    row = _build_with(base, "crop_end_675", rb._crop(0.0, 675.0))
+    assert row["ramps_matched"] == 1, row["ramps"]
+    assert row["edge_rmse"] <= EDGE_RMSE_MAX_M, (row["edge_rmse"], row["spikes"])
+    assert row["lane_rmse"] <= LANE_RMSE_MAX_M, (row["lane_rmse"], row["spikes"])
+
+
 @pytest.mark.xfail(
-    reason="run ends 18 m after the exit gore: topology skips the exit ('too close to the "
-    "run's end') and the deceleration lane runs on to the end of the mainline, so the "
-    "outer edge is 3 m off over the last 20 m and the exit is missing",
+    reason="run ends 10 m after the exit gore: 8 m of mainline remain after the gore, less "
+    "than a junction plus a mainline road of min_road_length_m (5 m) each, so topology "
+    "skips the exit",
     strict=True,
 )
 def test_run_ending_just_after_the_exit_gore(base):

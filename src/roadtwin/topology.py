@@ -435,6 +435,12 @@ def build_topology(
     for ramp in sorted(ramps, key=lambda r: (r.station_m, r.type)):
         s = ramp.station_m
         a, b = (s, s + zl) if ramp.type == "exit" else (s - zl, s)
+        # at the run's ends the junction may be shorter: an exit just before the end of the
+        # run (an entry just after its start) still gets its junction
+        if not direct and ramp.type == "exit" and length - b < cfg.min_road_length_m:
+            b = max(length - cfg.min_road_length_m, a + cfg.min_road_length_m)
+        elif not direct and ramp.type == "entry" and not zones and a < cfg.min_road_length_m:
+            a = min(cfg.min_road_length_m, b - cfg.min_road_length_m)
         what = f"{ramp.type} at s={s:.0f} m"
         if a - last_end < cfg.min_road_length_m or length - b < cfg.min_road_length_m:
             skipped.append((what, "too close to the run's end or to another ramp's junction"))

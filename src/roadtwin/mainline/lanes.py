@@ -979,8 +979,12 @@ def _sections_from_tracks(
     n_g = grid.size
     dmat = np.full((len(tracks), n_g), np.nan)
     for k, tr in enumerate(tracks):
-        lo = grid[0] if tr.lo - grid[0] < cfg.lane_max_gap_m else tr.lo
-        hi = length if length - tr.hi < cfg.lane_max_gap_m else tr.hi
+        # a track that stops short of the run's start/end was cut by it (the car saw no
+        # more of it), unless an edge step (a gore) lies in between: there it really ends
+        cut_start = not np.any((breaks >= grid[0]) & (breaks <= tr.lo + 5.0))
+        cut_end = not np.any((breaks >= tr.hi - 5.0) & (breaks <= length))
+        lo = grid[0] if tr.lo - grid[0] < cfg.lane_max_gap_m and cut_start else tr.lo
+        hi = length if length - tr.hi < cfg.lane_max_gap_m and cut_end else tr.hi
         sel = (grid >= lo) & (grid <= hi)
         dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
     # births / ends inside the run
@@ -1030,7 +1034,10 @@ def _sections_from_tracks(
     min_n = max(1, int(cfg.min_section_m / cfg.grid_step_m))
     merged_starts = [starts[0]]
     for i in starts[1:]:
-        if n_g - i < min_n:
+        # an edge step (a gore) starts a section even close to the run's end: the lane
+        # that leaves there must not run on to the end
+        min_tail = max(1, int(2.0 / cfg.grid_step_m)) if i in forced else min_n
+        if n_g - i < min_tail:
             continue
         if i - merged_starts[-1] >= min_n:
             merged_starts.append(i)

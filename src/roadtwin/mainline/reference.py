@@ -105,14 +105,20 @@ def fit_reference_edge(
     step = cfg.grid_step_m
     frame = traj
     for it in range(3):
-        s, t = frame.project(ref_pts)
-        inside = (s >= -5.0) & (s <= frame.length + 5.0)
-        s, t = s[inside], t[inside]
+        s_all, t_all = frame.project(ref_pts)
+        inside = (s_all >= -5.0) & (s_all <= frame.length + 5.0)
+        s, t = s_all[inside], t_all[inside]
         if s.size < 10:
             raise InputError("mainline: the median-side road edge is not beside the trajectory")
-        lo, hi = float(np.min(s)), float(np.max(s))
         if it == 0:
-            lo, hi = max(lo, 0.0), min(hi, frame.length)
+            # edge points beyond an end of the trajectory (the car stopped recording inside
+            # an occlusion of the edge) still say the edge goes on to that end
+            lo = max(float(np.min(s_all)), 0.0)
+            hi = min(float(np.max(s_all)), frame.length)
+        else:
+            # at least the extent of the first pass: an occlusion of the edge at the end of
+            # the run is bridged by the fit, not cut off with the road
+            lo, hi = min(float(np.min(s)), 0.0), max(float(np.max(s)), frame.length)
         grid = _grid(lo, hi, step)
         grid = grid[grid <= hi + 1e-9] if grid[-1] > hi + 0.5 * step else grid
         cutoff = cfg.edge_smoothing_m if it > 0 else max(cfg.edge_smoothing_m, 60.0)
