@@ -569,74 +569,20 @@ def build_topology(
                 )
             ]
             c_id = new_id()
-            if ramp.type == "exit":
-                cut_at = min(zl, 0.5 * road.length)
-                road = cut_road(road, cut_at, road.length, road_id=ramp_id)
-                start = _border_pose(up, up.length, sources[0])
-                end = _pose(road, 0.0)
-                w_start = [
-                    _widths(up, up.length, [paired[i]])[0] if i in paired else 0.0 for i in rlanes
-                ]
-                w_end = _widths(road, 0.0, rlanes)
-                z = (float(up.height(np.array([up.length]))[0]), float(road.height([0.0])[0]))
-                conn_road = hermite_road(
-                    start,
-                    end,
-                    road_id=c_id,
-                    widths_start=w_start,
-                    widths_end=w_end,
-                    traffic_side=traffic_side,
-                    heights=z,
-                    junction=jid,
-                    lane_types=rtypes,
-                )
-                conn_road = replace(
-                    conn_road,
-                    predecessor=RoadLink("road", up.id, "end"),
-                    successor=RoadLink("road", ramp_id, "start"),
-                )
-                conn_road = _set_lane_links(
-                    conn_road,
-                    predecessors={y: x for x, y in pairs},
-                    successors={i: i for i in rlanes},
-                )
-                road = replace(road, predecessor=RoadLink("junction", jid))
-                conns.append(
-                    Connection("1", up.id, c_id, "start", tuple(LaneLink(x, y) for x, y in pairs))
-                )
-            else:
-                cut_at = max(road.length - zl, 0.5 * road.length)
-                road = cut_road(road, 0.0, cut_at, road_id=ramp_id)
-                start = _pose(road, road.length)
-                end = _border_pose(down, 0.0, sources[0])
-                w_start = _widths(road, road.length, rlanes)
-                w_end = [_widths(down, 0.0, [paired[i]])[0] if i in paired else 0.0 for i in rlanes]
-                z = (float(road.height([road.length])[0]), float(down.height(np.array([0.0]))[0]))
-                conn_road = hermite_road(
-                    start,
-                    end,
-                    road_id=c_id,
-                    widths_start=w_start,
-                    widths_end=w_end,
-                    traffic_side=traffic_side,
-                    heights=z,
-                    junction=jid,
-                    lane_types=rtypes,
-                )
-                conn_road = replace(
-                    conn_road,
-                    predecessor=RoadLink("road", ramp_id, "end"),
-                    successor=RoadLink("road", down.id, "start"),
-                )
-                conn_road = _set_lane_links(
-                    conn_road,
-                    predecessors={i: i for i in rlanes},
-                    successors={y: x for x, y in pairs},
-                )
-                road = replace(road, successor=RoadLink("junction", jid))
-                conns.append(
-                    Connection("1", ramp_id, c_id, "start", tuple(LaneLink(i, i) for i in rlanes))
-                )
+            road, conn_road, ramp_conn = _ramp_connecting_road(
+                road,
+                up if ramp.type == "exit" else down,
+                exit_=ramp.type == "exit",
+                ids=(ramp_id, c_id, jid),
+                junction_length_m=zl,
+                source_lane=sources[0],
+                paired=paired,
+                pairs=pairs,
+                ramp_lanes=rlanes,
+                lane_types=rtypes,
+                traffic_side=traffic_side,
+            )
+            conns.append(ramp_conn)
             road = replace(road, name=ramp.type)
             connectors.extend([through_road, conn_road])
             junctions.append(Junction(jid, tuple(conns), name=f"{ramp.type} {k + 1}"))
@@ -665,6 +611,97 @@ def build_topology(
 # ---------------------------------------------------------------------------
 # lane graph (for routing checks)
 # ---------------------------------------------------------------------------
+
+
+def _ramp_connecting_road(
+    road: Road,
+    main: Road,
+    *,
+    exit_: bool,
+    ids: tuple[str, str, str],
+    junction_length_m: float,
+    source_lane: int,
+    paired: dict[int, int],
+    pairs: list[tuple[int, int]],
+    ramp_lanes: list[int],
+    lane_types: list[str],
+    traffic_side: str,
+) -> tuple[Road, Road, Connection]:
+    """The ramp road cut back by the junction, the connecting road between it and the
+    mainline road ``main`` (``up`` of an exit, ``down`` of an entry) and the junction
+    connection onto that connecting road.
+
+    ``ids`` = (ramp road id, connecting road id, junction id). The connecting road runs in
+    the driving direction: from the end of ``main`` into the ramp (exit) or from the ramp's
+    end onto the start of ``main`` (entry), with the widths, heights and outer border of
+    ``main``'s lane ``source_lane`` at its mainline end. ``pairs`` holds (mainline lane,
+    ramp lane) pairs, ``paired`` maps ramp lane -> mainline lane.
+    """
+    ramp_id, c_id, jid = ids
+    if exit_:
+        cut_at = min(junction_length_m, 0.5 * road.length)
+        road = cut_road(road, cut_at, road.length, road_id=ramp_id)
+        s_main, s_ramp = main.length, 0.0
+    else:
+        cut_at = max(road.length - junction_length_m, 0.5 * road.length)
+        road = cut_road(road, 0.0, cut_at, road_id=ramp_id)
+        s_main, s_ramp = 0.0, road.length
+    main_pose = _border_pose(main, s_main, source_lane)
+    ramp_pose = _pose(road, s_ramp)
+    main_widths = [
+        _widths(main, s_main, [paired[i]])[0] if i in paired else 0.0 for i in ramp_lanes
+    ]
+    ramp_widths = _widths(road, s_ramp, ramp_lanes)
+    main_z = float(main.height(np.array([s_main]))[0])
+    ramp_z = float(road.height([s_ramp])[0])
+    main_link = RoadLink("road", main.id, "end" if exit_ else "start")
+    ramp_link = RoadLink("road", ramp_id, "start" if exit_ else "end")
+    to_main = {y: x for x, y in pairs}
+    same = {i: i for i in ramp_lanes}
+    if exit_:
+        poses, widths, heights = (
+            (main_pose, ramp_pose),
+            (main_widths, ramp_widths),
+            (main_z, ramp_z),
+        )
+    else:
+        poses, widths, heights = (
+            (ramp_pose, main_pose),
+            (ramp_widths, main_widths),
+            (ramp_z, main_z),
+        )
+    conn_road = hermite_road(
+        poses[0],
+        poses[1],
+        road_id=c_id,
+        widths_start=widths[0],
+        widths_end=widths[1],
+        traffic_side=traffic_side,
+        heights=heights,
+        junction=jid,
+        lane_types=lane_types,
+    )
+    conn_road = replace(
+        conn_road,
+        predecessor=main_link if exit_ else ramp_link,
+        successor=ramp_link if exit_ else main_link,
+    )
+    conn_road = _set_lane_links(
+        conn_road,
+        predecessors=to_main if exit_ else same,
+        successors=same if exit_ else to_main,
+    )
+    if exit_:
+        road = replace(road, predecessor=RoadLink("junction", jid))
+        connection = Connection(
+            "1", main.id, c_id, "start", tuple(LaneLink(x, y) for x, y in pairs)
+        )
+    else:
+        road = replace(road, successor=RoadLink("junction", jid))
+        connection = Connection(
+            "1", ramp_id, c_id, "start", tuple(LaneLink(i, i) for i in ramp_lanes)
+        )
+    return road, conn_road, connection
 
 
 def lane_graph(network: RoadNetwork, *, lane_changes: bool = False) -> nx.DiGraph:
