@@ -110,3 +110,23 @@ def test_fusion_keeps_the_taper_inside_the_marking_interval():
     assert fuse_gore_estimates((1248.0, 1253.5), None, 1260.0) == pytest.approx(1250.75)
     assert fuse_gore_estimates(None, taper, 1260.0) == pytest.approx(1249.6)
     assert fuse_gore_estimates(None, None, 1260.0) == pytest.approx(1260.0)
+
+
+def test_a_hole_in_the_solid_line_does_not_pin_the_gore():
+    # samples missing over 1243.7-1246.9 m: the solid line's tail (1246.9-1248) runs into
+    # the dash at 1248-1254 and looks like a long, early dash
+    s = _marking((850.0, 1254.0), 1260.0, 1340.0)
+    s = s[(s < 1243.7) | (s > 1246.9)]
+    assert marking_gore_interval(s, 1245.0, entry=True) is None
+
+
+def test_a_gap_of_every_marking_is_missing_frames_not_a_dash_gap():
+    s = _marking((850.0, 1000.0), 1003.0, 1100.0)
+    s = s[(s < 990.0) | (s > 994.0)]  # frames missing over 990-994 m
+    # another marking seen everywhere except in the same hole
+    seen = np.sort(np.concatenate([s, np.arange(850.0, 990.0, 0.3), np.arange(994.0, 1100.0, 0.3)]))
+    lo, hi = marking_gore_interval(s, 995.0, entry=True, seen_s=seen)
+    assert lo == hi
+    assert abs(lo - 1000.0) < 0.3
+    # without knowing the hole is everywhere, the solid line seems to end at 990 m
+    assert marking_gore_interval(s, 995.0, entry=True) != (lo, hi)

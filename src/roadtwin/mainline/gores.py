@@ -75,11 +75,24 @@ def _taper_width(
     return width * _smoothstep(x)
 
 
-def _runs(s_sorted: FloatArray) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+def _runs(
+    s_sorted: FloatArray, seen_s: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
     """Runs of consecutive samples along a marking: starts, ends (half a sample spacing
-    beyond the first/last sample) and sample counts."""
+    beyond the first/last sample) and sample counts.
+
+    With ``seen_s`` (sorted stations of every lane sample of the run, all markings), a gap
+    where the sensor saw no marking at all (missing frames) does not split a run: only a
+    gap in this marking while others were seen is a gap of the marking.
+    """
     spacing = float(np.median(np.diff(s_sorted)))
-    split = np.flatnonzero(np.diff(s_sorted) > max(1.5, 5.0 * spacing))
+    gap = np.diff(s_sorted) > max(1.5, 5.0 * spacing)
+    if seen_s is not None and seen_s.size:
+        i_gap = np.flatnonzero(gap)
+        lo = np.searchsorted(seen_s, s_sorted[i_gap] + 0.5 * spacing, side="right")
+        hi = np.searchsorted(seen_s, s_sorted[i_gap + 1] - 0.5 * spacing, side="left")
+        gap[i_gap[hi - lo < _MIN_RUN_SAMPLES]] = False
+    split = np.flatnonzero(gap)
     first = np.concatenate([[0], split + 1])
     last = np.concatenate([split, [s_sorted.size - 1]])
     return (
@@ -97,6 +110,7 @@ def marking_gore_interval(
     search_m: float = 30.0,
     min_solid_m: float = 20.0,
     max_dash_m: float = 15.0,
+    seen_s: FloatArray | None = None,
 ) -> tuple[float, float] | None:
     """Interval of gore stations allowed by the solid/broken change of a through marking.
 
@@ -111,6 +125,9 @@ def marking_gore_interval(
         True for an entry gore (solid upstream, broken downstream), False for an exit.
     min_solid_m, max_dash_m
         Shortest solid run and longest dash (metres).
+    seen_s
+        Sorted stations (metres) of all lane samples of the run: gaps where no marking was
+        seen (frames missing) are not dash gaps.
 
     Returns
     -------
@@ -122,7 +139,11 @@ def marking_gore_interval(
     ss = ss[np.abs(ss - s_guess) < 120.0]
     if ss.size < 20:
         return None
-    start, end, count = _runs(ss)
+    seen = None
+    if seen_s is not None:
+        seen_s = np.asarray(seen_s, dtype=float)
+        seen = seen_s[np.abs(seen_s - s_guess) < 130.0]
+    start, end, count = _runs(ss, seen)
     keep = count >= _MIN_RUN_SAMPLES
     start, end = start[keep], end[keep]
     length = end - start
@@ -137,11 +158,19 @@ def marking_gore_interval(
     long_run = np.flatnonzero(length[side] > max_dash_m)
     dashes = side[: long_run[0]] if long_run.size else side
     dashes = dashes[:6]
-    if dashes.size < 2:
+    if dashes.size < 3:
         return None
     dash = float(np.median(length[dashes]))
     period = float(np.median(np.abs(np.diff(start[dashes]))))
     if not (0.1 * period < dash < 0.9 * period) or np.ptp(length[dashes]) > 0.5 * dash:
+        return None
+    # the dash next to the solid line must fit the pattern: a hole in the solid line
+    # (samples missing there) makes a "dash" of its tail, longer or out of phase
+    first, second = int(dashes[0]), int(dashes[1])
+    phase = start[second] - period if entry else start[second] + period
+    if abs(length[first] - dash) > max(0.6, 0.15 * dash) or abs(start[first] - phase) > max(
+        0.6, 0.1 * period
+    ):
         return None
     gap = period - dash
     tol = max(1.0, 0.3 * gap)

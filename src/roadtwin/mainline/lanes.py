@@ -573,6 +573,8 @@ def _place_hidden_gores(
     placed: list[float] = []
     tapers: list[ShoulderTaper] = []
     step = float(grid[1] - grid[0])
+    # where the sensor saw any marking (a gap of all of them is missing frames)
+    seen = np.sort(np.concatenate([t.s_samples for t in tracks])) if tracks else None
     for a, b in _gap_runs(covered):
         if a == 0 or b >= grid.size:
             continue
@@ -596,7 +598,7 @@ def _place_hidden_gores(
                 if not through:
                     continue
                 nb = max(through, key=lambda t: float(np.interp(s_tip, t.s, t.d)))
-                interval = marking_gore_interval(nb.s_samples, s_tip, entry=entry)
+                interval = marking_gore_interval(nb.s_samples, s_tip, entry=entry, seen_s=seen)
                 if entry:
                     sel = (s_out > max(s_a - 200.0, nb.lo)) & (s_out < s_a)
                 else:
