@@ -309,13 +309,11 @@ def _bin_value_order(b: NDArray[np.int64], y: FloatArray) -> NDArray[np.int64]:
     return np.argsort(b + rank, kind="stable")
 
 
-def binned_statistics(
+def _binned_sorted(
     x: ArrayLike, y: ArrayLike, edges: ArrayLike
-) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
-    """Per-bin median, mean and count of ``y`` for bins of ``x`` (vectorised, no loops).
-
-    Empty bins get NaN median/mean and count 0.
-    """
+) -> tuple[NDArray[np.int64], FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
+    """Bin of every sample with finite ``y`` inside ``edges``, its value, the count per
+    bin, the values sorted by bin then value, and where each bin starts in that order."""
     x_arr = np.asarray(x, dtype=float)
     y_arr = np.asarray(y, dtype=float)
     e = np.asarray(edges, dtype=float)
@@ -324,14 +322,25 @@ def binned_statistics(
     ok = (b >= 0) & (b < nb) & np.isfinite(y_arr)
     b, yv = b[ok], y_arr[ok]
     count = np.bincount(b, minlength=nb)
+    ys = yv[_bin_value_order(b, yv)] if yv.size else yv
+    start = np.concatenate([[0], np.cumsum(count)[:-1]])
+    return b, yv, count, ys, start
+
+
+def binned_statistics(
+    x: ArrayLike, y: ArrayLike, edges: ArrayLike
+) -> tuple[FloatArray, FloatArray, NDArray[np.int64]]:
+    """Per-bin median, mean and count of ``y`` for bins of ``x`` (vectorised, no loops).
+
+    Empty bins get NaN median/mean and count 0.
+    """
+    b, yv, count, ys, start = _binned_sorted(x, y, edges)
+    nb = count.size
     mean = np.full(nb, np.nan)
     nz = count > 0
     mean[nz] = np.bincount(b, weights=yv, minlength=nb)[nz] / count[nz]
     med = np.full(nb, np.nan)
     if yv.size:
-        order = _bin_value_order(b, yv)
-        ys = yv[order]
-        start = np.concatenate([[0], np.cumsum(count)[:-1]])
         lo = start + (count - 1) // 2
         hi = start + count // 2
         med[nz] = 0.5 * (ys[lo[nz]] + ys[hi[nz]])
@@ -639,19 +648,9 @@ def shift_cubic_piece(piece: CubicPiece, s_new: float) -> CubicPiece:
 
 def binned_quantile(x: ArrayLike, y: ArrayLike, edges: ArrayLike, q: float) -> FloatArray:
     """Per-bin quantile ``q`` (0..1, nearest rank) of ``y`` for bins of ``x``; NaN if empty."""
-    x_arr = np.asarray(x, dtype=float)
-    y_arr = np.asarray(y, dtype=float)
-    e = np.asarray(edges, dtype=float)
-    nb = e.size - 1
-    b = np.searchsorted(e, x_arr, side="right") - 1
-    ok = (b >= 0) & (b < nb) & np.isfinite(y_arr)
-    b, yv = b[ok], y_arr[ok]
-    count = np.bincount(b, minlength=nb)
-    out = np.full(nb, np.nan)
+    _, yv, count, ys, start = _binned_sorted(x, y, edges)
+    out = np.full(count.size, np.nan)
     if yv.size:
-        order = _bin_value_order(b, yv)
-        ys = yv[order]
-        start = np.concatenate([[0], np.cumsum(count)[:-1]])
         nz = count > 0
         rank = start + np.floor(q * (count - 1) + 0.5).astype(np.int64)
         out[nz] = ys[rank[nz]]

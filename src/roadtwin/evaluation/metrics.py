@@ -350,22 +350,31 @@ def _slice_projection(proj: Projection, start: int, stop: int) -> Projection:
     )
 
 
+def _centre_points(
+    roads: Sequence[Road], step_m: float
+) -> tuple[list[FloatArray], list[FloatArray]]:
+    """Per road: stations every ``step_m`` metres and the (N, 2) mapping-frame points on the
+    centre of its lanes (between the road edges of the section there)."""
+    stations, centres = [], []
+    for road in roads:
+        s = _stations(road.length, step_m)
+        sec_idx = road.section_index(s)
+        t_c = np.empty(s.size)
+        for k in np.unique(sec_idx):
+            sel = sec_idx == k
+            t_c[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
+        stations.append(s)
+        centres.append(road.to_xy(s, t_c).reshape(-1, 2))
+    return stations, centres
+
+
 def _lane_count(
     true_roads: Sequence[Road], built: Sequence[Road], offsets: FloatArray, cfg: EvaluationConfig
 ) -> dict[str, Any]:
     """Driving-lane count of the built map against truth at every station."""
     sections = []
     all_match: list[NDArray[np.bool_]] = []
-    stations, centres = [], []
-    for road in true_roads:
-        s = _stations(road.length, cfg.truth_step_m)
-        sec_idx = road.section_index(s)
-        centre = np.empty(s.size)
-        for k in np.unique(sec_idx):
-            sel = sec_idx == k
-            centre[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
-        stations.append(s)
-        centres.append(road.to_xy(s, centre).reshape(-1, 2))
+    stations, centres = _centre_points(true_roads, cfg.truth_step_m)
     # one projection of all roads' points (per-point results do not depend on the batch)
     proj_all = project_points(
         built,
@@ -434,16 +443,7 @@ def _truth_ramps(
     xy_c, xy_b, st_c, st_b = [], [], [], []
     n_true = 0
     n_centre_points = 0
-    stations, centres = [], []
-    for road in true_roads:
-        s = _stations(road.length, cfg.truth_step_m)
-        sec_idx = road.section_index(s)
-        t_c = np.empty(s.size)
-        for k in np.unique(sec_idx):
-            sel = sec_idx == k
-            t_c[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
-        stations.append(s)
-        centres.append(road.to_xy(s, t_c).reshape(-1, 2))
+    stations, centres = _centre_points(true_roads, cfg.truth_step_m)
     kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
     # one projection of all ramps' centre points (per-point results do not depend on it)
     proj_all = project_points(built, np.vstack(centres), **kw) if built and centres else None

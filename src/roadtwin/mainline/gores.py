@@ -59,20 +59,22 @@ class ShoulderTaper:
     def width(self, s: FloatArray) -> FloatArray:
         """Shoulder width (metres) at stations ``s`` (metres)."""
         s = np.asarray(s, dtype=float)
-        return _taper_width(s, self.width_m, self.s_gore, self.length_m, self.entry)
+        return taper_width(s, self.width_m, self.s_gore, self.length_m, self.entry)
 
 
-def _smoothstep(x: FloatArray) -> FloatArray:
+def smoothstep(x: FloatArray) -> FloatArray:
+    """Cubic 0 -> 1 over ``x`` in [0, 1] with zero slope at both ends (clipped outside)."""
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
 
 
-def _taper_width(
+def taper_width(
     s: FloatArray, width: float, s_gore: float, length: float, entry: bool
 ) -> FloatArray:
-    """Width of a cubic taper: 0 at ``s_gore``, ``width`` from ``length`` away onwards."""
+    """Width (metres) of a cubic taper at stations ``s``: 0 at ``s_gore``, ``width`` from
+    ``length`` upstream (``entry``: it closes at ``s_gore``) or downstream (it opens)."""
     x = (s_gore - s) / length if entry else (s - s_gore) / length
-    return width * _smoothstep(x)
+    return width * smoothstep(x)
 
 
 def _runs(
@@ -227,7 +229,7 @@ def fit_shoulder_taper(
     gore0 = s_low + length0 if entry else s_low - length0
 
     def residual(p: FloatArray) -> FloatArray:
-        return width - _taper_width(s, p[0], p[1], max(p[2], 1.0), entry)
+        return width - taper_width(s, p[0], p[1], max(p[2], 1.0), entry)
 
     res = least_squares(
         residual,

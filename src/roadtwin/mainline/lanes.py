@@ -29,7 +29,14 @@ from ._common import (
     _grid,
     robust_offset_fit,
 )
-from .gores import ShoulderTaper, fit_shoulder_taper, fuse_gore_estimates, marking_gore_interval
+from .gores import (
+    ShoulderTaper,
+    fit_shoulder_taper,
+    fuse_gore_estimates,
+    marking_gore_interval,
+    smoothstep,
+    taper_width,
+)
 
 log = logging.getLogger(__name__)
 
@@ -826,11 +833,6 @@ def _merge_collinear(tracks: list[_Track], cfg: MainlineConfig) -> list[_Track]:
     return [replace(tr, id=k) for k, tr in enumerate(tracks)]
 
 
-def _smoothstep(x: FloatArray) -> FloatArray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
-
-
 def _taper(
     dmat: FloatArray,
     k: int,
@@ -884,7 +886,7 @@ def _taper(
             fill = (grid > s_zero - taper) & (grid <= s_zero)
             x = (s_zero - grid[fill]) / taper
         ok = fill & np.isfinite(dmat[jn])
-        dmat[k, ok] = dmat[jn, ok] + sgn * w_full * _smoothstep(x[ok[fill]])
+        dmat[k, ok] = dmat[jn, ok] + sgn * w_full * smoothstep(x[ok[fill]])
         return s_zero, taper, jn
     sep0 = float(np.abs(dmat[k, i_edge] - dmat[jn, i_edge]))
     if w_full < 1.0 or sep0 > 0.7 * w_full:
@@ -919,7 +921,7 @@ def _taper(
         fill = (grid > s_edge) & (grid <= s_zero)
     x = (grid[fill] - s_zero) / taper if end == "start" else (s_zero - grid[fill]) / taper
     ok = fill & np.isfinite(dmat[jn])
-    dmat[k, ok] = dmat[jn, ok] + sgn * w_full * _smoothstep(x[ok[fill]])
+    dmat[k, ok] = dmat[jn, ok] + sgn * w_full * smoothstep(x[ok[fill]])
     return s_zero, taper, jn
 
 
@@ -953,10 +955,9 @@ def _fit_taper(
     # the taper itself must be seen, not only the full-width lane beside it
     if np.count_nonzero((sep > 0.2 * w_full) & (sep < 0.8 * w_full)) < 10:
         return None
-    sgn = 1.0 if end == "start" else -1.0
 
     def residual(p: FloatArray) -> FloatArray:
-        return sep - w_full * _smoothstep(sgn * (s_w - p[0]) / max(p[1], 1.0))
+        return sep - taper_width(s_w, w_full, p[0], max(p[1], 1.0), entry=end == "end")
 
     res = least_squares(
         residual, np.array([s_zero, taper]), loss="soft_l1", f_scale=0.1, x_scale=10.0
