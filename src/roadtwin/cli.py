@@ -464,6 +464,93 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------
+# drive  (issue: drive every ramp in esmini)
+# ---------------------------------------------------------------------------
+
+_ESMINI_HELP = "folder with esmini and dat2csv (default: the folder in $ESMINI_BIN, then PATH)"
+
+
+def _add_esmini_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--esmini", type=Path, default=None, metavar="DIR", help=_ESMINI_HELP)
+
+
+def _add_drive(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "drive", help="drive every route of a map in esmini (one OpenSCENARIO file per route)"
+    )
+    p.add_argument("xodr", type=Path, help="OpenDRIVE map")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="folder for scenarios/, runs/ and drive.json (default: MAP_DIR/drive)",
+    )
+    _add_esmini_option(p)
+    p.add_argument("--speed", type=float, default=None, metavar="M_S", help="car speed (m/s)")
+    p.add_argument("--config", type=Path, default=None, help="TOML file with stage settings")
+    p.set_defaults(func=_cmd_drive)
+
+
+def _esmini_missing_note(report) -> str:
+    """How to get esmini, and how to run the written scenarios without roadtwin."""
+    first = next(iter(sorted(report.scenario_dir.glob("*.xosc"))), None)
+    lines = [
+        "roadtwin: esmini not found: give --esmini DIR, set ESMINI_BIN to its folder or put it "
+        "on PATH (releases: https://github.com/esmini/esmini/releases)",
+        f"roadtwin: the scenarios are in {report.scenario_dir}",
+    ]
+    if first is not None:
+        lines.append(
+            f"roadtwin: run one with: esmini --headless --osc {first} --fixed_timestep "
+            f"{report.config.timestep_s:g} --record sim.dat && dat2csv sim.dat --extended"
+        )
+    return "\n".join(lines)
+
+
+def _drive(map_path: Path, out_dir: Path, args: argparse.Namespace, drive_cfg, *, tools=None):
+    """Drive ``map_path`` (the shared step of ``drive``, ``build``, ``demo``, ``check``)."""
+    from .drive import drive_map
+
+    progress = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        def progress(items):
+            return tqdm(items, desc="drive", unit="route", file=sys.stderr, leave=False)
+
+    return drive_map(map_path, out_dir, esmini=tools, config=drive_cfg, progress=progress)
+
+
+def _drive_config(args: argparse.Namespace):
+    import dataclasses
+
+    cfg = _load_config(getattr(args, "config", None)).drive
+    if getattr(args, "speed", None) is not None:
+        if not args.speed > 0:
+            raise InputError(f"--speed must be > 0 m/s, got {args.speed}")
+        cfg = dataclasses.replace(cfg, speed_m_s=args.speed)
+    return cfg
+
+
+def _cmd_drive(args: argparse.Namespace) -> int:
+    from .drive import find_esmini
+
+    if not args.xodr.is_file():
+        raise InputError(f"{args.xodr}: map not found")
+    cfg = _drive_config(args)
+    tools = find_esmini(args.esmini)
+    out = args.output if args.output is not None else args.xodr.parent / "drive"
+    report = _drive(args.xodr, out, args, cfg, tools=tools)
+    print(report.format_text())
+    print(f"wrote      {out / 'drive.json'}, {report.scenario_dir}/ ({len(report.results)} routes)")
+    if tools is None:
+        print(_esmini_missing_note(report), file=sys.stderr)
+        return 2
+    return 0 if report.ok else 1
+
+
+# ---------------------------------------------------------------------------
 # demo  (simulator issue; grows as stages land)
 # ---------------------------------------------------------------------------
 
@@ -612,7 +699,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="store_true", help="log every stage")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_inspect, _add_simulate, _add_build, _add_check, _add_evaluate, _add_demo):
+    for add in (
+        _add_inspect,
+        _add_simulate,
+        _add_build,
+        _add_check,
+        _add_evaluate,
+        _add_drive,
+        _add_demo,
+    ):
         add(sub)
     return parser
 
