@@ -110,8 +110,7 @@ class DriveReport:
         warn = len(self.warnings)
         return (
             f"{n} routes: {self.count('passed')} passed, {self.count('failed')} failed; "
-            f"esmini {'warnings: ' + str(warn) if warn else 'logged no warning'} "
-            f"({self.wall_s:.1f} s)"
+            f"esmini {str(warn) + ' distinct warnings' if warn else 'logged no warning'}"
         )
 
     def format_text(self) -> str:
@@ -134,7 +133,7 @@ class DriveReport:
             lines += [f"    {f.code}: {f.message}" for f in r.faults]
         for message, routes in self.warnings.items():
             lines.append(f"esmini {message} ({routes} route(s))")
-        lines.append(f"drive: {self.summary()}")
+        lines.append(f"drive: {self.summary()} ({self.wall_s:.1f} s)")
         return "\n".join(lines)
 
 

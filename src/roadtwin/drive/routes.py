@@ -333,33 +333,41 @@ def _unconnected_note(ctx: _Ctx, road_id: str) -> str:
     return ""
 
 
-def _chain_end(ctx: _Ctx, node: LaneNode, *, backward: bool) -> LaneNode:
-    """Follow lane links from ``node`` (any lane type) until they stop."""
+def _chain_end(ctx: _Ctx, node: LaneNode, *, backward: bool) -> tuple[LaneNode, bool]:
+    """Follow lane links from ``node`` until they stop or reach a lane that is not a
+    driving lane; the last lane and whether it is drivable."""
     seen = {node}
     while True:
         nxt = ctx.graph.predecessors(node) if backward else ctx.graph.successors(node)
         cand = [n for n in nxt if n not in seen]
         if not cand:
-            return node
+            return node, True
         node = _pick(cand, node[0])
+        if ctx.graph.nodes[node].get("type") not in DRIVABLE:
+            return node, False
         seen.add(node)
 
 
 def _break_into(ctx: _Ctx, target: LaneNode, what: str) -> str:
-    start = _chain_end(ctx, target, backward=True)
+    start, drivable = _chain_end(ctx, target, backward=True)
+    head = f"no driving lane of {what} leads into road {target[0]} lane {target[2]}: "
+    if not drivable:
+        kind = ctx.graph.nodes[start].get("type")
+        return head + f"its lane chain comes from {_describe(ctx, start)}, a {kind} lane"
     return (
-        f"no driving lane of {what} leads into road {target[0]} lane {target[2]}: the lane "
-        f"chain into it starts at {_describe(ctx, start)}, which no lane leads into"
+        head
+        + f"its lane chain starts at {_describe(ctx, start)}, which no lane leads into"
         + _unconnected_note(ctx, start[0])
     )
 
 
 def _break_out_of(ctx: _Ctx, source: LaneNode, what: str) -> str:
-    end = _chain_end(ctx, source, backward=False)
-    return (
-        f"no driving lane path from road {source[0]} lane {source[2]} reaches {what}: the "
-        f"lane chain ends at {_describe(ctx, end)}, which leads nowhere"
-    )
+    end, drivable = _chain_end(ctx, source, backward=False)
+    head = f"no driving lane path from road {source[0]} lane {source[2]} reaches {what}: "
+    if not drivable:
+        kind = ctx.graph.nodes[end].get("type")
+        return head + f"its lane chain leads onto {_describe(ctx, end)}, a {kind} lane"
+    return head + f"its lane chain ends at {_describe(ctx, end)}, which leads nowhere"
 
 
 # ---------------------------------------------------------------------------
@@ -397,17 +405,46 @@ def _shortest(ctx: _Ctx, sources: list, targets: list) -> list[LaneNode] | None:
     return list(paths[best])
 
 
+def _follow(ctx: _Ctx, start: LaneNode, prefer: set[str]) -> list[LaneNode]:
+    """The driving-lane chain from ``start`` as far as it goes (roads in ``prefer`` first,
+    then the same road)."""
+    path = [start]
+    while True:
+        succ = [n for n in ctx.driving.successors(path[-1]) if n not in path]
+        if not succ:
+            return path
+        path.append(_pick([n for n in succ if n[0] in prefer] or succ, path[-1][0]))
+
+
+def _natural_end(ctx: _Ctx, node: LaneNode) -> bool:
+    """A lane chain may end here: the lane narrows below ``min_lane_width_m`` (a lane
+    drop), or the road ends without a link (the edge of the map)."""
+    road = ctx.network.road(node[0])
+    if _usable(ctx, node, from_entry=False) is None:
+        return True
+    b = _span(ctx.network, node, ctx.side)[1]
+    width = _widths(road, node[1], node[2], np.array([b]))[0]
+    if width < ctx.config.min_lane_width_m:
+        return True
+    at_road_end = math.isclose(b, road.length) or math.isclose(b, 0.0, abs_tol=1e-9)
+    link = road.successor if _forward(node[2], ctx.side) else road.predecessor
+    return at_road_end and link is None
+
+
 def _mainline_routes(ctx: _Ctx) -> list[Route]:
-    order = [r for r in mainline_roads(ctx.network) if r.name == "mainline"]
-    if not order:
+    """From every driving lane at the start of the mainline to its end, or as far as the
+    lane goes where it ends in a taper (a lane drop) or leaves the mainline."""
+    order = mainline_roads(ctx.network)
+    named = [r for r in order if r.name == "mainline"]
+    if not named:
         return []
-    first, last = order[0].id, order[-1].id
+    first, last = named[0].id, named[-1].id
     targets = _driving_nodes(ctx, {last}, section="exit")
     routes = []
     for src in _driving_nodes(ctx, {first}, section="entry"):
         name = f"mainline lane {src[2]}"
-        path = _shortest(ctx, [src], targets)
-        if path is None:
+        path = _shortest(ctx, [src], targets) or _follow(ctx, src, {r.id for r in order})
+        if path[-1] not in targets and not _natural_end(ctx, path[-1]):
             problem = _break_out_of(ctx, src, f"the end of the mainline (road {last})")
             routes.append(Route(name, "mainline", problem=problem))
             continue
