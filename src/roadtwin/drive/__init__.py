@@ -18,6 +18,7 @@ import os
 import re
 import time
 from collections.abc import Callable, Iterable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from ..config import DriveConfig
@@ -123,27 +124,40 @@ def drive_map(
     if esmini is not None:
         runs.mkdir(parents=True, exist_ok=True)
     routes = find_routes(network, config=cfg)
-    written = set()
-    results: list[RouteResult] = []
-    items: Iterable = list(enumerate(routes, start=1))
-    if progress is not None:
-        items = progress(items)
-    for index, route in items:
+    results: list[RouteResult | None] = [None] * len(routes)
+    todo = []
+    for index, route in enumerate(routes):
         if route.problem:
-            fault = Fault("no_lane_path", route.problem)
-            results.append(RouteResult(route, "failed", (fault,)))
+            results[index] = RouteResult(route, "failed", (Fault("no_lane_path", route.problem),))
             continue
-        scenario = write_scenario(route, map_path, scenarios / _file_name(index, route), config=cfg)
-        written.add(scenario.name)
+        path = scenarios / _file_name(index + 1, route)
+        scenario = write_scenario(route, map_path, path, config=cfg)
         if esmini is None:
-            results.append(RouteResult(route, "not run", scenario=scenario))
-            continue
-        results.append(_drive_one(route, scenario, runs, network, esmini, cfg))
+            results[index] = RouteResult(route, "not run", scenario=scenario)
+        else:
+            todo.append((index, route, scenario))
+    written = {r.scenario.name for r in results if r is not None and r.scenario is not None}
+    written |= {scenario.name for _, _, scenario in todo}
+    if todo:
+        with ThreadPoolExecutor(max_workers=max(1, cfg.workers)) as pool:
+            done: Iterable = pool.map(
+                lambda item: (item[0], _drive_one(item[1], item[2], runs, network, esmini, cfg)),
+                todo,
+            )
+            if progress is not None:
+                done = progress(done)
+            for index, result in done:
+                results[index] = result
     for stale in scenarios.glob("*.xosc"):  # from an earlier drive of another map
         if stale.name not in written:
             stale.unlink()
     report = DriveReport(
-        str(map_path), tuple(results), cfg, esmini, scenarios, time.perf_counter() - started
+        str(map_path),
+        tuple(r for r in results if r is not None),
+        cfg,
+        esmini,
+        scenarios,
+        time.perf_counter() - started,
     )
     write_drive_json(report, out / "drive.json")
     log.info("drive %s: %s", map_path, report.summary())

@@ -172,7 +172,10 @@ def judge_recording(
                 len(rec) - 1,
             )
         )
-    needed = min(cfg.min_on_target_m, route.on_target_m - cfg.reach_tolerance_m - 1.0)
+    # the car stops within reach_tolerance_m of the target, and the step that enters the
+    # target road counts for neither road
+    step_m = cfg.speed_m_s * cfg.timestep_s
+    needed = min(cfg.min_on_target_m, route.on_target_m) - cfg.reach_tolerance_m - 2.0 * step_m
     if reached and driven_on_target < needed:
         faults.append(
             _fault(

@@ -182,7 +182,7 @@ def _extend_back(ctx: _Ctx, path: list[LaneNode], limit_m: float) -> list[LaneNo
     """Prepend driving lanes leading into ``path`` until ``limit_m`` of approach."""
     out = list(path)
     total = 0.0
-    while total < limit_m:
+    while total < limit_m and out[0] in ctx.driving:
         preds = [p for p in ctx.driving.predecessors(out[0]) if p not in out]
         if not preds:
             break
@@ -197,7 +197,7 @@ def _extend_forward(ctx: _Ctx, path: list[LaneNode], limit_m: float) -> list[Lan
     out = list(path)
     road = out[-1][0]
     total = sum(ctx.length(n) for n in out if n[0] == road)
-    while total < limit_m:
+    while total < limit_m and out[-1] in ctx.driving:
         succ = [n for n in ctx.driving.successors(out[-1]) if n[0] == road and n not in out]
         if not succ:
             break
@@ -261,15 +261,17 @@ def _make_route(
             break
     u_target = None
     if u_start is not None:
+        # on the last road, where its lane is last wide enough; a last road whose lane
+        # never is (a lane link onto a shoulder) still gets the target, at its end
         u_hi = cum[k_last] + follow_m
-        for j in range(len(lanes) - 1, -1, -1):
+        u = min(cum[-1] - cfg.end_margin_m, u_hi)
+        for j in range(len(lanes) - 1, k_last - 1, -1):
             wide = _usable(ctx, lanes[j], from_entry=False)
-            if wide is None:
-                continue
-            u = cum[j] + min(wide, u_hi - cum[j])
-            if u - u_start >= cfg.reach_tolerance_m:
-                u_target = u
-            break
+            if wide is not None:
+                u = min(cum[j] + wide, u_hi)
+                break
+        if u - u_start >= cfg.reach_tolerance_m:
+            u_target = u
     if u_start is None or u_target is None:
         return Route(name, kind, tuple(lanes), problem=_no_room(ctx, lanes))
 
@@ -320,17 +322,43 @@ def _describe(ctx: _Ctx, node: LaneNode) -> str:
     return f"road {road_id} lane {lane_id} (section {k}, s={min(a, b):.1f}-{max(a, b):.1f} m)"
 
 
-def _unconnected_note(ctx: _Ctx, road_id: str) -> str:
-    """For a connecting road that no junction connection names: say so."""
-    road = ctx.network.road(road_id)
-    if road.junction == "-1":
+def _unconnected_note(ctx: _Ctx, node: LaneNode) -> str:
+    """Why no lane leads into ``node``, from the road links around it."""
+    road = ctx.network.road(node[0])
+    if road.junction != "-1":
+        junction = ctx.network.id_to_junction.get(road.junction)
+        if junction is None:
+            return f"; its junction {road.junction} does not exist"
+        if not any(c.connecting_road == road.id for c in junction.connections):
+            return f"; junction {junction.id} has no connection onto road {road.id}"
         return ""
-    junction = ctx.network.id_to_junction.get(road.junction)
-    if junction is None:
-        return f"; its junction {road.junction} does not exist"
-    if not any(c.connecting_road == road_id for c in junction.connections):
-        return f"; junction {junction.id} has no connection onto road {road_id}"
-    return ""
+    link = road.predecessor if _forward(node[2], ctx.side) else road.successor
+    if link is None:
+        return f"; road {road.id} has no link at that end"
+    if link.element_type == "junction":
+        junction = ctx.network.id_to_junction.get(link.element_id)
+        leads_here = junction is not None and any(
+            road.id in _linked_ids(ctx.network, c.connecting_road) or c.connecting_road == road.id
+            for c in junction.connections
+        )
+        if not leads_here:
+            return (
+                f"; road {road.id} links to junction {link.element_id}, but no road of that "
+                f"junction leads onto it"
+            )
+        return ""
+    return f"; road {road.id} links to road {link.element_id}, whose lanes do not lead into it"
+
+
+def _linked_ids(network: RoadNetwork, road_id: str) -> set[str]:
+    road = network.id_to_road.get(road_id)
+    if road is None:
+        return set()
+    return {
+        link.element_id
+        for link in (road.predecessor, road.successor)
+        if link is not None and link.element_type == "road"
+    }
 
 
 def _chain_end(ctx: _Ctx, node: LaneNode, *, backward: bool) -> tuple[LaneNode, bool]:
@@ -357,7 +385,7 @@ def _break_into(ctx: _Ctx, target: LaneNode, what: str) -> str:
     return (
         head
         + f"its lane chain starts at {_describe(ctx, start)}, which no lane leads into"
-        + _unconnected_note(ctx, start[0])
+        + _unconnected_note(ctx, start)
     )
 
 
@@ -409,11 +437,12 @@ def _follow(ctx: _Ctx, start: LaneNode, prefer: set[str]) -> list[LaneNode]:
     """The driving-lane chain from ``start`` as far as it goes (roads in ``prefer`` first,
     then the same road)."""
     path = [start]
-    while True:
+    while path[-1] in ctx.driving:
         succ = [n for n in ctx.driving.successors(path[-1]) if n not in path]
         if not succ:
             return path
         path.append(_pick([n for n in succ if n[0] in prefer] or succ, path[-1][0]))
+    return path
 
 
 def _natural_end(ctx: _Ctx, node: LaneNode) -> bool:
