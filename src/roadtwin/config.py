@@ -126,6 +126,10 @@ class RampConfig:
     """Ramp lane width (metres)."""
     blend_length_m: float = 60.0
     """Length over which a re-anchored ramp blends back into the OSM shape (metres)."""
+    link_lane_rule: Literal["osm", "paper"] = "osm"
+    """Lane count of a ``*_link`` way without lane tags: ``osm`` (1 lane, OSM's convention
+    for link roads) or ``paper`` (the seed paper's Algorithm 2 class default: motorway 3,
+    trunk/primary 2)."""
     lane_type: Literal["driving", "spec"] = "driving"
     """``driving`` ramp lanes (CARLA-friendly) or the spec's onRamp/offRamp types."""
     savgol_polyorder: int = 3
@@ -233,6 +237,15 @@ class PipelineConfig:
     ramps: RampConfig = field(default_factory=RampConfig)
     topology: TopologyConfig = field(default_factory=TopologyConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+
+    def with_method(self, method: Literal["default", "paper"]) -> PipelineConfig:
+        """The same settings built with ``method``: the mainline method and the ramps' lane
+        rule for untagged links (``paper``: the seed paper's Algorithm 2 class default)."""
+        return replace(
+            self,
+            mainline=replace(self.mainline, method=method),
+            ramps=replace(self.ramps, link_lane_rule="paper" if method == "paper" else "osm"),
+        )
 
     @classmethod
     def from_dict(cls, data: dict[str, dict[str, Any]]) -> PipelineConfig:

@@ -308,7 +308,7 @@ def compare_methods(
         )
     reports = []
     for method in methods:
-        build_cfg = replace(cfg, mainline=replace(cfg.mainline, method=method))
+        build_cfg = cfg.with_method(method)
         result = build_map(run, osm_graph, config=build_cfg)
         reports.append(
             evaluate(

@@ -137,7 +137,7 @@ def build_ramps(
     for i, (chain, s_osm) in enumerate(zip(chains, stations, strict=False)):
         what = f"{chain.type} ways {', '.join(str(w) for w in chain.osm_way_ids)}"
         notes: list[str] = []
-        osm_lanes, osm_rule = infer_lane_count(chain.tags)
+        osm_lanes, osm_rule = infer_lane_count(chain.tags, link_rule=cfg.link_lane_rule)
         if osm_rule == "highway class":
             notes.append(f"{what}: no lane tags, lane count {osm_lanes} from the highway class")
         if chain.type != chain.type_geometry:
