@@ -125,7 +125,8 @@ class RampConfig:
     lane_width_m: float = 3.5
     """Ramp lane width (metres)."""
     blend_length_m: float = 60.0
-    """Length over which a re-anchored ramp blends back into the OSM shape (metres)."""
+    """Length over which the first ramp lanes blend from the widths of the mainline lanes they
+    continue to the ramp lane width (metres)."""
     link_lane_rule: Literal["osm", "paper"] = "osm"
     """Lane count of a ``*_link`` way without lane tags: ``osm`` (1 lane, OSM's convention
     for link roads) or ``paper`` (the seed paper's Algorithm 2 class default: motorway 3,
@@ -164,6 +165,24 @@ class RampConfig:
     """A ramp's inner shoulder opens from zero width at the gore (exit) or closes to zero
     width there (entry) over this length, metres (the gore area, where the two edges
     diverge)."""
+    min_radius_m: float = 15.0
+    """Smallest radius of a ramp's reference line (metres); on the side of its lanes the
+    outer lane border keeps it too. Loop ramps go down to about 25-30 m in design
+    guides; the bound only stops a fit from knotting."""
+    shape_knot_m: float = 15.0
+    """Knot spacing of the ramp's curvature (metres): curvature is linear between knots
+    (a chain of clothoids)."""
+    shape_step_m: float = 0.5
+    """Step of the dense fitted reference line (metres)."""
+    shape_smoothness: float = 2000.0
+    """Weight of the second differences of the knot curvatures (per knot spacing squared)
+    against the target points (in units of their sigma)."""
+    osm_sigma_m: float = 2.0
+    """Standard deviation of an OSM ramp point as a target of the ramp shape (metres): OSM
+    is drawn 1-5 m off; the fit is robust beyond twice this."""
+    evidence_sigma_m: float = 0.1
+    """Standard deviation of the measured ramp line (where the LiDAR saw the ramp) as a
+    target of the ramp shape (metres)."""
     use_evidence: bool = True
     """Shape the ramps' first part and widths from the measured points past the gores
     (False: OSM shape and default widths only, the paper's method)."""
@@ -175,15 +194,11 @@ class RampConfig:
     span ``evidence_min_span_m``) before they correct it; else OSM and defaults decide."""
     evidence_min_span_m: float = 20.0
     """Minimum extent along the ramp (metres) of the matched points."""
-    evidence_blend_m: float = 60.0
-    """Beyond the last measured point the fitted correction fades into the (re-anchored)
-    OSM shape over this length (metres)."""
     evidence_max_shift_m: float = 15.0
-    """Where the fitted first part of a ramp blends into the OSM shape, a gap larger than
-    this (metres) rejects the fit (the points belong to another road). Generous on
-    purpose: the re-anchored OSM shape itself can be metres off near the gore (OSM drawn
-    with offset, an OSM attachment far from the measured gore), which is what the fit
-    corrects."""
+    """A fit to the measured points that moves the ramp farther than this (metres) from the
+    line fitted to the OSM shape alone is rejected (the points belong to another road).
+    Generous on purpose: OSM itself can be metres off near the gore (drawn with offset, an
+    OSM attachment far from the measured gore), which is what the fit corrects."""
     evidence_exclude_m: float = 0.3
     """Measured points within this (metres) of a mainline boundary of their kind belong to
     the mainline and are not used as ramp evidence."""

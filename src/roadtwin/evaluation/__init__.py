@@ -294,8 +294,6 @@ def compare_methods(
         One :class:`RunEvaluation` per method (``method`` set), in the order given, then
         the truth's.
     """
-    from dataclasses import replace
-
     from ..config import PipelineConfig
     from ..pipeline import build_map
 

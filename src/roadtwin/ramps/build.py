@@ -91,7 +91,7 @@ def build_ramps(
     edge_xy, lane_xy
         The run's measured road-edge points and lane samples (``(N, 2+)``, mapping frame,
         metres): those past each gore shape the ramp's first part and give its widths
-        (:func:`fit_ramp_evidence`). ``None``: OSM shape and default widths.
+        (:func:`~roadtwin.ramps.shape.fit_ramp_shape`). ``None``: OSM shape and default widths.
     config
         Ramp settings.
 
