@@ -108,6 +108,20 @@ class MainlineConfig:
     """Lane sections shorter than this are merged into a neighbour (metres)."""
     seed: int = 0
     """Seed of the paper method's K-means and silhouette sub-sampling."""
+    quality_bin_m: float = 25.0
+    """Station bin of the stretch warnings (:mod:`roadtwin.mainline.quality`), metres."""
+    quality_min_points: int = 15
+    """Points a bin needs before its residuals count."""
+    quality_edge_bias_m: float = 0.2
+    """A bin whose edge points lie on median farther than this from the built edge
+    (metres) is poorly determined (the sensor's own noise is a few centimetres)."""
+    quality_marking_m: float = 0.3
+    """A lane sample farther than this from every built lane boundary is unexplained."""
+    quality_min_marking_samples: int = 8
+    """Unexplained lane samples that line up in a bin (one dash of a broken line gives
+    about 12) before the bin counts as a marking the map lacks."""
+    quality_max_lane_m: float = 5.0
+    """A driving lane wider than this (metres) is flagged: a boundary was missed."""
 
 
 @dataclass(frozen=True)
