@@ -87,6 +87,8 @@ class OsmTruth:
     layout : the lane strips along the mainline (truth stations).
     osm_offset_m : ``(N, 3)`` station and the truth-minus-OSM displacement (x, y) applied
         along the mainline every 10 m.
+    tagged_lanes : ``(s0, s1, lanes)`` of the OSM ``lanes`` tags along the mainline
+        (truth stations).
     skipped : ``(what, why)`` of OSM ramps left out.
     notes : what the layout did (weaving lanes, missing shoulders, ...).
     """
@@ -102,6 +104,7 @@ class OsmTruth:
     mainline: Road
     layout: Layout
     osm_offset_m: NDArray[np.float64]
+    tagged_lanes: tuple[tuple[float, float, int], ...]
     seed: int
     skipped: tuple[tuple[str, str], ...] = ()
     notes: tuple[str, ...] = field(default_factory=tuple)
@@ -258,8 +261,18 @@ def truth_from_osm(
         tc = smooth_line(target_c, window_m=cfg.ramps.smooth_window_m)
         u_rc = cfg.cross_section.ramp_inner_shoulder_m + r.lanes * ramp_w / 2.0
         target = tc - sign * u_rc * normals(tc)
+        sh = next((x for x in layout.strips if x.key == att.shoulder_key), None)
+        w_sh = float(sh.full(sg)[0]) if sh is not None else w_hard
+        gore_sh = cs.ramp_inner_shoulder_m if r.side == "outer" else cs.ramp_hard_shoulder_m
         xy, pose = ramp_polyline(
-            main_geo, g, attach_t, target, kind=r.kind, away_sign=away, cfg=cfg.ramps
+            main_geo,
+            g,
+            attach_t,
+            target,
+            kind=r.kind,
+            away_sign=away,
+            separation_m=w_sh + gore_sh + cfg.ramps.gore_gap_m,
+            cfg=cfg.ramps,
         )
         pieces = (
             fit_line(xy, tolerance_m=cfg.fit_tolerance_m, start_pose=pose)
@@ -353,6 +366,7 @@ def truth_from_osm(
         mainline=full.road,
         layout=layout,
         osm_offset_m=np.column_stack([s10, disp]),
+        tagged_lanes=tuple(segments),
         seed=seed,
         skipped=tuple(skipped),
         notes=tuple(layout.notes),
@@ -377,7 +391,7 @@ def _ramp_layout(
     exit_ = r.kind == "exit"
     by_key = {x.key: x for x in main.strips}
     cs = cfg.cross_section
-    open_m = min(100.0, 0.4 * length)
+    open_m = min(cfg.lanes.gore_shoulder_taper_m, 0.4 * length)
 
     def blended(w_gore: float, w_ramp: float):
         def fn(s):

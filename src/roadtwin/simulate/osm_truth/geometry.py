@@ -126,6 +126,7 @@ def ramp_polyline(
     *,
     kind: str,
     away_sign: float,
+    separation_m: float,
     cfg: RampShape,
 ) -> tuple[FloatArray, tuple[float, float, float]]:
     """Dense reference line of a ramp (driving order) and its exact gore pose.
@@ -133,51 +134,68 @@ def ramp_polyline(
     ``attach_t`` is the lateral offset (metres, left positive) on ``main`` where the ramp's
     reference line starts (exit) or ends (entry) at station ``gore_s``; ``target`` the
     ramp's reference line from the displaced OSM link, in driving order. Near the gore the
-    ramp runs parallel to that border, bending away (``away_sign``: +1 to the left) on a
-    circle of ``cfg.diverge_radius_m``; it blends into the target between
-    ``cfg.blend_start_m`` and a blend end chosen where the two are still within
-    ``cfg.blend_max_gap_m`` (between ``cfg.blend_end_m``).
+    ramp is described in the mainline's Frenet frame: its separation from that border
+    (``away_sign`` +1 = to the left) is the larger (a soft maximum) of the target's and a
+    minimum that leaves the border tangentially on a circle of ``cfg.diverge_radius_m`` and
+    levels off at ``separation_m`` (room for the shoulders that open in the gore). Once
+    the target is ``cfg.switch_m`` away from the mainline (or turns away) the ramp follows
+    the target itself. Curvature is limited to ``1 / cfg.min_radius_m``.
     """
     exit_ = kind == "exit"
-    tgt = target if exit_ else target[::-1]
+    d = 1.0 if exit_ else -1.0
+    tgt = target if exit_ else target[::-1]  # from the gore away
     tgt = smooth_line(tgt, window_m=cfg.smooth_window_m, step_m=1.0)
-    sig_t = arc_length(tgt)
-    # the target from the point nearest the gore on
+    s_t, t_t = main.project(tgt)
+    sig_t = d * (s_t - gore_s)
+    e_t = away_sign * (t_t - attach_t)
+    hd = np.abs(_wrap(_headings(tgt) - main.heading(s_t) - (0.0 if exit_ else math.pi)))
+    near = (
+        (np.concatenate([[True], np.diff(sig_t) > 0.05]))
+        & (e_t < cfg.switch_m)
+        & (hd < math.radians(35.0))
+        & (s_t > 0.5)
+        & (s_t < main.length - 0.5)
+    )
+    near &= np.cumprod(near).astype(bool)  # the prefix only
+    j = int(near.sum())
+    sig_switch = float(sig_t[j - 1]) if j >= 2 else 0.0
+    sig_switch = float(np.clip(sig_switch, 0.0, d * ((main.length if exit_ else 0.0) - gore_s)))
+    pieces = []
+    if sig_switch > 1.0:
+        sig = np.linspace(0.0, sig_switch, max(2, math.ceil(sig_switch) + 1))
+        cap = separation_m
+        e_min = cap * (1.0 - np.exp(-(sig * sig) / (2.0 * cfg.diverge_radius_m * cap)))
+        e_tgt = np.interp(sig, sig_t[:j], e_t[:j]) if j >= 2 else e_min
+        k = cfg.softmax_m
+        e = e_min + k * np.logaddexp(0.0, (e_tgt - e_min) / k)
+        e -= e[0] * np.exp(-0.5 * (sig / 15.0) ** 2)  # starts on the border, tangentially
+        pieces.append(main.to_xy(gore_s + d * sig, attach_t + away_sign * e))
+    far = tgt[j:] if sig_switch > 1.0 else tgt
+    if sig_switch > 1.0 and len(far):
+        far = far[np.hypot(*(far - pieces[0][-1]).T).argmin() :]
+        far = far[1:] if len(far) > 1 else far
+    if len(far):
+        pieces.append(far)
+    xy = np.vstack(pieces)
     gore_xy = main.to_xy(np.array([gore_s]), np.array([attach_t]))[0]
-    j0 = int(np.argmin(np.hypot(*(tgt - gore_xy).T)))
-    tgt, sig_t = tgt[j0:], sig_t[j0:] - sig_t[j0]
-    span = float(sig_t[-1])
-    step = 1.0
-    sig = np.arange(0.0, span + 1e-9, step)
-    # the parallel path: along the mainline (forward for an exit, backward for an entry)
-    direction = 1.0 if exit_ else -1.0
-    s_main = np.clip(gore_s + direction * sig, 0.0, main.length)
-    eps = sig * sig / (2.0 * cfg.diverge_radius_m)
-    par = main.to_xy(s_main, attach_t + away_sign * eps)
-    # beyond the mainline's ends, continue straight
-    over = (gore_s + direction * sig < 0.0) | (gore_s + direction * sig > main.length)
-    if over.any():
-        h_end = main.heading(np.array([s_main[over][0]]))[0] + (0.0 if exit_ else math.pi)
-        base = par[np.argmax(over) - 1] if np.argmax(over) > 0 else par[0]
-        k = np.arange(1, over.sum() + 1) * step
-        par[over] = base + np.column_stack([np.cos(h_end) * k, np.sin(h_end) * k])
-    tx = np.column_stack([np.interp(sig, sig_t, tgt[:, 0]), np.interp(sig, sig_t, tgt[:, 1])])
-    gap = np.hypot(*(tx - par).T)
-    lo_end, hi_end = cfg.blend_end_m
-    far = np.flatnonzero((sig >= lo_end) & (gap > cfg.blend_max_gap_m))
-    blend_end = float(np.clip(sig[far[0]] if far.size else hi_end, lo_end, hi_end))
-    blend_end = min(blend_end, 0.6 * span)
-    b0 = min(cfg.blend_start_m, 0.3 * blend_end)
-    x = np.clip((sig - b0) / max(blend_end - b0, 1e-6), 0.0, 1.0)
-    w = x * x * x * (x * (6.0 * x - 15.0) + 10.0)
-    xy = (1.0 - w)[:, None] * par + w[:, None] * tx
-    xy = limit_curvature(xy, min_radius_m=cfg.min_radius_m, keep_start_m=b0)
+    if sig_switch <= 1.0:
+        xy = np.vstack([gore_xy, xy[np.hypot(*(xy - gore_xy).T) > 1.0]])
+    xy = resample_polyline(xy, 1.0)
+    xy = limit_curvature(xy, min_radius_m=cfg.min_radius_m, keep_start_m=2.0)
     h0 = float(main.heading(np.array([gore_s]))[0])
-    pose = (float(gore_xy[0]), float(gore_xy[1]), h0 if exit_ else h0 + math.pi)
+    pose = (float(gore_xy[0]), float(gore_xy[1]), h0)
     if not exit_:
         xy = xy[::-1]
-        pose = (pose[0], pose[1], h0)
     return xy, pose
+
+
+def _headings(xy: FloatArray) -> FloatArray:
+    d = np.gradient(xy, axis=0)
+    return np.arctan2(d[:, 1], d[:, 0])
+
+
+def _wrap(a: FloatArray) -> FloatArray:
+    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 def limit_curvature(
@@ -193,7 +211,7 @@ def limit_curvature(
         if not bad.any():
             break
         win = 9 + 8 * k
-        sm = savgol_smooth(out, window=min(win, (len(out) - 1) | 1 if len(out) % 2 == 0 else len(out)), polyorder=3)
+        sm = savgol_smooth(out, window=win, polyorder=3)
         # blend the smoothed version in around the bad samples (soft mask over ~2 windows)
         mask = np.convolve(bad.astype(float), np.ones(2 * win + 1), mode="same") > 0
         soft = np.convolve(mask.astype(float), np.ones(win) / win, mode="same")

@@ -402,11 +402,17 @@ def tag_segments_from_chain(
     return out
 
 
-def lane_count_at(layout: Layout, s: NDArray, *, min_width_m: float = 2.5) -> NDArray[np.int64]:
-    """Number of through and auxiliary lanes wider than ``min_width_m`` at each station."""
+def lane_count_at(
+    layout: Layout,
+    s: NDArray,
+    *,
+    min_width_m: float = 2.5,
+    kinds: tuple[str, ...] = ("through", "aux"),
+) -> NDArray[np.int64]:
+    """Number of lanes of ``kinds`` wider than ``min_width_m`` at each station."""
     s = np.asarray(s, dtype=float)
     out = np.zeros(s.shape, np.int64)
     for x in layout.strips:
-        if x.kind in ("through", "aux"):
+        if x.kind in kinds:
             out += (x.width(s) > min_width_m).astype(np.int64)
     return out

@@ -89,6 +89,18 @@ def _side(chain: Chain, k: int, xy: NDArray, *, exit_: bool, traffic: str) -> st
     return "outer" if is_left == outer_is_left else "inner"
 
 
+def _cap(xy: NDArray, length_m: float, *, from_start: bool) -> NDArray:
+    """The first (or last) ``length_m`` of a polyline."""
+    pts = xy if from_start else xy[::-1]
+    d = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    if d[-1] > length_m:
+        k = int(np.searchsorted(d, length_m))
+        f = (length_m - d[k - 1]) / max(d[k] - d[k - 1], 1e-9)
+        end = pts[k - 1] + f * (pts[k] - pts[k - 1])
+        pts = np.vstack([pts[:k], end])
+    return pts if from_start else pts[::-1]
+
+
 def _layer(tags: dict[str, str]) -> int:
     try:
         return int(float(tags.get("layer", "0")))
@@ -137,9 +149,8 @@ def find_ramps(
             else:
                 pts = np.vstack([x[:-1] for x in reversed(ll[1:])] + [ll[0]])
             x, y = chain.frame.from_lonlat(pts[:, 0], pts[:, 1])
-            xy = np.column_stack([x, y])
-            seg = np.hypot(*np.diff(xy, axis=0).T)
-            length = float(seg.sum())
+            xy = _cap(np.column_stack([x, y]), shape.max_length_m, from_start=kind == "exit")
+            length = float(np.hypot(*np.diff(xy, axis=0).T).sum())
             if length < shape.min_length_m:
                 skipped.append((what, f"link only {length:.0f} m long"))
                 continue

@@ -100,7 +100,7 @@ class LaneEvents:
     drop_taper_m: float = 180.0
     gain_taper_m: float = 100.0
     event_snap_m: float = 120.0
-    gore_shoulder_taper_m: float = 60.0
+    gore_shoulder_taper_m: float = 120.0
 
 
 @dataclass(frozen=True)
@@ -108,19 +108,20 @@ class RampShape:
     """Ramp discovery and geometry.
 
     Link ways are followed away from the mainline for up to ``max_length_m``. A ramp
-    leaves its gore parallel to the lane border, bending away on a circle of
-    ``diverge_radius_m``, and blends into the (displaced) OSM link shape between
-    ``blend_start_m`` and a blend end within ``blend_end_m`` chosen where the two stay
-    within ``blend_max_gap_m``. The curvature of every reference line is kept below
+    leaves its gore tangentially to the lane border, bending away on a circle of
+    ``diverge_radius_m`` until it is as far out as the shoulders opening in the gore need
+    (plus ``gore_gap_m``), or further where the (displaced) OSM link is (a soft maximum
+    over ``softmax_m``); once the link is ``switch_m`` from the mainline the ramp follows
+    it. The curvature of every reference line is kept below
     ``1 / min_radius_m``. Gores within ``end_margin_m`` of the chain's ends are left out.
     """
 
     max_length_m: float = 450.0
     min_length_m: float = 60.0
-    diverge_radius_m: float = 1200.0
-    blend_start_m: float = 20.0
-    blend_end_m: tuple[float, float] = (50.0, 160.0)
-    blend_max_gap_m: float = 6.0
+    diverge_radius_m: float = 400.0
+    switch_m: float = 25.0
+    softmax_m: float = 2.0
+    gore_gap_m: float = 0.5
     min_radius_m: float = 15.0
     end_margin_m: float = 120.0
     smooth_window_m: float = 25.0
