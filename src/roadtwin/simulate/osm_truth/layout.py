@@ -133,12 +133,14 @@ class Layout:
             out[-1] = self.length_m
         return out
 
-    def u_inner_edge(self, s: NDArray) -> NDArray:
-        """u of the median-side road edge (0 where the inner shoulder is nominal)."""
+    def u_inner_edge(self, s: NDArray, strips: list[Strip] | None = None) -> NDArray:
+        """u of the median-side road edge (0 where the inner shoulder is nominal).
+
+        ``strips`` restricts the sum to the lanes of one section (at a gore a lane that
+        ends there and one that starts there share the station)."""
         s = np.asarray(s, dtype=float)
-        left = sum(
-            (x.width(s) for x in self.strips if x.rank < self.anchor_rank), np.zeros_like(s)
-        )
+        pool = self.strips if strips is None else strips
+        left = sum((x.width(s) for x in pool if x.rank < self.anchor_rank), np.zeros_like(s))
         return self.inner_shoulder_m - left
 
     def u_border(self, s: NDArray, rank_below: float) -> NDArray:

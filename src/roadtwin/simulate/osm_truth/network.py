@@ -123,10 +123,10 @@ def build_road(
                 )
             )
             kmap[sign * i] = x.key
-        u_edge = source.layout.u_inner_edge(s)
+        u_edge = source.layout.u_inner_edge(s, strips)
         if np.abs(u_edge).max() > 1e-9:
             any_offset = True
-        off = _fit(s - s0, -sign * u_edge, shape_preserving=False)
+        off = _fit(s - s0, sign * u_edge, shape_preserving=False)
         offset_pieces += [replace(p, s0=p.s0 + s0 - a) for p in off.pieces]
         centre = Lane(0, "none", road_marks=(RoadMark(0.0, "none", 0.0),))
         side = tuple(lanes)
