@@ -80,10 +80,11 @@ def ramp_profile(
     for c0, c1, z_main, over in crossings:
         need = z_main + over * (cfg.clearance_m + cfg.structure_m)
         sel = (sig >= c0) & (sig <= c1)
-        base = float(np.mean(z[sel])) if sel.any() else float(np.interp(0.5 * (c0 + c1), sig, z))
-        h = need - base
+        mid = float(np.interp(0.5 * (c0 + c1), sig, z))
+        worst = (float(z[sel].min()) if over > 0 else float(z[sel].max())) if sel.any() else mid
+        h = need - worst
         if over * h <= 0:  # already clear
-            reached.append(abs(base - z_main) - cfg.structure_m)
+            reached.append(abs(worst - z_main) - cfg.structure_m)
             continue
         # room between the gore and the crossing for the climb
         room = float(min(c0 if kind == "exit" else length - c1, 1e9))
