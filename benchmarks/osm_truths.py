@@ -58,7 +58,11 @@ def tag_match(truth, s: np.ndarray) -> float:
     idx = np.clip(np.searchsorted(seg[:, 0], s, side="right") - 1, 0, len(seg) - 1)
     tagged = seg[idx, 2]
     changes = seg[1:, 0][np.diff(seg[:, 2]) != 0]
-    away = np.all(np.abs(s[:, None] - changes[None, :]) > 300.0, axis=1) if changes.size else np.ones(s.size, bool)
+    away = (
+        np.all(np.abs(s[:, None] - changes[None, :]) > 300.0, axis=1)
+        if changes.size
+        else np.ones(s.size, bool)
+    )
     n = lane_count_at(truth.layout, s, kinds=("through",))
     return float(np.mean(n[away] == tagged[away])) if away.any() else 1.0
 
@@ -80,7 +84,12 @@ def plot_truth(truth, png: Path, *, focus: tuple[float, float, float] | None = N
     for w in frame_roads.ways.values():
         x, y = frame.from_lonlat(w.lonlat[:, 0], w.lonlat[:, 1])
         ax.plot(x, y, color="0.6", lw=0.8, ls="--", zorder=1)
-    colours = {"mainline": "tab:blue", "exit": "tab:red", "entry": "tab:green", "connector": "tab:purple"}
+    colours = {
+        "mainline": "tab:blue",
+        "exit": "tab:red",
+        "entry": "tab:green",
+        "connector": "tab:purple",
+    }
     for road in truth.network.roads:
         c = colours.get(road.name, "k")
         for k, sec in enumerate(road.lane_sections):
@@ -100,7 +109,9 @@ def plot_truth(truth, png: Path, *, focus: tuple[float, float, float] | None = N
         ax.set_xlim(x - r, x + r)
         ax.set_ylim(y - r, y + r)
     ax.set_aspect("equal")
-    ax.set_title(f"{truth.osm_path.name}: truth lanes (blue mainline, red exits, green entries) over OSM (grey)")
+    ax.set_title(
+        f"{truth.osm_path.name}: truth lanes (blue mainline, red exits, green entries), OSM grey"
+    )
     fig.tight_layout()
     fig.savefig(png, dpi=110)
     plt.close(fig)
@@ -132,7 +143,8 @@ def main(argv: list[str] | None = None) -> int:
     cfg = OsmTruthSettings()
     header = (
         f"{'extract':28s} {'chain(way)':>11s} {'km':>6s} {'exit/entry':>10s} {'lanes':>7s} "
-        f"{'lane%':>6s} {'weave':>5s} {'xing':>4s} {'Rmin':>6s} {'own':>4s} {'sumo':>4s} {'asam':>4s} {'s':>5s}"
+        f"{'lane%':>6s} {'weave':>5s} {'xing':>4s} {'Rmin':>6s} {'own':>4s} {'sumo':>4s} "
+        f"{'asam':>4s} {'s':>5s}"
     )
     print(header)
     failed = 0
@@ -167,8 +179,8 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"{name:28s} {way:>11d} {truth.mainline.length / 1000:6.2f} "
                 f"{n_exit:>4d}/{len(truth.ramps) - n_exit:<5d} {lanes:>7s} "
-                f"{100 * match:6.1f} {weave:>5d} {xing:>4d} {rmin:6.1f} {own:>4d} {cerr('sumo'):>4s} "
-                f"{cerr('asam'):>4s} {dt:5.1f}",
+                f"{100 * match:6.1f} {weave:>5d} {xing:>4d} {rmin:6.1f} {own:>4d} "
+                f"{cerr('sumo'):>4s} {cerr('asam'):>4s} {dt:5.1f}",
                 flush=True,
             )
             plot_truth(truth, out / f"{stem}.png")

@@ -32,9 +32,11 @@ def _chains(path: Path, n: int = 2) -> list[int]:
     return [c[0] for c in all_chains(read_osm_roads(path))[:n]]
 
 
-CASES = [(KOTKA, w) for w in _chains(KOTKA)] + [(OAKLAND, w) for w in _chains(OAKLAND)] + [
-    (MELBOURNE, _chains(MELBOURNE, 3)[2])
-]
+CASES = (
+    [(KOTKA, w) for w in _chains(KOTKA)]
+    + [(OAKLAND, w) for w in _chains(OAKLAND)]
+    + [(MELBOURNE, _chains(MELBOURNE, 3)[2])]
+)
 
 
 @pytest.mark.parametrize(("path", "way"), CASES)
@@ -50,14 +52,19 @@ def test_valid_map_continuous_and_curvature_bounded(path, way):
         s = np.linspace(0.0, road.length, max(3, int(road.length * 2)))
         assert np.abs(road.curvature(s)).max() <= 1.0 / 15.0 * 1.05, road.id
         widths = [
-            lane.width.value(np.linspace(0, 1, 3)) for sec in road.lane_sections for lane in sec.right + sec.left
+            lane.width.value(np.linspace(0, 1, 3))
+            for sec in road.lane_sections
+            for lane in sec.right + sec.left
         ]
         assert min(w.min() for w in widths) >= -1e-6
     # roads named as the contract says; the route is driving order along the mainline
     names = {r.name for r in truth.network.roads}
     assert names <= {"mainline", "exit", "entry", "connector"}
-    assert [truth.network.road(i).name for i in truth.mainline_ids] == ["mainline"] * len(truth.mainline_ids)
-    assert truth.route[0] == truth.mainline_ids[0] and truth.route[-1] == truth.mainline_ids[-1]
+    assert [truth.network.road(i).name for i in truth.mainline_ids] == ["mainline"] * len(
+        truth.mainline_ids
+    )
+    assert truth.route[0] == truth.mainline_ids[0]
+    assert truth.route[-1] == truth.mainline_ids[-1]
     assert truth.network.header.geo_reference.startswith("+proj=tmerc")
 
 
@@ -85,7 +92,8 @@ def test_lane_counts_follow_the_osm_tags(path, way):
     # lanes are 3.0-3.75 m wide where full, and their widths vary along the road
     full = [x for x in truth.layout.strips if x.kind == "through"]
     w = np.concatenate([x.full(s[(s > x.s0) & (s < x.s1)]) for x in full])
-    assert 3.0 - 1e-9 <= w.min() and w.max() <= 3.75 + 1e-9
+    assert w.min() >= 3.0 - 1e-9
+    assert w.max() <= 3.75 + 1e-9
     assert np.ptp(w) > 0.05
 
 
@@ -109,7 +117,10 @@ def test_ramps_attach_at_the_osm_link_positions():
             for r in truth.network.roads
             if r.name == "connector"
             and ramp.road_id
-            in {getattr(r.successor, "element_id", None), getattr(r.predecessor, "element_id", None)}
+            in {
+                getattr(r.successor, "element_id", None),
+                getattr(r.predecessor, "element_id", None),
+            }
         )
         end = 0.0 if ramp.type == "exit" else conn.length
         p = conn.xy(np.array([end]))[0]
@@ -122,7 +133,8 @@ def test_ramps_attach_at_the_osm_link_positions():
 def test_truth_differs_from_osm_by_the_configured_offset():
     truth = _truth(KOTKA, _chains(KOTKA)[0])
     mag = np.hypot(truth.osm_offset_m[:, 1], truth.osm_offset_m[:, 2])
-    assert mag.min() >= 1.0 - 1e-9 and mag.max() <= 5.0 + 1e-9
+    assert mag.min() >= 1.0 - 1e-9
+    assert mag.max() <= 5.0 + 1e-9
     assert np.ptp(mag) > 0.2  # a field, not a constant shift
     # the truth's lane centre is not the OSM line: metres off, as real OSM is
     roads = read_osm_roads(KOTKA)
@@ -148,10 +160,12 @@ def test_same_seed_same_bytes_other_seed_other_map():
 
 def test_left_hand_traffic_and_national_style():
     truth = _truth(MELBOURNE, _chains(MELBOURNE, 3)[2])
-    assert truth.style.country == "AU" and truth.style.traffic == "left"
+    assert truth.style.country == "AU"
+    assert truth.style.traffic == "left"
     for road in truth.network.roads:
         for sec in road.lane_sections:
-            assert sec.right == () and all(lane.id > 0 for lane in sec.left)
+            assert sec.right == ()
+            assert all(lane.id > 0 for lane in sec.left)
     assert road_style(11.5, 50.0).markings.dash_m == 6.0  # Germany: 6 m / 12 m
     assert road_style(11.5, 50.0).markings.gap_m == 12.0
     assert road_style(-122.3, 37.8).markings.dash_m == pytest.approx(3.05)  # US 10 ft
@@ -169,7 +183,8 @@ def test_weaving_lane_between_close_entry_and_exit():
     assert len(weave) == 1
     assert weave[0].s0 == pytest.approx(entry.station_m)
     assert weave[0].s1 == pytest.approx(exit_.station_m)
-    assert weave[0].open_m == 0.0 and weave[0].close_m == 0.0
+    assert weave[0].open_m == 0.0
+    assert weave[0].close_m == 0.0
 
 
 def test_link_without_lanes_tag_is_one_lane():
@@ -203,7 +218,9 @@ def test_chain_selection_by_ref_direction_and_window():
     a = truth_from_osm(OAKLAND, settings=OsmTruthSettings(), chain="I 880", seed=1)
     from roadtwin.simulate.osm_truth import ChainSelection
 
-    s_north = OsmTruthSettings(chain=ChainSelection(ref="I 880", direction="N", start_m=200.0, length_m=1200.0))
+    s_north = OsmTruthSettings(
+        chain=ChainSelection(ref="I 880", direction="N", start_m=200.0, length_m=1200.0)
+    )
     b = truth_from_osm(OAKLAND, settings=s_north, seed=1)
     assert b.mainline.length == pytest.approx(1200.0, rel=0.02)
     assert set(b.chain_way_ids) <= set(_chains(OAKLAND, 2)[0:2] and b.chain_way_ids)

@@ -210,7 +210,9 @@ def truth_from_osm(
     # ---- truth stations of the OSM features -----------------------------------------
     s_nodes, _ = main_geo.project(ch.xy + fld(ch.xy))
     segments = tag_segments_from_chain(s_nodes, seg_lanes, L)
-    gore_xy = np.array([r.xy[0] if r.kind == "exit" else r.xy[-1] for r in osm_ramps]).reshape(-1, 2)
+    gore_xy = np.array([r.xy[0] if r.kind == "exit" else r.xy[-1] for r in osm_ramps]).reshape(
+        -1, 2
+    )
     gore_s = main_geo.project(gore_xy + fld(gore_xy))[0] if len(osm_ramps) else np.zeros(0)
     # one junction zone per ramp, zones apart and inside the mainline
     lz = 0.0 if cfg.junctions == "direct" else cfg.junction_length_m
@@ -225,9 +227,7 @@ def truth_from_osm(
             continue
         accepted.append((r, g))
         last_b = b
-    events = [
-        RampEvent(i, r.kind, r.side, g, r.lanes) for i, (r, g) in enumerate(accepted)
-    ]
+    events = [RampEvent(i, r.kind, r.side, g, r.lanes) for i, (r, g) in enumerate(accepted)]
     layout = build_layout(
         L,
         segments,
@@ -300,7 +300,9 @@ def truth_from_osm(
                 for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1):
                     zc = float(np.max(z_main.value(s_m[run])))
                     over = -1 if r.layer < 0 else 1
-                    crossings.append((float(sig[run[0]]) - 4.0, float(sig[run[-1]]) + 4.0, zc, over))
+                    crossings.append(
+                        (float(sig[run[0]]) - 4.0, float(sig[run[-1]]) + 4.0, zc, over)
+                    )
         z_g = float(z_main.value(g))
         grade_g = float(z_main.derivative(g))
         zprof, reached = ramp_profile(
@@ -344,7 +346,9 @@ def truth_from_osm(
     s10 = np.arange(0.0, ch.length, 10.0)
     pts10 = np.column_stack([np.interp(s10, ch.s, ch.xy[:, 0]), np.interp(s10, ch.s, ch.xy[:, 1])])
     disp = fld(pts10)
-    full = build_road(main_src, 0.0, L, road_id="0", name="mainline", sign=sign, markings=style.markings)
+    full = build_road(
+        main_src, 0.0, L, road_id="0", name="mainline", sign=sign, markings=style.markings
+    )
     log.info(
         "osm truth %s: chain %.0f m (%d ways), %d ramps (%d exits), %d roads",
         Path(osm_path).name,
@@ -414,12 +418,25 @@ def _ramp_layout(
     outer = r.side == "outer"
     cont_w = cs.ramp_hard_shoulder_m if outer else cs.ramp_inner_shoulder_m
     w_sh = float(sh.full(np.array([g]))[0]) if sh is not None else cont_w
-    cont = Strip(shoulder_key or f"R{index}.sh", "hard" if outer else "inner",
-                 1e6 if outer else -1e6, 0.0, length, blended(w_sh, cont_w))  # fmt: skip
+    cont = Strip(
+        shoulder_key or f"R{index}.sh",
+        "hard" if outer else "inner",
+        1e6 if outer else -1e6,
+        0.0,
+        length,
+        blended(w_sh, cont_w),
+    )
     new_w = cs.ramp_inner_shoulder_m if outer else cs.ramp_hard_shoulder_m
-    new = Strip(f"R{index}.gore", "inner" if outer else "hard", -1e6 if outer else 1e6,
-                0.0, length, const(new_w),
-                open_m=open_m if exit_ else 0.0, close_m=0.0 if exit_ else open_m)  # fmt: skip
+    new = Strip(
+        f"R{index}.gore",
+        "inner" if outer else "hard",
+        -1e6 if outer else 1e6,
+        0.0,
+        length,
+        const(new_w),
+        open_m=open_m if exit_ else 0.0,
+        close_m=0.0 if exit_ else open_m,
+    )
     strips += [cont, new]
     return Layout(length, strips, {}, 0.0, -1e9)
 
@@ -439,11 +456,21 @@ def _assemble(
     lz = 0.0 if direct else cfg.junction_length_m
     L = main_src.road.length
     mk = style.markings
-    zones = [(g - lz, g) if ev.kind == "entry" else (g, g + lz) for ev, (_, g) in zip(events, accepted, strict=True)]
+    zones = [
+        (g - lz, g) if ev.kind == "entry" else (g, g + lz)
+        for ev, (_, g) in zip(events, accepted, strict=True)
+    ]
     bounds = [0.0] + [x for z in zones for x in z] + [L]
     mains = [
-        build_road(main_src, bounds[2 * i], bounds[2 * i + 1], road_id=str(i + 1),
-                   name="mainline", sign=sign, markings=mk)  # fmt: skip
+        build_road(
+            main_src,
+            bounds[2 * i],
+            bounds[2 * i + 1],
+            road_id=str(i + 1),
+            name="mainline",
+            sign=sign,
+            markings=mk,
+        )
         for i in range(len(zones) + 1)
     ]
     roads_out: list[BuiltRoad] = []
@@ -464,7 +491,9 @@ def _assemble(
         if direct:
             ramp = build_road(src, 0.0, Lr, road_id=rid, name=ev.kind, sign=sign, markings=mk)
             ramp = BuiltRoad(
-                replace_road(ramp.road, **({"predecessor": J} if ev.kind == "exit" else {"successor": J})),
+                replace_road(
+                    ramp.road, **({"predecessor": J} if ev.kind == "exit" else {"successor": J})
+                ),
                 ramp.keys,
             )
             conns.append(_conn("0", up, down))
@@ -475,22 +504,41 @@ def _assemble(
             t_id = str(conn_id)
             c_id = str(conn_id + 1)
             conn_id += 2
-            through = build_road(main_src, a, b, road_id=t_id, name="connector", sign=sign,
-                                 markings=mk, junction=jid)  # fmt: skip
+            through = build_road(
+                main_src, a, b, road_id=t_id, name="connector", sign=sign, markings=mk, junction=jid
+            )
             through = _link_connector(through, up, down)
             lzr = min(lz, 0.3 * Lr)
             if ev.kind == "exit":
-                rconn = build_road(src, 0.0, lzr, road_id=c_id, name="connector", sign=sign,
-                                   markings=mk, junction=jid)  # fmt: skip
+                rconn = build_road(
+                    src,
+                    0.0,
+                    lzr,
+                    road_id=c_id,
+                    name="connector",
+                    sign=sign,
+                    markings=mk,
+                    junction=jid,
+                )
                 ramp = build_road(src, lzr, Lr, road_id=rid, name="exit", sign=sign, markings=mk)
                 ramp = BuiltRoad(replace_road(ramp.road, predecessor=J), ramp.keys)
                 rconn = _link_connector(rconn, up, ramp, down_contact="start")
                 conns += [_conn("0", up, through), _conn("1", up, rconn)]
             else:
-                ramp = build_road(src, 0.0, Lr - lzr, road_id=rid, name="entry", sign=sign, markings=mk)
+                ramp = build_road(
+                    src, 0.0, Lr - lzr, road_id=rid, name="entry", sign=sign, markings=mk
+                )
                 ramp = BuiltRoad(replace_road(ramp.road, successor=J), ramp.keys)
-                rconn = build_road(src, Lr - lzr, Lr, road_id=c_id, name="connector", sign=sign,
-                                   markings=mk, junction=jid)  # fmt: skip
+                rconn = build_road(
+                    src,
+                    Lr - lzr,
+                    Lr,
+                    road_id=c_id,
+                    name="connector",
+                    sign=sign,
+                    markings=mk,
+                    junction=jid,
+                )
                 rconn = _link_connector(rconn, ramp, down)
                 conns += [_conn("0", up, through), _conn("1", ramp, rconn)]
             roads_out += [through, rconn, ramp]
@@ -498,7 +546,9 @@ def _assemble(
         mains[k], mains[k + 1] = up, down
         route.append(mains[k + 1].road.id)
         name = f"{ev.kind} ({ev.side}) at {ev.station_m:.0f} m"
-        junctions.append(Junction(jid, tuple(conns), name=name, type="direct" if direct else "default"))
+        junctions.append(
+            Junction(jid, tuple(conns), name=name, type="direct" if direct else "default")
+        )
     header = Header(
         name="roadtwin osm truth",
         geo_reference="",

@@ -26,8 +26,16 @@ from .settings import ChainSelection
 CARRIAGEWAY = frozenset({"motorway", "trunk"})
 LINKS = frozenset({"motorway_link", "trunk_link"})
 EXTRA_TAGS = ("layer", "bridge", "tunnel", "destination")
-_COMPASS = {"N": 0.0, "NE": 45.0, "E": 90.0, "SE": 135.0, "S": 180.0, "SW": 225.0,
-            "W": 270.0, "NW": 315.0}  # fmt: skip
+_COMPASS = {
+    "N": 0.0,
+    "NE": 45.0,
+    "E": 90.0,
+    "SE": 135.0,
+    "S": 180.0,
+    "SW": 225.0,
+    "W": 270.0,
+    "NW": 315.0,
+}
 
 
 @dataclass(frozen=True)
@@ -199,10 +207,14 @@ def grow_chain(roads: OsmRoads, seed: int, *, refs: frozenset[str] | None = None
     """Way ids of the carriageway through ``seed``, in driving order."""
     chain = [seed]
     used = {seed}
-    while (nxt := _continuation(roads, roads.ways[chain[-1]], used, forward=True, refs=refs)) is not None:
+    while (
+        nxt := _continuation(roads, roads.ways[chain[-1]], used, forward=True, refs=refs)
+    ) is not None:
         chain.append(nxt)
         used.add(nxt)
-    while (prv := _continuation(roads, roads.ways[chain[0]], used, forward=False, refs=refs)) is not None:
+    while (
+        prv := _continuation(roads, roads.ways[chain[0]], used, forward=False, refs=refs)
+    ) is not None:
         chain.insert(0, prv)
         used.add(prv)
     return chain
@@ -338,8 +350,9 @@ def window_chain(
         hit = np.flatnonzero(np.abs(s_all - at) <= 1e-6)
         if hit.size:
             w_nodes[end] = nodes[hit[0]]
-    seg_idx = np.clip(np.searchsorted(s_all, np.concatenate([[a], s_all[inside]]), "right") - 1,
-                      0, len(seg) - 1)  # fmt: skip
+    seg_idx = np.clip(
+        np.searchsorted(s_all, np.concatenate([[a], s_all[inside]]), "right") - 1, 0, len(seg) - 1
+    )
     if origin is None:
         origin = Origin(round(float(w_ll[0, 1]), 6), round(float(w_ll[0, 0]), 6), 0.0)
     frame = MappingFrame(origin, "local")

@@ -70,7 +70,9 @@ def ramp_profile(
     slope = grade_gore + (own - grade_gore) * (blend * blend * (3 - 2 * blend))
     # integrate the slope from the gore outwards (exit forward, entry backward)
     if kind == "exit":
-        z = z_gore + np.concatenate([[0.0], np.cumsum(0.5 * (slope[1:] + slope[:-1]) * np.diff(sig))])
+        z = z_gore + np.concatenate(
+            [[0.0], np.cumsum(0.5 * (slope[1:] + slope[:-1]) * np.diff(sig))]
+        )
     else:
         rev = slope[::-1]
         zr = np.concatenate([[0.0], np.cumsum(0.5 * (rev[1:] + rev[:-1]) * np.diff(sig))])

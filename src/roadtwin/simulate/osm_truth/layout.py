@@ -159,7 +159,9 @@ def wander(rng: np.random.Generator, amplitude: float, wavelengths: tuple[float,
 
     def fn(s: NDArray) -> NDArray:
         s = np.asarray(s, dtype=float)
-        return sum(a * np.sin(2 * math.pi * s / w + p) for a, w, p in zip(amp, lam, ph, strict=True))
+        return sum(
+            a * np.sin(2 * math.pi * s / w + p) for a, w, p in zip(amp, lam, ph, strict=True)
+        )
 
     return fn
 
@@ -197,11 +199,15 @@ def build_layout(
 
     def lane_fn() -> WidthFn:
         base = float(np.clip(lane_width_m - rng.uniform(0.0, 0.15), lo_w, hi_w))
-        return _width_fn(base, wander(rng, cross.width_wander_m, cross.wander_wavelength_m), lo_w, hi_w)
+        return _width_fn(
+            base, wander(rng, cross.width_wander_m, cross.wander_wavelength_m), lo_w, hi_w
+        )
 
     def aux_fn() -> WidthFn:
         base = float(np.clip(ramp_lane_width_m, lo_w, hi_w))
-        return _width_fn(base, wander(rng, cross.width_wander_m, cross.wander_wavelength_m), lo_w, hi_w)
+        return _width_fn(
+            base, wander(rng, cross.width_wander_m, cross.wander_wavelength_m), lo_w, hi_w
+        )
 
     # merge equal neighbours of the tag segments
     segs: list[list[float]] = []
@@ -228,7 +234,9 @@ def build_layout(
         near = [
             r
             for r in ramps
-            if r.kind == kind and abs(r.station_m - c) <= events.event_snap_m and r.index not in used_ramps
+            if r.kind == kind
+            and abs(r.station_m - c) <= events.event_snap_m
+            and r.index not in used_ramps
         ]
         ramp = min(near, key=lambda r: abs(r.station_m - c)) if near else None
         side = ramp.side if ramp is not None else "outer"
@@ -261,9 +269,7 @@ def build_layout(
             for j in range(delta):
                 rank = (max(ranks) + 1 + j) if side == "outer" else (min(ranks) - 1 - j)
                 st = Strip(f"T{next(counter)}", "through", rank, start, L, lane_fn())
-                if ramp is None:
-                    st.open_m = min(events.gain_taper_m, L - start)
-                elif j >= ramp.lanes:
+                if ramp is None or j >= ramp.lanes:
                     st.open_m = min(events.gain_taper_m, L - start)
                 active.append(st)
                 strips.append(st)
@@ -287,12 +293,26 @@ def build_layout(
             rank = sgn * (1000.0 + r.station_m / 1e5 + (j if r.kind == "exit" else -j) * 1e-3)
             if r.kind == "exit":
                 s0 = max(r.station_m - events.decel_length_m, 0.0)
-                st = Strip(f"X{r.index}.{j}", "aux", rank, s0, r.station_m, aux_fn(),
-                           open_m=min(events.decel_taper_m, r.station_m - s0) if s0 > 0 else 0.0)  # fmt: skip
+                st = Strip(
+                    f"X{r.index}.{j}",
+                    "aux",
+                    rank,
+                    s0,
+                    r.station_m,
+                    aux_fn(),
+                    open_m=min(events.decel_taper_m, r.station_m - s0) if s0 > 0 else 0.0,
+                )
             else:
                 s1 = min(r.station_m + events.accel_length_m, L)
-                st = Strip(f"E{r.index}.{j}", "aux", rank, r.station_m, s1, aux_fn(),
-                           close_m=min(events.accel_taper_m, s1 - r.station_m) if s1 < L else 0.0)  # fmt: skip
+                st = Strip(
+                    f"E{r.index}.{j}",
+                    "aux",
+                    rank,
+                    r.station_m,
+                    s1,
+                    aux_fn(),
+                    close_m=min(events.accel_taper_m, s1 - r.station_m) if s1 < L else 0.0,
+                )
             new.append(st)
             strips.append(st)
         (exit_lanes if r.kind == "exit" else entry_lanes)[r.index] = new
@@ -359,13 +379,23 @@ def build_layout(
             for a, b in gaps:
                 for p in pieces:
                     if p.s0 + 1 < a and b < p.s1 - 1:
-                        tail = Strip(f"hard{len(pieces)}", "hard", rank, b, p.s1, fn,
-                                     open_m=cross.shoulder_taper_m, close_m=p.close_m)  # fmt: skip
+                        tail = Strip(
+                            f"hard{len(pieces)}",
+                            "hard",
+                            rank,
+                            b,
+                            p.s1,
+                            fn,
+                            open_m=cross.shoulder_taper_m,
+                            close_m=p.close_m,
+                        )
                         p.s1, p.close_m = a, cross.shoulder_taper_m
                         pieces.append(tail)
                         break
             if gaps:
-                notes.append("hard shoulder missing at " + ", ".join(f"{a:.0f}-{b:.0f} m" for a, b in gaps))
+                notes.append(
+                    "hard shoulder missing at " + ", ".join(f"{a:.0f}-{b:.0f} m" for a, b in gaps)
+                )
         strips.extend(p for p in pieces if p.s1 - p.s0 > 1e-3)
         # keys of shoulders whose stretch was renamed by a gap stay valid (keys are unique)
 

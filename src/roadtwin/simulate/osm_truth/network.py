@@ -12,6 +12,7 @@ a zero-width end).
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -105,8 +106,8 @@ def build_road(
     keys: list[dict[int, str]] = []
     offset_pieces: list[CubicPiece] = []
     any_offset = False
-    for s0, s1 in zip(edges[:-1], edges[1:], strict=True):
-        strips = [x for x in source.layout.alive(s0, s1)]
+    for s0, s1 in itertools.pairwise(edges):
+        strips = list(source.layout.alive(s0, s1))
         s = _samples(s0, s1)
         marks = _marks(strips, markings)
         lanes = []

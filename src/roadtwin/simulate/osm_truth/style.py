@@ -44,7 +44,11 @@ class RoadStyle:
             "inner_shoulder_m": self.inner_shoulder_m,
             "hard_shoulder_m": self.hard_shoulder_m,
             "lane_line": {"dash_m": m.dash_m, "gap_m": m.gap_m, "width_m": m.lane_line_width_m},
-            "aux_line": {"dash_m": m.aux_dash_m, "gap_m": m.aux_gap_m, "width_m": m.edge_line_width_m},
+            "aux_line": {
+                "dash_m": m.aux_dash_m,
+                "gap_m": m.aux_gap_m,
+                "width_m": m.edge_line_width_m,
+            },
             "edge_line": {"type": "solid", "width_m": m.edge_line_width_m},
         }
 
@@ -58,7 +62,9 @@ STYLES: dict[str, RoadStyle] = {
     "AT": RoadStyle("AT", "right", 3.75, 3.5, 0.6, 2.75, Markings(6.0, 12.0, 6.0, 6.0, 0.15, 0.25)),
     # USA: MUTCD lane line 10 ft / 30 ft, 4-6 in; dotted line at auxiliary lanes 3 ft / 9 ft,
     # 8 in; 12 ft lanes, 4 ft left and 10 ft right shoulders (AASHTO)
-    "US": RoadStyle("US", "right", 3.66, 3.66, 1.2, 3.0, Markings(3.05, 9.14, 0.91, 2.74, 0.15, 0.20)),
+    "US": RoadStyle(
+        "US", "right", 3.66, 3.66, 1.2, 3.0, Markings(3.05, 9.14, 0.91, 2.74, 0.15, 0.20)
+    ),
     # United Kingdom (left-hand): lane line 2 m / 7 m; line at slip roads 1 m / 1 m (TSRGD
     # 1010); 3.65 m lanes, 0.7 m hard strip, 3.3 m hard shoulder
     "GB": RoadStyle("GB", "left", 3.65, 3.65, 0.7, 3.3, Markings(2.0, 7.0, 1.0, 1.0, 0.15, 0.25)),
