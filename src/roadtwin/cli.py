@@ -217,9 +217,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     cfg = _load_config(args.config)
     if args.method is not None:
-        cfg = dataclasses.replace(
-            cfg, mainline=dataclasses.replace(cfg.mainline, method=args.method)
-        )
+        cfg = cfg.with_method(args.method)
     if args.junctions is not None:
         cfg = dataclasses.replace(
             cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
