@@ -591,8 +591,10 @@ def _drive(map_path: Path, out_dir: Path, args: argparse.Namespace, drive_cfg, *
     if not args.quiet:
         from tqdm import tqdm
 
-        def progress(items):
-            return tqdm(items, desc="drive", unit="route", file=sys.stderr, leave=False)
+        def progress(items, total):
+            return tqdm(
+                items, total=total, desc="drive", unit="route", file=sys.stderr, leave=False
+            )
 
     return drive_map(map_path, out_dir, esmini=tools, config=drive_cfg, progress=progress)
 

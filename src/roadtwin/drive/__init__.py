@@ -87,7 +87,7 @@ def drive_map(
     esmini: Esmini | None = None,
     config: DriveConfig | None = None,
     network: RoadNetwork | None = None,
-    progress: Callable[[Iterable], Iterable] | None = None,
+    progress: Callable[[Iterable, int], Iterable] | None = None,
 ) -> DriveReport:
     """Find, write and (with ``esmini``) drive every route of the map at ``map_path``.
 
@@ -104,7 +104,8 @@ def drive_map(
     network
         The map already read (else it is read from ``map_path``).
     progress
-        Wraps the route iteration (e.g. a tqdm bar); the library never prints.
+        ``progress(iterable, total)`` wraps the drives as they finish (e.g. a tqdm bar);
+        the library never prints.
 
     Returns
     -------
@@ -145,7 +146,7 @@ def drive_map(
                 todo,
             )
             if progress is not None:
-                done = progress(done)
+                done = progress(done, len(todo))
             for index, result in done:
                 results[index] = result
     for stale in scenarios.glob("*.xosc"):  # from an earlier drive of another map

@@ -482,52 +482,40 @@ def _mainline_routes(ctx: _Ctx) -> list[Route]:
 
 
 def _ramp_routes(ctx: _Ctx) -> list[Route]:
+    """From the mainline into every exit (with ``approach_m`` before its junction) and from
+    every entry onto the mainline, each along the ramp / mainline up to ``follow_m``."""
+    cfg = ctx.config
     main_ids = {r.id for r in ctx.network.roads if r.name == "mainline"}
     main_nodes = _driving_nodes(ctx, main_ids)
     routes = []
     for ramp in sorted(ramp_roads(ctx.network, with_connectors=False), key=lambda r: _id_key(r.id)):
         name = f"{ramp.name} road {ramp.id}"
-        kind: RouteKind = "exit" if ramp.name == "exit" else "entry"
-        if kind == "exit":
-            targets = _driving_nodes(ctx, {ramp.id}, section="entry")
-            path = _shortest(ctx, main_nodes, targets)
-            if path is None:
-                problem = (
-                    _break_into(ctx, targets[0], "the mainline")
-                    if targets
-                    else f"road {ramp.id} has no driving lane"
-                )
-                routes.append(Route(name, kind, problem=problem))
-                continue
-            back = _extend_back(ctx, path, ctx.config.approach_m)
-            core = (
-                len(back) - len(path) + next(k for k, n in enumerate(path) if n[0] not in main_ids)
+        exit_ = ramp.name == "exit"
+        kind: RouteKind = "exit" if exit_ else "entry"
+        ramp_nodes = _driving_nodes(ctx, {ramp.id}, section="entry")
+        sources, targets = (main_nodes, ramp_nodes) if exit_ else (ramp_nodes, main_nodes)
+        path = _shortest(ctx, sources, targets)
+        if path is None:
+            if not ramp_nodes:
+                problem = f"road {ramp.id} has no driving lane"
+            elif exit_:
+                problem = _break_into(ctx, ramp_nodes[0], "the mainline")
+            else:
+                problem = _break_out_of(ctx, ramp_nodes[0], "the mainline")
+            routes.append(Route(name, kind, problem=problem))
+            continue
+        back, core = path, 0
+        if exit_:  # the approach: mainline lanes before the junction
+            back = _extend_back(ctx, path, cfg.approach_m)
+            leave = next(k for k, n in enumerate(path) if n[0] not in main_ids)
+            core = len(back) - len(path) + leave
+        full = _extend_forward(ctx, back, cfg.follow_m)
+        approach = cfg.approach_m if exit_ else 0.0
+        routes.append(
+            _make_route(
+                ctx, name, kind, full, approach_m=approach, core_start=core, follow_m=cfg.follow_m
             )
-            full = _extend_forward(ctx, back, ctx.config.follow_m)
-            routes.append(
-                _make_route(
-                    ctx,
-                    name,
-                    kind,
-                    full,
-                    approach_m=ctx.config.approach_m,
-                    core_start=core,
-                    follow_m=ctx.config.follow_m,
-                )
-            )
-        else:
-            sources = _driving_nodes(ctx, {ramp.id}, section="entry")
-            path = _shortest(ctx, sources, main_nodes)
-            if path is None:
-                problem = (
-                    _break_out_of(ctx, sources[0], "the mainline")
-                    if sources
-                    else f"road {ramp.id} has no driving lane"
-                )
-                routes.append(Route(name, kind, problem=problem))
-                continue
-            full = _extend_forward(ctx, path, ctx.config.follow_m)
-            routes.append(_make_route(ctx, name, kind, full, follow_m=ctx.config.follow_m))
+        )
     return routes
 
 
