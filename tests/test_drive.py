@@ -10,6 +10,7 @@ a 1.5 m gap): each must fail with a reason that names the road and the lane.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import os
 
@@ -295,6 +296,11 @@ def test_drive_without_esmini_writes_scenarios_and_exits_2(tmp_path, monkeypatch
     ]
     doc = (tmp_path / "d" / "drive.json").read_text(encoding="utf-8")
     assert '"not_run": 3' in doc
+    # check --drive cannot drive either: the check's report, then exit 2
+    assert main(["-q", "check", str(map_path), "--no-external", "--drive"]) == 2
+    captured = capsys.readouterr()
+    assert "roadtwin check" in captured.out
+    assert "esmini not found" in captured.err
 
 
 def test_a_wrong_esmini_folder_is_bad_input(tmp_path, capsys):
@@ -491,3 +497,35 @@ def test_drive_cli_exit_codes(built, tmp_path, capsys):
     assert (tmp_path / "bad" / "drive.json").is_file()
     # the failed route keeps its recording for a look
     assert any(p.suffix == ".csv" for p in (tmp_path / "bad" / "runs").iterdir())
+
+
+def test_the_html_report_shows_the_drive(tmp_path, monkeypatch):
+    from roadtwin.evaluation import EvaluationReport
+    from roadtwin.report import render_html
+
+    map_path = write_xodr(mainline_exit_network(), tmp_path / "map.xodr")
+    doc = drive_map(map_path, tmp_path / "d", esmini=None).to_dict()
+    doc["routes"][2]["faults"] = [{"code": "jump", "message": "jump of 1.50 m <at> road 3"}]
+    page = render_html(EvaluationReport(()), {}, drive=doc)
+    assert "<h2>Drive-throughs (esmini)</h2>" in page
+    for name in ("mainline lane -2", "mainline lane -3", "exit road 3"):
+        assert f'<td class="s">{name}</td>' in page
+    assert page.count('<td class="s">not run</td>') == 3
+    assert "jump of 1.50 m &lt;at&gt; road 3" in page
+    assert "Drive-throughs" not in render_html(EvaluationReport(()), {})
+
+
+@needs_esmini
+def test_check_drive(built, capsys):
+    path, _ = built
+    esmini_dir = str(ESMINI.esmini.parent)
+    code = main(["-q", "check", str(path), "--no-external", "--drive", "--esmini", esmini_dir])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert out.index("OK: 0 errors") < out.index("drive: 5 routes: 5 passed, 0 failed")
+    code = main(
+        ["-q", "check", str(path), "--no-external", "--json", "--drive", "--esmini", esmini_dir]
+    )
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["drive"]["schema"] == "roadtwin-drive/1"
+    assert doc["drive"]["passed"] == 5
