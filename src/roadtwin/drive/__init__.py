@@ -149,8 +149,10 @@ def drive_map(
                 done = progress(done, len(todo))
             for index, result in done:
                 results[index] = result
-    for stale in scenarios.glob("*.xosc"):  # from an earlier drive of another map
-        if stale.name not in written:
+    # files of an earlier drive (another map, or routes this one does not have)
+    stems = {Path(name).stem for name in written}
+    for stale in (*scenarios.glob("*.xosc"), *(runs.glob("*.*") if runs.is_dir() else ())):
+        if stale.stem not in stems or (stale.parent == runs and esmini is None):
             stale.unlink()
     report = DriveReport(
         str(map_path),
