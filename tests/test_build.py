@@ -132,7 +132,7 @@ def test_links_valid_and_routes(built, mode):
     findings = check_network(net)
     bad = [f.message for f in findings if f.severity == "error" and f.code in LINK_CODES]
     assert not bad, f"{built.name}: {bad}"
-    g = lane_graph(net, lane_changes=True)
+    g = lane_graph(net, traffic_side=built.run.traffic_side, lane_changes=True)
     side = -1 if built.run.traffic_side == "right" else 1
     mains = [r for r in net.roads if r.name == "mainline"]
     first, last = mains[0], mains[-1]

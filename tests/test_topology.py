@@ -291,7 +291,7 @@ def test_topology_links_and_routes(mainline, ramps, side, junctions):
             dh = math.degrees((hb - ha + math.pi) % (2 * math.pi) - math.pi)
             assert abs(dh) <= 0.5
     # routes over the lane graph (lane changes allowed inside a lane section)
-    g = lane_graph(net, lane_changes=True)
+    g = lane_graph(net, traffic_side=side, lane_changes=True)
     sign = -1 if side == "right" else 1
     first, last = ids["1"], ids["3"]
     start = ("1", 0, sign * 2)
@@ -304,7 +304,7 @@ def test_topology_links_and_routes(mainline, ramps, side, junctions):
     assert nx.has_path(g, start, end)
     # without lane changes: the deceleration lane leads into the exit, the entry into the
     # acceleration lane
-    g0 = lane_graph(net)
+    g0 = lane_graph(net, traffic_side=side)
     assert nx.has_path(g0, ("1", len(first.lane_sections) - 1, sign * 5), (exit_id, 0, sign * 2))
     assert nx.has_path(g0, (entry_id, 0, sign * 2), ("3", 0, sign * 5))
 

@@ -723,58 +723,69 @@ def _ramp_connecting_road(
     return road, conn_road, connection
 
 
-def lane_graph(network: RoadNetwork, *, lane_changes: bool = False) -> nx.DiGraph:
-    """Directed graph of lanes a car can drive from one to the next.
+def lane_graph(
+    network: RoadNetwork, *, traffic_side: TrafficSide = "right", lane_changes: bool = False
+) -> nx.DiGraph:
+    """Directed graph of the lanes a car can drive from one to the next.
 
-    Nodes are ``(road_id, section_index, lane_id)``; edges follow lane successors inside a
-    road and across road links, and junction lane links (default: into the connecting
-    road; direct: into the linked road). Travel is along increasing s (every road of a
-    roadtwin map runs in its driving direction). With ``lane_changes``, neighbouring
+    Nodes are ``(road_id, section_index, lane_id)`` (attribute ``type``); edges follow lane
+    successor / predecessor links inside a road, road links, and junction connection lane
+    links (default: into the connecting road; direct: into the linked road), each in the
+    lane's direction of travel: with right-hand traffic right lanes (negative ids) drive
+    towards +s and left lanes towards -s, mirrored for left-hand traffic (so other tools'
+    maps with both carriageways on one road work too). With ``lane_changes``, neighbouring
     driving lanes of one section are connected both ways (``kind="change"``).
     """
-    g = nx.DiGraph()
+    graph = nx.DiGraph()
     roads = network.id_to_road
+
+    def forward(lane_id: int) -> bool:
+        return (lane_id < 0) == (traffic_side == "right")
+
+    def target_node(road_id: str, contact: str | None, lane_id: int):
+        road = roads.get(road_id)
+        if road is None:
+            return None
+        sec = 0 if contact in (None, "start") else len(road.lane_sections) - 1
+        return (road_id, sec, lane_id)
+
     for road in network.roads:
-        secs = road.lane_sections
-        for i, sec in enumerate(secs):
-            for lane in (*sec.left, *sec.right):
-                g.add_node((road.id, i, lane.id))
-                if i + 1 < len(secs) and lane.successor is not None:
-                    g.add_edge((road.id, i, lane.id), (road.id, i + 1, lane.successor))
-                if i > 0 and lane.predecessor is not None:
-                    g.add_edge((road.id, i - 1, lane.predecessor), (road.id, i, lane.id))
+        nsec = len(road.lane_sections)
+        for k, section in enumerate(road.lane_sections):
+            for lane in (*section.left, *section.right):
+                node = (road.id, k, lane.id)
+                graph.add_node(node, type=lane.type)
+                fwd = forward(lane.id)
+                nxt_lane = lane.successor if fwd else lane.predecessor
+                inside = k + 1 < nsec if fwd else k > 0
+                if inside:
+                    if nxt_lane is not None:
+                        graph.add_edge(node, (road.id, k + 1 if fwd else k - 1, nxt_lane))
+                    continue
+                link = road.successor if fwd else road.predecessor
+                if link is None:
+                    continue
+                if link.element_type == "road":
+                    if nxt_lane is not None:
+                        tgt = target_node(link.element_id, link.contact_point, nxt_lane)
+                        if tgt is not None:
+                            graph.add_edge(node, tgt)
+                    continue
+                junction = network.id_to_junction.get(link.element_id)
+                if junction is None:
+                    continue
+                for conn in junction.connections:
+                    if conn.incoming_road != road.id:
+                        continue
+                    for ll in conn.lane_links:
+                        if ll.from_lane == lane.id:
+                            tgt = target_node(conn.connecting_road, conn.contact_point, ll.to_lane)
+                            if tgt is not None:
+                                graph.add_edge(node, tgt)
             if lane_changes:
-                for side in (sec.left, sec.right):
+                for side in (section.left, section.right):
                     for x, y in itertools.pairwise(side):
                         if x.type == "driving" and y.type == "driving":
-                            g.add_edge((road.id, i, x.id), (road.id, i, y.id), kind="change")
-                            g.add_edge((road.id, i, y.id), (road.id, i, x.id), kind="change")
-        last = len(secs) - 1
-        succ = road.successor
-        if succ is not None and succ.element_type == "road" and succ.element_id in roads:
-            other = roads[succ.element_id]
-            j = 0 if succ.contact_point in (None, "start") else len(other.lane_sections) - 1
-            for lane in (*secs[last].left, *secs[last].right):
-                if lane.successor is not None:
-                    g.add_edge((road.id, last, lane.id), (other.id, j, lane.successor))
-        pred = road.predecessor
-        if pred is not None and pred.element_type == "road" and pred.element_id in roads:
-            other = roads[pred.element_id]
-            j = len(other.lane_sections) - 1 if pred.contact_point in (None, "end") else 0
-            for lane in (*secs[0].left, *secs[0].right):
-                if lane.predecessor is not None:
-                    g.add_edge((other.id, j, lane.predecessor), (road.id, 0, lane.id))
-    for junction in network.junctions:
-        for c in junction.connections:
-            inc, tgt = roads.get(c.incoming_road), roads.get(c.connecting_road)
-            if inc is None or tgt is None:
-                continue
-            i_sec = len(inc.lane_sections) - 1
-            ends_here = inc.successor is not None and inc.successor.element_id == junction.id
-            starts_here = inc.predecessor is not None and inc.predecessor.element_id == junction.id
-            if starts_here and not ends_here:
-                i_sec = 0
-            t_sec = 0 if c.contact_point == "start" else len(tgt.lane_sections) - 1
-            for ll in c.lane_links:
-                g.add_edge((inc.id, i_sec, ll.from_lane), (tgt.id, t_sec, ll.to_lane))
-    return g
+                            graph.add_edge((road.id, k, x.id), (road.id, k, y.id), kind="change")
+                            graph.add_edge((road.id, k, y.id), (road.id, k, x.id), kind="change")
+    return graph
