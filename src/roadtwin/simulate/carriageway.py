@@ -1,0 +1,785 @@
+"""The carriageway along a route, leg by leg: which source lanes it is made of.
+
+A *leg* is a stretch over which the carriageway is described by one set of source lanes:
+one lane section of a road driven in one direction (``kind="road"``), or one passage
+through a ``default`` junction (``kind="junction"``), whose lanes may come from several
+parallel connecting roads (maps such as CARLA's model every lane of a junction as its own
+connecting road).
+
+*Carriageway* of a lane section and direction: the contiguous paved lanes
+(:data:`~roadtwin.simulate.route.PAVED_LANE_TYPES`) around the innermost traffic lane of
+that direction; paved non-traffic lanes across the centre line (an inner shoulder drawn as
+the other side's lane 1) belong to it up to the first unpaved lane (a median).
+
+Inside a junction, lanes of the incoming road that the passage does not carry (its
+shoulders, or the lanes that leave for a ramp) and lanes of the outgoing road that arrive
+from nowhere are *bridged*: matched in order from the carried lanes outwards (traffic
+lanes with traffic lanes, the others with the others), their width blends smoothly from
+the incoming to the outgoing width, and unmatched ones taper from / to zero. So the
+carriageway's edges stay continuous through a junction whatever the map models there.
+
+Frames: stations ``s`` are metres along a source road; ``p`` in [0, 1] is the relative
+position along a leg in the direction of travel; positions are mapping-frame metres.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._errors import InputError
+from ..model import LaneSection, Road, RoadMark, RoadNetwork
+from .route import (
+    PAVED_LANE_TYPES,
+    TRAFFIC_LANE_TYPES,
+    Passage,
+    Route,
+    TrafficSide,
+    Traversal,
+    side_lanes,
+    traffic_lane_sign,
+)
+
+FloatArray = NDArray[np.float64]
+LaneKey = tuple[str, int]
+"""A source lane: ``(road_id, lane_id)``."""
+
+NO_MARK = RoadMark(0.0, "none", 0.0)
+
+
+@dataclass(frozen=True)
+class Span:
+    """A source road driven from station ``s_start`` to ``s_end`` (metres; decreasing when
+    driven against s). ``section`` pins the lane section (road legs), -1 = by station."""
+
+    road_id: str
+    s_start: float
+    s_end: float
+    section: int = -1
+
+    @property
+    def direction(self) -> int:
+        return 1 if self.s_end >= self.s_start else -1
+
+    def s_at(self, p: FloatArray) -> FloatArray:
+        return self.s_start + np.asarray(p, float) * (self.s_end - self.s_start)
+
+
+@dataclass(frozen=True)
+class LegLane:
+    """One lane of a leg, in carriageway order (median side first).
+
+    ``source`` is the lane it is drawn from (``None``: a bridged lane whose width blends
+    from ``bridge_m[0]`` at the leg start to ``bridge_m[1]`` at its end); ``up``/``down``
+    the source lane it continues from / into at the leg's ends (for lane identity across
+    legs); ``marks_up``/``marks_down`` the marks it carries
+    in the first / second half (bridged lanes): ``(median-side border, outer border)``.
+    """
+
+    type: str
+    source: LaneKey | None
+    up: LaneKey | None
+    down: LaneKey | None
+    bridge_m: tuple[float, float] = (0.0, 0.0)
+    marks_up: tuple[RoadMark, RoadMark] | None = None
+    marks_down: tuple[RoadMark, RoadMark] | None = None
+    section_ids: tuple[int | None, ...] = ()
+    """Lane id of a carried lane in each lane section of its source road (lane ids may
+    change from section to section; None where the lane does not run)."""
+
+
+@dataclass(frozen=True)
+class Leg:
+    """A stretch of carriageway: ``spans`` (one per source road used) and its lanes."""
+
+    kind: Literal["road", "junction"]
+    spans: tuple[Span, ...]
+    lanes: tuple[LegLane, ...]
+    junction_id: str = ""
+
+    @property
+    def length_m(self) -> float:
+        return max(abs(sp.s_end - sp.s_start) for sp in self.spans)
+
+    def span(self, road_id: str) -> Span:
+        return next(sp for sp in self.spans if sp.road_id == road_id)
+
+
+@dataclass(frozen=True)
+class LegSamples:
+    """Dense cross-sections of a leg at relative positions ``p`` (N,).
+
+    ``median`` (N, 3) is the median-side edge, ``borders`` (K, N, 3) the outer border of
+    each lane (mapping frame, metres, z the road surface); ``marks[k]`` the road marks of
+    lane k's outer border and ``median_marks`` those of the median edge, each as
+    ``(p_from, RoadMark)`` sorted by ``p_from``. ``marks`` come from the marks of
+    the *up*/*down* source lanes for bridged lanes.
+    """
+
+    p: FloatArray
+    median: FloatArray
+    borders: FloatArray
+    marks: tuple[tuple[tuple[float, RoadMark], ...], ...]
+    median_marks: tuple[tuple[float, RoadMark], ...]
+    exact: tuple[bool, ...] = field(default=())
+    """Per lane: its outer border is a source border (False: derived from bridging)."""
+    breaks: tuple[int, ...] = ()
+    """Indices of interior samples where a source profile or geometry piece starts (a
+    curvature jump or kink of some border): fits must not smooth across them."""
+
+
+# ---------------------------------------------------------------------------
+# lane sections: the carriageway block, borders
+# ---------------------------------------------------------------------------
+
+
+def is_paved(lane_type: str) -> bool:
+    return lane_type in PAVED_LANE_TYPES
+
+
+def carriageway_lane_ids(section: LaneSection, sign: int) -> list[int]:
+    """Lane ids of the carriageway of the side ``sign`` (-1 right, +1 left), median side
+    first; empty when that side has no traffic lane."""
+    ours = side_lanes(section, sign)
+    others = side_lanes(section, -sign)
+    first = next((i for i, ln in enumerate(ours) if ln.type in TRAFFIC_LANE_TYPES), None)
+    if first is None:
+        return []
+    lo, hi = first, first
+    while lo > 0 and is_paved(ours[lo - 1].type):
+        lo -= 1
+    while hi + 1 < len(ours) and is_paved(ours[hi + 1].type):
+        hi += 1
+    across: list[int] = []
+    if lo == 0:
+        for ln in others:
+            if not is_paved(ln.type):
+                break
+            if ln.type in TRAFFIC_LANE_TYPES:  # an undivided road: the centre line bounds it
+                across = []
+                break
+            across.append(ln.id)
+    return [*reversed(across), *(ln.id for ln in ours[lo : hi + 1])]
+
+
+def _section_border_t(road: Road, k: int, s: FloatArray, border: int) -> FloatArray:
+    """Offset t (metres, left positive) of border ``border`` (the far border of lane
+    ``border``; 0 = the centre line) evaluated with lane section ``k`` at stations s."""
+    section = road.lane_sections[k]
+    base = road.lane_offset.value(s)
+    if border == 0:
+        return base
+    ds = s - section.s0
+    side = section.left if border > 0 else section.right
+    acc = np.zeros_like(s)
+    for lane in side[: abs(border)]:
+        acc = acc + lane.width.value(ds)
+    return base + (acc if border > 0 else -acc)
+
+
+def _near(lane_id: int) -> int:
+    return lane_id - (1 if lane_id > 0 else -1)
+
+
+def lane_borders_t(
+    road: Road, lane_id: int, s: FloatArray, traffic_sign: int, section: int = -1
+) -> tuple[FloatArray, FloatArray, int, int]:
+    """Median-side and outer border offsets of a source lane at stations ``s`` and the
+    border indices they are (a lane across the centre line has its far border inside)."""
+    near, far = _near(lane_id), lane_id
+    inner, outer = (near, far) if lane_id * traffic_sign > 0 else (far, near)
+    if section < 0:
+        idx = road.section_index(s)
+        t_in = np.full(s.shape, np.nan)
+        t_out = np.full(s.shape, np.nan)
+        for k in np.unique(idx):
+            sel = idx == k
+            t_in[sel] = _section_border_t(road, int(k), s[sel], inner)
+            t_out[sel] = _section_border_t(road, int(k), s[sel], outer)
+        return t_in, t_out, inner, outer
+    return (
+        _section_border_t(road, section, s, inner),
+        _section_border_t(road, section, s, outer),
+        inner,
+        outer,
+    )
+
+
+def lane_width_at(road: Road, lane_id: int, s: float, section: int) -> float:
+    """Width (metres) of a source lane at station ``s`` evaluated in lane section
+    ``section``."""
+    s_arr = np.array([s])
+    t_a = _section_border_t(road, section, s_arr, _near(lane_id))
+    t_b = _section_border_t(road, section, s_arr, lane_id)
+    return float(abs(t_b[0] - t_a[0]))
+
+
+def border_marks(road: Road, section: int, border: int) -> tuple[RoadMark, ...]:
+    """Road marks painted on border ``border`` of a lane section (0: the centre lane's)."""
+    sec = road.lane_sections[section]
+    if border == 0:
+        return sec.center.road_marks
+    try:
+        return sec.lane(border).road_marks
+    except KeyError:
+        return ()
+
+
+def _section_range(road: Road, k: int) -> tuple[float, float]:
+    s0 = road.lane_sections[k].s0
+    s1 = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+    return s0, s1
+
+
+# ---------------------------------------------------------------------------
+# legs of a route
+# ---------------------------------------------------------------------------
+
+
+def road_legs(
+    network: RoadNetwork,
+    traversal: Traversal,
+    traffic_side: TrafficSide,
+    *,
+    keep_m: float | None = None,
+    keep: Literal["start", "end"] = "start",
+) -> list[Leg]:
+    """One leg per lane section of a traversed road, in driving order.
+
+    ``keep_m`` shortens the traversal to its first (``keep="start"``) or last (``"end"``)
+    ``keep_m`` metres of travel.
+    """
+    road = network.road(traversal.road_id)
+    d = traversal.direction
+    sign = traffic_lane_sign(d, traffic_side)
+    order = range(len(road.lane_sections)) if d > 0 else range(len(road.lane_sections) - 1, -1, -1)
+    legs = []
+    lo, hi = 0.0, road.length  # travel distance kept
+    if keep_m is not None:
+        lo, hi = (0.0, keep_m) if keep == "start" else (road.length - keep_m, road.length)
+    for k in order:
+        s0, s1 = _section_range(road, k)
+        if s1 - s0 < 1e-6:
+            continue
+        a, b = (s0, s1) if d > 0 else (s1, s0)
+        # travel distances of the section's ends, clipped to the kept range
+        da, db = (a, b) if d > 0 else (road.length - a, road.length - b)
+        da, db = max(da, lo), min(db, hi)
+        if db - da < 1e-6:
+            continue
+        a, b = (da, db) if d > 0 else (road.length - da, road.length - db)
+        ids = carriageway_lane_ids(road.lane_sections[k], sign)
+        if not ids:
+            msg = (
+                f"road {road.id}: lane section at s={s0:g} m has no {traffic_side}-hand-"
+                f"traffic driving lane in the direction of travel"
+            )
+            raise InputError(msg)
+        sec = road.lane_sections[k]
+        n_sec = len(road.lane_sections)
+        lanes = tuple(
+            LegLane(
+                sec.lane(i).type,
+                (road.id, i),
+                (road.id, i),
+                (road.id, i),
+                section_ids=tuple(i if j == k else None for j in range(n_sec)),
+            )
+            for i in ids
+        )
+        legs.append(Leg("road", (Span(road.id, a, b, k),), lanes))
+    return legs
+
+
+def _end_lanes(leg: Leg) -> list[LaneKey]:
+    return [ln.down for ln in leg.lanes if ln.down is not None]
+
+
+def _start_lanes(leg: Leg) -> list[LaneKey]:
+    return [ln.up for ln in leg.lanes if ln.up is not None]
+
+
+@dataclass(frozen=True)
+class GapRule:
+    """Which lanes outside a passage's carried lanes a junction leg bridges: lanes of the
+    incoming (``up``) and outgoing (``down``) road in ``up_ids`` / ``down_ids``, and on
+    which sides of the carried block (``"inner"``, ``"outer"``, ``"middle"``)."""
+
+    up_ids: frozenset[int]
+    down_ids: frozenset[int]
+    up_gaps: frozenset[str] = frozenset({"inner", "outer", "middle"})
+    down_gaps: frozenset[str] = frozenset({"inner", "outer", "middle"})
+
+
+def passage_carried(passage: Passage) -> list[tuple[int, str, int]]:
+    """``(incoming lane, connecting road, connecting lane)`` carried by a junction passage,
+    ordered as the connections list them."""
+    return [(f, c.road_id, t) for c in passage.connectors for f, t in c.lane_links]
+
+
+def _gaps(order: list[int], carried: set[int]) -> dict[str, list[int]]:
+    """Lanes of ``order`` (median side first) not in ``carried``, by gap: before the first
+    carried lane (``inner``, nearest to the block first), after the last (``outer``,
+    nearest first) and between (``middle``)."""
+    idx = [i for i, lid in enumerate(order) if lid in carried]
+    if not idx:
+        return {"inner": [], "outer": [], "middle": []}
+    lo, hi = min(idx), max(idx)
+    return {
+        "inner": [order[i] for i in range(lo - 1, -1, -1)],
+        "outer": [order[i] for i in range(hi + 1, len(order))],
+        "middle": [order[i] for i in range(lo + 1, hi) if order[i] not in carried],
+    }
+
+
+def _match(
+    a: list[tuple[int, str]], b: list[tuple[int, str]]
+) -> list[tuple[int | None, int | None]]:
+    """Monotone matching of two lane lists (nearest to the carried block first): traffic
+    lanes pair with traffic lanes, the others with the others; an unmatched lane is
+    returned alone (it tapers)."""
+    out: list[tuple[int | None, int | None]] = []
+    i = j = 0
+    while i < len(a) and j < len(b):
+        ta = a[i][1] in TRAFFIC_LANE_TYPES
+        tb = b[j][1] in TRAFFIC_LANE_TYPES
+        if ta == tb:
+            out.append((a[i][0], b[j][0]))
+            i += 1
+            j += 1
+        elif ta:
+            out.append((a[i][0], None))
+            i += 1
+        else:
+            out.append((None, b[j][0]))
+            j += 1
+    out += [(a[k][0], None) for k in range(i, len(a))]
+    out += [(None, b[k][0]) for k in range(j, len(b))]
+    return out
+
+
+def junction_leg(
+    network: RoadNetwork,
+    passage: Passage,
+    up_leg: Leg,
+    down_leg: Leg,
+    traffic_side: TrafficSide,
+    rule: GapRule,
+) -> Leg:
+    """The leg of a default-junction passage between the incoming road's last leg and the
+    outgoing road's first leg (carried lanes plus bridged lanes; see the module doc)."""
+    up_road = network.road(passage.source.road_id)
+    down_road = network.road(passage.target.road_id)
+    up_span, down_span = up_leg.spans[0], down_leg.spans[0]
+    up_order = [ln.source[1] for ln in up_leg.lanes if ln.source is not None]
+    down_order = [ln.source[1] for ln in down_leg.lanes if ln.source is not None]
+    up_types = {ln.source[1]: ln.type for ln in up_leg.lanes if ln.source is not None}
+    down_types = {ln.source[1]: ln.type for ln in down_leg.lanes if ln.source is not None}
+
+    carried: list[LegLane] = []
+    used_up: set[int] = set()
+    used_down: set[int] = set()
+    connector_by_id = {c.road_id: c for c in passage.connectors}
+    for f, cid, t in passage_carried(passage):
+        if f not in up_types or f in used_up:
+            continue
+        conn = network.road(cid)
+        c = connector_by_id[cid]
+        section_ids = follow_lane(conn, t, c.direction)
+        k_far = len(conn.lane_sections) - 1 if c.direction > 0 else 0
+        far_id = section_ids[k_far]
+        lane = None if far_id is None else _lane_or_none(conn.lane_sections[k_far], far_id)
+        if lane is None:
+            continue
+        nxt = lane.successor if c.direction > 0 else lane.predecessor
+        down_id = nxt if nxt in down_types else None
+        if down_id is not None and down_id in used_down:
+            down_id = None
+        used_up.add(f)
+        if down_id is not None:
+            used_down.add(down_id)
+        carried.append(
+            LegLane(
+                _lane_type(conn, t),
+                (cid, t),
+                (up_road.id, f),
+                (down_road.id, down_id) if down_id is not None else None,
+                section_ids=section_ids,
+            )
+        )
+    if not carried:
+        msg = (
+            f"junction {passage.junction_id}: no connecting road carries a lane of road "
+            f"{up_road.id} into road {down_road.id}"
+        )
+        raise InputError(msg)
+    carried.sort(key=lambda ln: up_order.index(ln.up[1]))
+    up_gaps = _gaps(up_order, used_up)
+    down_gaps = _gaps(down_order, used_down)
+    k_up, k_down = up_span.section, down_span.section
+    up_sign = traffic_lane_sign(up_span.direction, traffic_side)
+    down_sign = traffic_lane_sign(down_span.direction, traffic_side)
+
+    def bridged(a: int | None, b: int | None) -> LegLane:
+        w_a = lane_width_at(up_road, a, up_span.s_end, k_up) if a is not None else 0.0
+        w_b = lane_width_at(down_road, b, down_span.s_start, k_down) if b is not None else 0.0
+        lane_type = up_types[a] if a is not None else down_types[b]  # type: ignore[index]
+        if a is not None and b is not None and up_types[a] != down_types[b]:
+            lane_type = down_types[b]
+        marks_a = marks_b = None
+        if a is not None:
+            marks_a = _lane_marks_at(up_road, a, k_up, up_span.s_end, up_sign)
+        if b is not None:
+            marks_b = _lane_marks_at(down_road, b, k_down, down_span.s_start, down_sign)
+        return LegLane(
+            lane_type,
+            None,
+            (up_road.id, a) if a is not None else None,
+            (down_road.id, b) if b is not None else None,
+            (w_a, w_b),
+            marks_a,
+            marks_b,
+        )
+
+    def side(gap: str) -> list[LegLane]:
+        a = [(i, up_types[i]) for i in up_gaps[gap] if i in rule.up_ids and gap in rule.up_gaps]
+        b = [
+            (i, down_types[i])
+            for i in down_gaps[gap]
+            if i in rule.down_ids and gap in rule.down_gaps
+        ]
+        return [bridged(x, y) for x, y in _match(a, b)]
+
+    inner = side("inner")
+    outer = side("outer")
+    middle = side("middle")
+    # middle lanes go after the carried lane they follow in the incoming order
+    body: list[LegLane] = []
+    for lane in carried:
+        body.append(lane)
+        follow = [m for m in middle if m.up is not None and _after(up_order, m.up[1], lane.up[1])]
+        body += follow
+        middle = [m for m in middle if m not in follow]
+    body += middle
+    lanes = (*reversed(inner), *body, *outer)
+    spans = tuple(
+        Span(cid, 0.0, network.road(cid).length)
+        if connector_by_id[cid].direction > 0
+        else Span(cid, network.road(cid).length, 0.0)
+        for cid in dict.fromkeys(ln.source[0] for ln in carried if ln.source is not None)
+    )
+    return Leg("junction", spans, lanes, passage.junction_id)
+
+
+def _lane_marks_at(
+    road: Road, lane_id: int, section: int, s: float, traffic_sign: int
+) -> tuple[RoadMark, RoadMark]:
+    """Marks on the median-side and outer border of a source lane at station ``s``."""
+    near, far = _near(lane_id), lane_id
+    inner, outer = (near, far) if lane_id * traffic_sign > 0 else (far, near)
+    return mark_at(road, section, inner, s), mark_at(road, section, outer, s)
+
+
+def _after(order: list[int], lane: int, anchor: int) -> bool:
+    """``lane`` comes directly after ``anchor`` or after it with only non-carried lanes."""
+    return order.index(lane) > order.index(anchor)
+
+
+def follow_lane(road: Road, lane_id: int, direction: int) -> tuple[int | None, ...]:
+    """Lane id in every lane section of ``road`` of the lane that has id ``lane_id`` in
+    the section where a car driving along ``direction`` enters the road (lane links
+    between sections; the same id when a lane has none and its type class matches)."""
+    n = len(road.lane_sections)
+    order = list(range(n)) if direction > 0 else list(range(n - 1, -1, -1))
+    ids: list[int | None] = [None] * n
+    current: int | None = lane_id
+    for pos, k in enumerate(order):
+        lane = None if current is None else _lane_or_none(road.lane_sections[k], current)
+        if lane is None:
+            break
+        ids[k] = current
+        if pos + 1 == len(order):
+            break
+        nxt = lane.successor if direction > 0 else lane.predecessor
+        if nxt is None:
+            same = _lane_or_none(road.lane_sections[order[pos + 1]], current)
+            if same is not None and (same.type in TRAFFIC_LANE_TYPES) == (
+                lane.type in TRAFFIC_LANE_TYPES
+            ):
+                nxt = current
+        current = nxt
+    return tuple(ids)
+
+
+def _lane_or_none(section: LaneSection, lane_id: int):
+    try:
+        return section.lane(lane_id)
+    except KeyError:
+        return None
+
+
+def _lane_type(road: Road, lane_id: int) -> str:
+    for sec in road.lane_sections:
+        lane = _lane_or_none(sec, lane_id)
+        if lane is not None:
+            return lane.type
+    return "driving"
+
+
+# ---------------------------------------------------------------------------
+# lane identity across legs
+# ---------------------------------------------------------------------------
+
+
+def next_lane(
+    network: RoadNetwork,
+    leg: Leg,
+    lane: LegLane,
+    nxt: Leg,
+    passage: Passage | None,
+) -> LaneKey | None:
+    """The source lane that ``lane`` continues into at the start of leg ``nxt``, in the
+    namespace of ``nxt``'s ``up`` keys (None: it ends there).
+
+    A junction leg's lanes name the incoming road's lanes at its start and the outgoing
+    road's at its end, so across a junction leg the keys match directly; between road legs
+    the lane links (successor/predecessor ids, or a direct junction's lane links) decide.
+    """
+    if lane.down is None:
+        return None
+    if leg.kind == "junction" or nxt.kind == "junction":
+        return lane.down
+    road_id, lane_id = lane.down
+    road = network.road(road_id)
+    span = leg.spans[0]
+    src = _lane_or_none(road.lane_sections[span.section], lane_id)
+    if src is None:
+        return None
+    nxt_span = nxt.spans[0]
+    if passage is not None and passage.kind == "direct":
+        hits = [t for f, t in passage.lane_links if f == lane_id]
+        return (nxt_span.road_id, hits[0]) if hits else None
+    link = src.successor if span.direction > 0 else src.predecessor
+    if nxt_span.road_id == road_id and link is None:
+        same = _lane_or_none(road.lane_sections[nxt_span.section], lane_id)
+        if same is not None and (same.type in TRAFFIC_LANE_TYPES) == (
+            src.type in TRAFFIC_LANE_TYPES
+        ):
+            link = lane_id  # no lane link inside a road: the same id continues
+    return (nxt_span.road_id, link) if link is not None else None
+
+
+# ---------------------------------------------------------------------------
+# sampling
+# ---------------------------------------------------------------------------
+
+
+def _travel_out(road: Road, s: FloatArray, direction: int, out_sign: int) -> FloatArray:
+    """Unit vectors (N, 2) pointing away from the median (to the traffic side)."""
+    h = road.heading(s) + (0.0 if direction > 0 else np.pi)
+    left = np.column_stack([-np.sin(h), np.cos(h)])
+    return out_sign * left
+
+
+def _height(road: Road, s: FloatArray, t: FloatArray) -> FloatArray:
+    z = road.elevation.value(s)
+    if road.superelevation is not None and road.superelevation.pieces:
+        z = z + t * np.tan(road.superelevation.value(s))
+    return z
+
+
+def _carried_borders(road: Road, lane: LegLane, span: Span, s: FloatArray, traffic_sign: int):
+    """Median-side and outer border offsets of a carried lane at stations ``s`` (NaN where
+    it does not run) and the border index of each per lane section (None: absent)."""
+    t_in = np.full(s.shape, np.nan)
+    t_out = np.full(s.shape, np.nan)
+    b_in: list[int | None] = [None] * len(road.lane_sections)
+    b_out: list[int | None] = [None] * len(road.lane_sections)
+    idx = road.section_index(s) if span.section < 0 else np.full(s.shape, span.section)
+    for k, lane_id in enumerate(lane.section_ids):
+        if lane_id is None:
+            continue
+        sel = idx == k
+        ti, to, b_in[k], b_out[k] = lane_borders_t(road, lane_id, s[sel], traffic_sign, k)
+        t_in[sel], t_out[sel] = ti, to
+    return t_in, t_out, b_in, b_out
+
+
+def _marks_on(road: Road, span: Span, borders: list[int | None]) -> list[tuple[float, RoadMark]]:
+    """Road marks along a span of the border with index ``borders[k]`` in lane section k,
+    as ``(p_from, mark)`` (the first p_from is 0)."""
+    length = span.s_end - span.s_start
+    items: list[tuple[float, RoadMark]] = []
+    for k, border in enumerate(borders):
+        if border is None:
+            continue
+        s0, s1 = _section_range(road, k)
+        marks = border_marks(road, k, border)
+        for i, m in enumerate(marks):
+            a = s0 + m.s_offset
+            b = s0 + marks[i + 1].s_offset if i + 1 < len(marks) else s1
+            pa, pb = sorted(((a - span.s_start) / length, (b - span.s_start) / length))
+            if min(pb, 1.0) > max(pa, 0.0) + 1e-9:
+                items.append((max(pa, 0.0), m))
+    items.sort(key=lambda it: it[0])
+    if not items:
+        return [(0.0, NO_MARK)]
+    return [(0.0 if i == 0 else lo, m) for i, (lo, m) in enumerate(items)]
+
+
+def mark_at(road: Road, section: int, border: int, s: float) -> RoadMark:
+    """The road mark valid on a border at station ``s`` of lane section ``section``."""
+    s0 = road.lane_sections[section].s0
+    valid = [m for m in border_marks(road, section, border) if s0 + m.s_offset <= s + 1e-6]
+    marks = valid or list(border_marks(road, section, border))
+    return marks[-1] if valid else (marks[0] if marks else NO_MARK)
+
+
+def _smoothstep(p: FloatArray) -> FloatArray:
+    return p * p * (3.0 - 2.0 * p)
+
+
+def sample_leg(
+    network: RoadNetwork, leg: Leg, traffic_side: TrafficSide, *, step_m: float = 0.5
+) -> LegSamples:
+    """Cross-sections of a leg every ``step_m`` metres (both ends included)."""
+    out_sign = -1 if traffic_side == "right" else 1
+    # sample exactly at every breakpoint, at least 5 samples between two of them (so a
+    # fit between breakpoints is a real cubic fit), about step_m apart otherwise
+    cuts = _breakpoints(network, leg)
+    bounds = np.concatenate([[0.0], cuts, [1.0]])
+    parts = [
+        np.linspace(a, b, max(5, int(np.ceil((b - a) * leg.length_m / step_m)) + 1))[:-1]
+        for a, b in itertools.pairwise(bounds)
+    ]
+    p = np.concatenate([*parts, [1.0]])
+    n = p.size
+    break_idx = tuple(int(i) for i in np.searchsorted(p, cuts))
+    K = len(leg.lanes)
+    inner_xyz = np.full((K, n, 3), np.nan)
+    outer_xyz = np.full((K, n, 3), np.nan)
+    out_dir = np.full((K, n, 2), np.nan)
+    marks: list[tuple[tuple[float, RoadMark], ...]] = [() for _ in range(K)]
+    inner_marks: list[tuple[tuple[float, RoadMark], ...]] = [() for _ in range(K)]
+    exact = [False] * K
+    for k, lane in enumerate(leg.lanes):
+        if lane.source is None:
+            continue
+        road = network.road(lane.source[0])
+        span = leg.span(lane.source[0])
+        s = span.s_at(p)
+        sign = traffic_lane_sign(span.direction, traffic_side)
+        t_in, t_out, b_in, b_out = _carried_borders(road, lane, span, s, sign)
+        for arr, t in ((inner_xyz, t_in), (outer_xyz, t_out)):
+            arr[k, :, :2] = road.to_xy(s, t)
+            arr[k, :, 2] = _height(road, s, t)
+        out_dir[k] = _travel_out(road, s, span.direction, out_sign)
+        marks[k] = tuple(_marks_on(road, span, b_out))
+        inner_marks[k] = tuple(_marks_on(road, span, b_in))
+        exact[k] = bool(np.all(np.isfinite(t_out)))
+    carried = [k for k in range(K) if leg.lanes[k].source is not None]
+    if not carried:
+        msg = f"leg through junction {leg.junction_id or '-'} has no source lane"
+        raise InputError(msg)
+    # bridged lanes: stacked inwards from the first carried lane, outwards from the others
+    lo = carried[0]
+    for k in range(lo - 1, -1, -1):
+        w = _bridge_width(leg.lanes[k], p)
+        outer_xyz[k] = inner_xyz[k + 1]
+        out_dir[k] = out_dir[k + 1]
+        inner_xyz[k, :, :2] = outer_xyz[k, :, :2] - out_dir[k] * w[:, None]
+        inner_xyz[k, :, 2] = outer_xyz[k, :, 2]
+    for k in range(lo + 1, K):
+        if leg.lanes[k].source is not None:
+            continue
+        w = _bridge_width(leg.lanes[k], p)
+        inner_xyz[k] = outer_xyz[k - 1]
+        out_dir[k] = out_dir[k - 1]
+        outer_xyz[k, :, :2] = inner_xyz[k, :, :2] + out_dir[k] * w[:, None]
+        outer_xyz[k, :, 2] = inner_xyz[k, :, 2]
+    for k, lane in enumerate(leg.lanes):
+        if lane.source is None:
+            marks[k] = _bridge_marks(lane, 1)
+            inner_marks[k] = _bridge_marks(lane, 0)
+    return LegSamples(
+        p, inner_xyz[0], outer_xyz, tuple(marks), inner_marks[0], tuple(exact), break_idx
+    )
+
+
+def _breakpoints(network: RoadNetwork, leg: Leg) -> FloatArray:
+    """Relative positions p in (0, 1) where a geometry piece, lane offset, width,
+    elevation or superelevation record of a carried lane's road starts."""
+    out = []
+    for span in leg.spans:
+        road = network.road(span.road_id)
+        stations = [g.s0 for g in road.geometry]
+        stations += [q.s0 for q in road.lane_offset.pieces]
+        stations += [q.s0 for q in road.elevation.pieces]
+        if road.superelevation is not None:
+            stations += [q.s0 for q in road.superelevation.pieces]
+        ks = [span.section] if span.section >= 0 else range(len(road.lane_sections))
+        for k in ks:
+            sec = road.lane_sections[k]
+            for lane in (*sec.left, *sec.right):
+                stations += [sec.s0 + q.s0 for q in lane.width.pieces]
+        length = span.s_end - span.s_start
+        ps = (np.asarray(stations, float) - span.s_start) / length
+        out.append(ps[(ps > 1e-6) & (ps < 1.0 - 1e-6)])
+    if not out:
+        return np.zeros(0)
+    return np.unique(np.round(np.concatenate(out), 9))
+
+
+def _bridge_width(lane: LegLane, p: FloatArray) -> FloatArray:
+    w0, w1 = lane.bridge_m
+    return w0 + (w1 - w0) * _smoothstep(p)
+
+
+def _bridge_marks(lane: LegLane, which: int) -> tuple[tuple[float, RoadMark], ...]:
+    """A bridged lane's marks: the incoming lane's on the first half, the outgoing's on
+    the second (``which`` 0: median-side border, 1: outer border)."""
+    out: list[tuple[float, RoadMark]] = []
+    if lane.marks_up is not None:
+        out.append((0.0, lane.marks_up[which]))
+    if lane.marks_down is not None:
+        out.append((0.5 if out else 0.0, lane.marks_down[which]))
+    return tuple(out) or ((0.0, NO_MARK),)
+
+
+def route_legs(
+    network: RoadNetwork, route: Route, traffic_side: TrafficSide
+) -> tuple[list[Leg], list[int]]:
+    """All legs of a route's mainline in driving order (junction legs bridge every lane the
+    passage does not carry, so the carriageway stays whole), and for each passage the
+    index of its first leg (its junction leg, or the next road's first leg)."""
+    per_road = [road_legs(network, t, traffic_side) for t in route.traversals]
+    legs: list[Leg] = list(per_road[0])
+    joints: list[int] = []
+    for i, passage in enumerate(route.passages):
+        nxt = per_road[i + 1]
+        joints.append(len(legs))
+        if passage.kind == "junction":
+            up_ids = frozenset(ln.source[1] for ln in legs[-1].lanes if ln.source is not None)
+            down_ids = frozenset(ln.source[1] for ln in nxt[0].lanes if ln.source is not None)
+            legs.append(
+                junction_leg(
+                    network, passage, legs[-1], nxt[0], traffic_side, GapRule(up_ids, down_ids)
+                )
+            )
+        legs.extend(nxt)
+    return legs, joints
+
+
+def leg_passages(route: Route, legs: list[Leg]) -> list[Passage | None]:
+    """For each leg boundary ``i -> i+1`` the passage crossed there (None: same road)."""
+    out: list[Passage | None] = []
+    by_pair = {(p.source.road_id, p.target.road_id): p for p in route.passages}
+    for a, b in itertools.pairwise(legs):
+        ra = a.spans[0].road_id if a.kind == "road" else ""
+        rb = b.spans[0].road_id if b.kind == "road" else ""
+        out.append(by_pair.get((ra, rb)) if ra and rb and ra != rb else None)
+    return out
