@@ -280,9 +280,12 @@ def fit_chain(
             if hi - lo < 1e-6:
                 continue
             t_prev = np.zeros_like(u)
-            for k in range(len(gkeys)):
-                xy = sm.borders[k, :, :2]
-                uk, tk = ref.project(xy, s_init=u, iterations=10)
+            n_k = len(gkeys)
+            u_all, t_all = ref.project(
+                sm.borders[:, :, :2].reshape(-1, 2), s_init=np.tile(u, n_k), iterations=8
+            )
+            for k in range(n_k):
+                uk, tk = u_all[k * u.size : (k + 1) * u.size], t_all[k * u.size : (k + 1) * u.size]
                 # a border point before the chain's start or past its end projects onto
                 # the end (clipped): it says nothing about the border there
                 on = (uk > 1e-9) & (uk < total - 1e-9)
@@ -363,26 +366,47 @@ def cut_road(road: Road, u_a: float, u_b: float, *, road_id: str, **fields) -> R
     )
 
 
-def max_border_error_m(fit: ChainFit) -> dict[str, float]:
-    """Largest lateral deviation (metres) of the canonical road from the sampled source
-    borders: ``median_edge`` and ``lane_borders`` (source borders only, not bridged ones),
-    measured at every sample in the canonical road's Frenet frame."""
+def max_border_error_m(
+    fit: ChainFit, *, network: RoadNetwork | None = None, step_m: float | None = None
+) -> dict[str, float]:
+    """Largest lateral deviation (metres) of the canonical road from the source borders:
+    ``median_edge`` and ``lane_borders`` (source borders only, not bridged ones), measured
+    in the canonical road's Frenet frame.
+
+    By default at the samples the fit used; with ``network`` and ``step_m`` the source
+    map is sampled afresh every ``step_m`` metres (an independent check).
+    """
     road = fit.road
+    samples, sample_u = fit.samples, fit.sample_u
+    if network is not None and step_m is not None:
+        side: TrafficSide = "right" if road.lane_sections[0].right else "left"
+        samples = tuple(sample_leg(network, leg, side, step_m=step_m) for leg in fit.legs)
+        sample_u = tuple(
+            np.interp(sm.p, old.p, u)
+            for sm, old, u in zip(samples, fit.samples, fit.sample_u, strict=True)
+        )
     worst_med, worst_lane = 0.0, 0.0
-    for sm, u, (lo, hi), leg in zip(fit.samples, fit.sample_u, fit.leg_u, fit.legs, strict=True):
+    for sm, u, (lo, hi), leg in zip(samples, sample_u, fit.leg_u, fit.legs, strict=True):
         if hi - lo < 1e-6:
             continue
         sec_idx = road.section_index(np.array([0.5 * (lo + hi)]))[0]
         inside = np.clip(u, lo + 1e-7, hi - 1e-7)
         if leg.lanes[0].source is not None:
-            _, t = road.project(sm.median[:, :2], s_init=u)
-            worst_med = max(worst_med, float(np.max(np.abs(t))))
+            um, t = road.project(sm.median[:, :2], s_init=u, iterations=10)
+            on = (um > 1e-7) & (um < road.length - 1e-7)
+            worst_med = max(worst_med, float(np.max(np.abs(t[on]), initial=0.0)))
         sec = road.lane_sections[sec_idx]
         side = sec.right or sec.left
-        for k, exact in enumerate(sm.exact):
-            if not exact:
-                continue
-            uk, tk = road.project(sm.borders[k, :, :2], s_init=inside, iterations=10)
+        exact = [k for k, ex in enumerate(sm.exact) if ex]
+        if not exact:
+            continue
+        u_all, t_all = road.project(
+            sm.borders[exact, :, :2].reshape(-1, 2),
+            s_init=np.tile(inside, len(exact)),
+            iterations=8,
+        )
+        for j, k in enumerate(exact):
+            uk, tk = u_all[j * u.size : (j + 1) * u.size], t_all[j * u.size : (j + 1) * u.size]
             on = (uk > lo + 1e-7) & (uk < hi - 1e-7)  # points beyond a chain end: no border
             if not np.any(on):
                 continue

@@ -381,6 +381,7 @@ def junction_leg(
     down_types = {ln.source[1]: ln.type for ln in down_leg.lanes if ln.source is not None}
 
     carried: list[LegLane] = []
+    jumpy: list[tuple[int, int | None]] = []
     used_up: set[int] = set()
     used_down: set[int] = set()
     connector_by_id = {c.road_id: c for c in passage.connectors}
@@ -402,6 +403,9 @@ def junction_leg(
         used_up.add(f)
         if down_id is not None:
             used_down.add(down_id)
+        if not _continuous(conn, section_ids, c.direction, traffic_side):
+            jumpy.append((f, down_id))  # drawn with a sideways jump: bridged instead
+            continue
         carried.append(
             LegLane(
                 _lane_type(conn, t),
@@ -414,12 +418,21 @@ def junction_leg(
     if not carried:
         msg = (
             f"junction {passage.junction_id}: no connecting road carries a lane of road "
-            f"{up_road.id} into road {down_road.id}"
+            f"{up_road.id} into road {down_road.id} without a sideways jump"
         )
         raise InputError(msg)
     carried.sort(key=lambda ln: up_order.index(ln.up[1]))
-    up_gaps = _gaps(up_order, used_up)
-    down_gaps = _gaps(down_order, used_down)
+    kept_up = {ln.up[1] for ln in carried}  # type: ignore[index]
+    kept_down = {ln.down[1] for ln in carried if ln.down is not None}
+    up_gaps = _gaps(up_order, kept_up)
+    down_gaps = _gaps(down_order, kept_down)
+    # a lane carried with a jump is bridged between its own two ends, wherever it lies
+    rule = GapRule(
+        rule.up_ids | {f for f, _ in jumpy},
+        rule.down_ids | {d for _, d in jumpy if d is not None},
+        rule.up_gaps,
+        rule.down_gaps,
+    )
     k_up, k_down = up_span.section, down_span.section
     up_sign = traffic_lane_sign(up_span.direction, traffic_side)
     down_sign = traffic_lane_sign(down_span.direction, traffic_side)
@@ -456,15 +469,19 @@ def junction_leg(
 
     inner = side("inner")
     outer = side("outer")
-    middle = side("middle")
-    # middle lanes go after the carried lane they follow in the incoming order
-    body: list[LegLane] = []
-    for lane in carried:
-        body.append(lane)
-        follow = [m for m in middle if m.up is not None and _after(up_order, m.up[1], lane.up[1])]
-        body += follow
-        middle = [m for m in middle if m not in follow]
-    body += middle
+    # carried and middle lanes in carriageway order: by the incoming road's order, a lane
+    # only the outgoing road has goes after the carried lane before it there
+    up_rank = {ln.up[1]: float(up_order.index(ln.up[1])) for ln in carried}
+    down_rank = {ln.down[1]: up_rank[ln.up[1]] for ln in carried if ln.down is not None}
+
+    def rank(lane: LegLane) -> float:
+        if lane.up is not None:
+            return float(up_order.index(lane.up[1]))
+        pos = down_order.index(lane.down[1])  # type: ignore[index]
+        before = [down_rank[i] for i in down_order[:pos] if i in down_rank]
+        return (max(before) if before else -1.0) + 0.5
+
+    body = sorted([*carried, *side("middle")], key=rank)
     lanes = (*reversed(inner), *body, *outer)
     spans = tuple(
         Span(cid, 0.0, network.road(cid).length)
@@ -484,9 +501,25 @@ def _lane_marks_at(
     return mark_at(road, section, inner, s), mark_at(road, section, outer, s)
 
 
-def _after(order: list[int], lane: int, anchor: int) -> bool:
-    """``lane`` comes directly after ``anchor`` or after it with only non-carried lanes."""
-    return order.index(lane) > order.index(anchor)
+MAX_SIDEWAYS_SLOPE = 0.5
+"""A lane border moving sideways faster than this (metres per metre along the road) is a
+jump of the drawing (a lane inserted with a lane-offset step), not a road."""
+
+
+def _continuous(
+    road: Road, section_ids: tuple[int | None, ...], direction: int, traffic_side: TrafficSide
+) -> bool:
+    """Whether a lane of ``road`` (its id per lane section) runs without a sideways jump
+    of either border over the whole road."""
+    s = np.linspace(0.0, road.length, max(3, int(np.ceil(road.length / 0.25)) + 1))
+    span = Span(road.id, 0.0, road.length)
+    lane = LegLane("", (road.id, 0), None, None, section_ids=section_ids)
+    sign = traffic_lane_sign(direction, traffic_side)
+    t_in, t_out, _, _ = _carried_borders(road, lane, span, s, sign)
+    if not (np.all(np.isfinite(t_in)) and np.all(np.isfinite(t_out))):
+        return False
+    slope = np.abs(np.diff(np.vstack([t_in, t_out]), axis=1)) / np.diff(s)[None, :]
+    return bool(np.all(slope <= MAX_SIDEWAYS_SLOPE))
 
 
 def follow_lane(road: Road, lane_id: int, direction: int) -> tuple[int | None, ...]:
@@ -693,14 +726,34 @@ def sample_leg(
         out_dir[k] = out_dir[k + 1]
         inner_xyz[k, :, :2] = outer_xyz[k, :, :2] - out_dir[k] * w[:, None]
         inner_xyz[k, :, 2] = outer_xyz[k, :, 2]
-    for k in range(lo + 1, K):
+    k = lo + 1
+    while k < K:
         if leg.lanes[k].source is not None:
+            k += 1
             continue
-        w = _bridge_width(leg.lanes[k], p)
-        inner_xyz[k] = outer_xyz[k - 1]
-        out_dir[k] = out_dir[k - 1]
-        outer_xyz[k, :, :2] = inner_xyz[k, :, :2] + out_dir[k] * w[:, None]
-        outer_xyz[k, :, 2] = inner_xyz[k, :, 2]
+        run = [k]
+        while run[-1] + 1 < K and leg.lanes[run[-1] + 1].source is None:
+            run.append(run[-1] + 1)
+        nxt = run[-1] + 1
+        start = outer_xyz[k - 1]
+        w = np.stack([_bridge_width(leg.lanes[j], p) for j in run])
+        if nxt < K:  # between two carried lanes: the bridged lanes fill the gap exactly
+            total = w.sum(axis=0)
+            frac = np.where(total > 1e-9, w / np.where(total > 1e-9, total, 1.0), 1.0 / len(run))
+            gap = inner_xyz[nxt] - start
+            acc = np.zeros(n)
+            for j, f in zip(run, frac, strict=True):
+                inner_xyz[j] = start + acc[:, None] * gap
+                acc = acc + f
+                outer_xyz[j] = start + acc[:, None] * gap
+                out_dir[j] = out_dir[k - 1]
+        else:  # outside the last carried lane: stacked outwards
+            for j, wj in zip(run, w, strict=True):
+                inner_xyz[j] = outer_xyz[j - 1]
+                out_dir[j] = out_dir[j - 1]
+                outer_xyz[j, :, :2] = inner_xyz[j, :, :2] + out_dir[j] * wj[:, None]
+                outer_xyz[j, :, 2] = inner_xyz[j, :, 2]
+        k = nxt
     for k, lane in enumerate(leg.lanes):
         if lane.source is None:
             marks[k] = _bridge_marks(lane, 1)

@@ -36,7 +36,14 @@ from .canonical import FitSettings
 from .markings import MarkingStyle
 from .osm_writer import through_lane_counts, write_route_osm
 from .route import Route, TrafficSide, find_through_route, route_from_ids, route_length_m
-from .route_sensor import drive, edge_sides, painted_points, resolved_lane, true_edges
+from .route_sensor import (
+    drive,
+    edge_sides,
+    opposite_painted_points,
+    painted_points,
+    resolved_lane,
+    true_edges,
+)
 from .route_truth import RouteTruth, build_route_truth
 from .scenario import Car, Noise, OsmStyle, Sensor
 from .sensor import noisy_poses, observe_edges, observe_markings
@@ -81,6 +88,9 @@ class NetworkRunSettings:
     """A lane ending within this distance ahead is left early (metres)."""
     lane_change_m: float = 120.0
     """Length of a lane change (metres)."""
+    opposite_markings: bool = False
+    """Also sample the paint of the opposite carriageway (lanes of the source map whose
+    traffic runs against the route) within the sensor's lateral range."""
 
     def __post_init__(self) -> None:
         if self.traffic_side not in ("right", "left"):
@@ -101,9 +111,9 @@ def network_frame(network: RoadNetwork, origin: Origin, start_xy) -> MappingFram
         clean = " ".join(t for t in text.split() if not t.startswith(_VERTICAL_TOKENS))
         try:
             probe = MappingFrame(origin, crs=clean)
-            lon, lat = probe.to_lonlat([start_xy[0]], [start_xy[1]])
-            if np.isfinite(lon[0]) and np.isfinite(lat[0]):
-                return MappingFrame(Origin(float(lat[0]), float(lon[0]), 0.0), crs=clean)
+            lon, lat = (float(v) for v in probe.to_lonlat(float(start_xy[0]), float(start_xy[1])))
+            if np.isfinite(lon) and np.isfinite(lat):
+                return MappingFrame(Origin(lat, lon, 0.0), crs=clean)
         except (InputError, CRSError, ValueError) as exc:
             log.info("geoReference %r not usable (%s): local frame on the origin", text, exc)
     return MappingFrame(origin, "local")
@@ -328,6 +338,13 @@ def simulate_network_run(
     paint, paint_station, paint_counts = painted_points(
         truth, cfg.style, cfg.sensor.lane_spacing_m, lane_rng
     )
+    if cfg.opposite_markings:
+        other = opposite_painted_points(
+            network, truth, cfg.style, cfg.sensor.lane_spacing_m, lane_rng
+        )
+        paint_counts["opposite_paint_points"] = int(other.shape[0])
+        paint = np.vstack([paint, other])
+        paint_station = np.concatenate([paint_station, np.full(other.shape[0], np.nan)])
     frames, ego, lane_counts = observe_markings(paint, paint_station, poses, cfg.sensor, lane_rng)
     lane_counts.update(paint_counts)
     car_lane = cfg.car.lane or resolved_lane(truth, poses)

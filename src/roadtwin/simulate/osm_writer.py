@@ -330,7 +330,9 @@ def build_route_osm(
     counts = through_lane_counts(truth)
     gores = [r.station_m for r in truth.ramps]
     forced = tuple(sorted({round(g, 3) for g in gores} | {round(c[0], 3) for c in counts[1:]}))
-    s = node_stations(road, 0.0, road.length, style, forced=forced)
+    # node_stations compares millimetre-rounded nodes with its end stations: give it
+    # millimetre ends, or it drops them as crowding themselves
+    s = node_stations(road, 0.0, round(road.length, 3), style, forced=forced)
     t_c = _through_band(truth, road, s, keys=truth.mainline_fit.section_keys)
     ids = osm.add_nodes(mapper_xy(road.to_xy(s, t_c), rng, style))
     bounds = [0.0, *forced, road.length]
@@ -352,10 +354,10 @@ def build_route_osm(
         if ramp.type == "exit":
             osm.tag_node(gore, {"highway": "motorway_junction", "ref": str(i + 1)})
             a = min(max(ramp.station_m - ramp.cut_station_m, 0.0) + gap, 0.5 * r.length)
-            rs = node_stations(r, a, r.length, style)
+            rs = node_stations(r, round(a, 3), round(r.length, 3), style)
         else:
             b = r.length - max(ramp.cut_station_m - ramp.station_m, 0.0) - gap
-            rs = node_stations(r, 0.0, max(b, 0.5 * r.length), style)
+            rs = node_stations(r, 0.0, round(max(b, 0.5 * r.length), 3), style)
         centre = r.to_xy(rs, _through_band(truth, r, rs))
         way = _ramp_way(osm, ramp.type, centre, gore, ramp.lanes, i, rng, style, name=ramp.name)
         ramp_ways[i] = [way]

@@ -233,6 +233,15 @@ def _has_traffic(network: RoadNetwork, t: Traversal, traffic_side: TrafficSide) 
     )
 
 
+def _score(network: RoadNetwork, p: Passage, traffic_side: TrafficSide, other: str):
+    """Sort key of a passage among alternatives (smaller is better): turns within the same
+    10-degree band count as equal, then more through lanes win, then the smaller turn,
+    then the lower id of the road that differs (``other``)."""
+    turn = math.degrees(passage_turn_rad(network, p))
+    lanes = passage_through_lanes(network, p, traffic_side)
+    return (round(turn / 10.0), -lanes, turn, _id_key(other))
+
+
 def _best_continuation(
     network: RoadNetwork, passages: Sequence[Passage], traffic_side: TrafficSide
 ) -> Passage | None:
@@ -240,16 +249,45 @@ def _best_continuation(
     for p in passages:
         if not _has_traffic(network, p.target, traffic_side):
             continue
-        turn = math.degrees(passage_turn_rad(network, p))
-        if turn > MAX_THROUGH_TURN_DEG:
+        if math.degrees(passage_turn_rad(network, p)) > MAX_THROUGH_TURN_DEG:
             continue
-        lanes = passage_through_lanes(network, p, traffic_side)
-        # turns within the same 10-degree band count as equal: then more lanes win
-        scored.append((round(turn / 10.0), -lanes, turn, _id_key(p.target.road_id), p))
+        scored.append((_score(network, p, traffic_side, p.target.road_id), p))
     if not scored:
         return None
-    scored.sort(key=lambda item: item[:4])
-    return scored[0][4]
+    scored.sort(key=lambda item: item[0])
+    return scored[0][1]
+
+
+def _incoming(network: RoadNetwork, traffic_side: TrafficSide) -> dict[Traversal, list[Passage]]:
+    """Every passage into each traversal."""
+    out: dict[Traversal, list[Passage]] = {}
+    for road in network.roads:
+        if road.junction != "-1":
+            continue
+        for d in (1, -1):
+            for p in continuations(network, Traversal(road.id, d), traffic_side):
+                out.setdefault(p.target, []).append(p)
+    return out
+
+
+def _trim_ramp_start(
+    network: RoadNetwork, route: Route, incoming: dict, traffic_side: TrafficSide
+) -> Route:
+    """Drop the leading roads of a walk that join it as a ramp: the walk starts after the
+    last passage, before the first one that is the best of several ways into its road,
+    that is not the best way into its road."""
+    start = 0
+    for i, p in enumerate(route.passages):
+        others = incoming.get(p.target, [])
+        if len(others) < 2:
+            continue  # the only way in: part of whatever leads here
+        best = min(
+            (_score(network, q, traffic_side, q.source.road_id), q.source.road_id) for q in others
+        )
+        if best[1] == p.source.road_id:
+            break
+        start = i + 1
+    return Route(route.traversals[start:], route.passages[start:])
 
 
 def _id_key(road_id: str) -> tuple[int, float, str]:
@@ -283,14 +321,26 @@ def route_length_m(network: RoadNetwork, route: Route) -> float:
     return total
 
 
+def _lane_metres(network: RoadNetwork, route: Route, traffic_side: TrafficSide) -> float:
+    """Sum over the route's roads of length times traffic lanes (at least one)."""
+    total = 0.0
+    for t in route.traversals:
+        road = network.road(t.road_id)
+        lanes = max(1, len(traffic_lane_ids(road, t.direction, traffic_side, at_exit=False)))
+        total += road.length * lanes
+    return total
+
+
 def find_through_route(network: RoadNetwork, *, traffic_side: TrafficSide = "right") -> Route:
     """The longest plausible through-route, chosen deterministically.
 
     From every non-junction road and direction with traffic lanes, follow at each joint
     the continuation with the smallest heading change (within a 10-degree band: the one
     carrying the most through lanes; then the lowest road id), never turning more than
-    :data:`MAX_THROUGH_TURN_DEG` and never revisiting a road. The longest such walk wins
-    (ties: the lowest start road id, driving along s first).
+    :data:`MAX_THROUGH_TURN_DEG` and never revisiting a road; leading roads that join the
+    walk as a ramp (another road enters the next one by a better passage) are dropped.
+    The walk with the most lane-metres (length times traffic lanes) wins; ties: the lowest
+    start road id, driving along s first.
 
     Raises
     ------
@@ -300,13 +350,16 @@ def find_through_route(network: RoadNetwork, *, traffic_side: TrafficSide = "rig
     best: Route | None = None
     best_len = -1.0
     starts = sorted((r for r in network.roads if r.junction == "-1"), key=lambda r: _id_key(r.id))
+    incoming = _incoming(network, traffic_side)
     for road in starts:
         for d in (1, -1):
             t = Traversal(road.id, d)
             if not _has_traffic(network, t, traffic_side):
                 continue
-            walk = _greedy_walk(network, t, traffic_side)
-            length = route_length_m(network, walk)
+            walk = _trim_ramp_start(
+                network, _greedy_walk(network, t, traffic_side), incoming, traffic_side
+            )
+            length = _lane_metres(network, walk, traffic_side)
             if length > best_len + 1e-6:
                 best, best_len = walk, length
     if best is None:

@@ -29,7 +29,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from ..evaluation.mainline_truth import lane_borders
-from ..model import Road
+from ..model import Road, RoadNetwork
 from .markings import PAINTED, MarkingStyle, dash_pattern
 from .route import TRAFFIC_LANE_TYPES
 from .route_truth import RouteTruth
@@ -52,14 +52,41 @@ SAME_LEVEL_M = 2.5
 
 
 def _key_ends(truth: RouteTruth) -> dict[int, float]:
-    """Mainline station where each lane key's last lane section ends (inf: the route's end)."""
+    """Mainline station where each lane key stops being drivable: where it gets narrower
+    than :data:`MIN_LANE_WIDTH_M` before its last lane section ends (the start of its
+    taper), else that end (inf: the lane runs to the route's end)."""
     road = truth.mainline
     keys = truth.mainline_fit.section_keys
     out: dict[int, float] = {}
+    last: dict[int, int] = {}
     for k, ks in enumerate(keys):
-        end = road.lane_sections[k + 1].s0 if k + 1 < len(keys) else math.inf
         for key in ks:
-            out[key] = end
+            last[key] = k
+    for key, k in last.items():
+        if k + 1 == len(keys):
+            out[key] = math.inf
+            continue
+        end = road.lane_sections[k + 1].s0
+        # walk back over the lane's sections until it is wide again
+        u = np.arange(end - 1e-6, max(end - 600.0, 0.0), -0.5)
+        w = _key_width(truth, u, key)
+        wide = np.nonzero(w >= MIN_LANE_WIDTH_M)[0]
+        out[key] = float(u[wide[0]]) if wide.size else end
+    return out
+
+
+def _key_width(truth: RouteTruth, u: FloatArray, key: int) -> FloatArray:
+    """Width of lane ``key`` at stations u (0 where it does not run)."""
+    road = truth.mainline
+    sec_idx = road.section_index(u)
+    out = np.zeros(u.size)
+    for k in np.unique(sec_idx):
+        lane_id = truth.mainline_fit.lane_id(int(k), key)
+        if lane_id is None:
+            continue
+        sel = sec_idx == k
+        sec = road.lane_sections[int(k)]
+        out[sel] = sec.lane(lane_id).width.value(u[sel] - sec.s0)
     return out
 
 
@@ -334,3 +361,55 @@ def painted_points(
         return np.zeros((0, 3)), np.zeros(0), {"painted_m": 0.0, "worn_m": 0.0}
     counts = {"painted_m": round(painted_m, 1), "worn_m": round(worn_m, 1)}
     return np.vstack(pts), np.concatenate(stations), counts
+
+
+def opposite_painted_points(
+    network: RoadNetwork,
+    truth: RouteTruth,
+    style: MarkingStyle,
+    spacing_m: float,
+    rng: np.random.Generator,
+    *,
+    lateral_m: float = 40.0,
+) -> FloatArray:
+    """Paint points ``(N, 3)`` of the source map's lanes whose traffic runs against the
+    route (heading more than 120 degrees off the mainline's) within ``lateral_m`` of it:
+    the opposite carriageway. These lanes are not part of the truth (station NaN)."""
+    side_travel = {-1: 1, 1: -1} if truth.traffic_side == "right" else {-1: -1, 1: 1}
+    main = truth.mainline
+    out = []
+    for road in network.roads:
+        if road.junction != "-1":
+            continue
+        for k, sec in enumerate(road.lane_sections):
+            s1 = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+            for sign, lanes in ((-1, sec.right), (1, sec.left)):
+                if not any(ln.type in TRAFFIC_LANE_TYPES for ln in lanes):
+                    continue
+                for lane in lanes:
+                    for i, mark in enumerate(lane.road_marks):
+                        kinds = PAINTED.get(mark.type)
+                        a = sec.s0 + mark.s_offset
+                        b = (
+                            sec.s0 + lane.road_marks[i + 1].s_offset
+                            if i + 1 < len(lane.road_marks)
+                            else s1
+                        )
+                        if kinds is None or b - a < spacing_m:
+                            continue
+                        s = np.arange(a, b, spacing_m) + rng.uniform(0.0, spacing_m)
+                        s = s[s < b]
+                        pattern = dash_pattern(kinds[0], style, aux=False)
+                        if pattern is not None:
+                            s = s[np.mod(s, pattern[0] + pattern[1]) < pattern[0]]
+                        if s.size == 0:
+                            continue
+                        xy = road.to_xy(s, road.lane_border_t(s, lane.id))
+                        heading = road.heading(s) + (0.0 if side_travel[sign] > 0 else np.pi)
+                        u, t = main.project(xy)
+                        against = np.cos(heading - main.heading(u)) < -0.5
+                        keep = against & (np.abs(t) <= lateral_m) & (u > 0.0) & (u < main.length)
+                        if np.any(keep):
+                            z = road.elevation.value(s[keep])
+                            out.append(np.column_stack([xy[keep], z]))
+    return np.vstack(out) if out else np.zeros((0, 3))

@@ -16,11 +16,12 @@ Stations are metres along the whole mainline (the concatenation of the mainline 
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._errors import InputError
+from .._errors import FitError, InputError
 from ..evaluation.mainline_truth import lane_borders
 from ..frames import MappingFrame
 from ..model import (
@@ -54,6 +55,11 @@ from .route import (
 )
 
 log = logging.getLogger(__name__)
+
+MAX_AUX_LANE_M = 600.0
+"""A lane that begins at most this far before an exit it leads into (or ends at most this
+far after the entry it comes from) is the ramp's auxiliary lane; longer ones are through
+lanes that happen to lead into (come from) the ramp."""
 
 MAX_RAMP_TURN_DEG = 120.0
 """A branch turning more than this at its junction (a U-turn) is not a ramp."""
@@ -271,6 +277,10 @@ def find_branches(
     return out
 
 
+def _roads_of(branch: _Branch) -> tuple[str, ...]:
+    return tuple(dict.fromkeys(sp.road_id for leg in branch.legs for sp in leg.spans))
+
+
 def _ids(leg: Leg) -> list[int]:
     return [ln.source[1] for ln in leg.lanes if ln.source is not None]
 
@@ -385,8 +395,13 @@ def build_route_truth(
     ramp_length_m: float = 300.0,
     fit: FitSettings | None = None,
     name: str = "route",
+    max_branch_error_m: float = 0.01,
 ) -> RouteTruth:
     """The canonical ground truth of ``route`` (see the module docstring).
+
+    A branch whose canonical road would deviate from the map by more than
+    ``max_branch_error_m`` (a tight urban turn whose lanes fold, lanes of separate
+    connecting roads that cross) is left out with a warning.
 
     Raises
     ------
@@ -397,15 +412,39 @@ def build_route_truth(
     branches = find_branches(
         network, route, legs, joints, traffic_side, ramp_length_m=ramp_length_m
     )
-    cut_legs: dict[int, list[_Branch]] = {}
-    for b in branches:
-        i = b.through_index
-        at = joints[i] if b.kind == "exit" or b.through.kind == "direct" else joints[i] + 1
-        cut_legs.setdefault(at, []).append(b)
-    cuts = sorted(cut_legs)
     counter = [0]
     leg_pass = leg_passages(route, legs)
     main_keys = lane_keys(network, legs, leg_pass, counter=counter)
+    # branches first: one that a road with a median-side reference line cannot hold
+    # (lanes folding inside a tight turn, lanes of separate connectors crossing) is left
+    # out of the truth altogether, so the run stays consistent with truth.xodr
+    branch_fits: dict[int, ChainFit] = {}
+    for b_idx, b in enumerate(branches):
+        passages: list[Passage | None] = [None] * (len(b.legs) - 1)
+        keys = lane_keys(network, list(b.legs), passages, counter=counter)
+        try:
+            bfit = fit_chain(
+                network, list(b.legs), keys, traffic_side, road_id="", name=b.kind, settings=fit
+            )
+        except (FitError, InputError) as exc:
+            log.warning("%s from %s left out: %s", b.kind, _roads_of(b), exc)
+            continue
+        err = max_border_error_m(bfit)
+        if max(err.values()) > max_branch_error_m:
+            log.warning(
+                "%s via roads %s left out of the truth: one road cannot represent it "
+                "(borders %.2f m off; lanes fold or cross)",
+                b.kind, ",".join(_roads_of(b)), max(err.values()),
+            )  # fmt: skip
+            continue
+        branch_fits[b_idx] = bfit
+    cut_legs: dict[int, list[tuple[_Branch, ChainFit]]] = {}
+    for b_idx, bfit in branch_fits.items():
+        b = branches[b_idx]
+        i = b.through_index
+        at = joints[i] if b.kind == "exit" or b.through.kind == "direct" else joints[i] + 1
+        cut_legs.setdefault(at, []).append((b, bfit))
+    cuts = sorted(cut_legs)
     main_fit = fit_chain(
         network, legs, main_keys, traffic_side, road_id="0", name="mainline",
         breaks=tuple(cuts), settings=fit,
@@ -420,8 +459,8 @@ def build_route_truth(
     # ramps, ordered by their cut and type
     ramp_items = []
     for c_idx, c in enumerate(cuts):
-        for b in sorted(cut_legs[c], key=lambda b: (b.kind, b.passage.source.road_id)):
-            ramp_items.append((c_idx, c, b))
+        for b, bfit in sorted(cut_legs[c], key=lambda x: (x[0].kind, _roads_of(x[0]))):
+            ramp_items.append((c_idx, c, b, bfit))
     ramps: list[RampTruth] = []
     ramp_roads: list[Road] = []
     connections: dict[int, list[Connection]] = {k: [] for k in range(len(cuts))}
@@ -433,13 +472,9 @@ def build_route_truth(
             first_sec.setdefault(key, k)
             last_sec[key] = k
     n_sec = len(main_fit.section_keys)
-    for r_idx, (c_idx, c, b) in enumerate(ramp_items):
+    for r_idx, (c_idx, c, b, rfit) in enumerate(ramp_items):
         rid = str(101 + r_idx)
-        passages: list[Passage | None] = [None] * (len(b.legs) - 1)
-        keys = lane_keys(network, list(b.legs), passages, counter=counter)
-        rfit = fit_chain(
-            network, list(b.legs), keys, traffic_side, road_id=rid, name=b.kind, settings=fit
-        )
+        rfit = replace(rfit, road=replace(rfit.road, id=rid))
         jid = junction_ids[c_idx]
         link = RoadLink("junction", jid)
         road = replace(
@@ -454,7 +489,8 @@ def build_route_truth(
             aux_ids = tuple(ll.from_lane for ll in links)
             for ll in links:
                 key = main_fit.key_of(sec, ll.from_lane)
-                if first_sec[key] > 0:
+                first_u = main_fit.road.lane_sections[first_sec[key]].s0
+                if first_sec[key] > 0 and cut_u[c_idx] - first_u <= MAX_AUX_LANE_M:
                     aux_keys.add(key)
         else:
             links = _links_between(network, rfit, len(b.legs) - 1, main_fit, c, b.passage)
@@ -463,13 +499,15 @@ def build_route_truth(
             aux_ids = tuple(ll.to_lane for ll in links)
             for ll in links:
                 key = main_fit.key_of(sec, ll.to_lane)
-                if last_sec[key] < n_sec - 1:
+                last = last_sec[key]
+                end_u = main_fit.road.lane_sections[last + 1].s0 if last + 1 < n_sec else math.inf
+                if end_u - cut_u[c_idx] <= MAX_AUX_LANE_M:
                     aux_keys.add(key)
         connections[c_idx].append(conn)
         end_sec = road.lane_sections[0 if b.kind == "exit" else -1]
         n_lanes = sum(1 for ln in (end_sec.right or end_sec.left) if ln.type in TRAFFIC_LANE_TYPES)
         gore = _gore_station(main_fit.road, road, cut_u[c_idx], b.kind, sign)
-        src = tuple(dict.fromkeys(sp.road_id for leg in b.legs for sp in leg.spans))
+        src = _roads_of(b)
         names = [network.road(x).name for x in src if network.road(x).junction == "-1"]
         ramps.append(
             RampTruth(
@@ -516,9 +554,7 @@ def build_route_truth(
                 type="direct",
             )
         )
-    # a PROJ string is kept as written (pyproj's round trip would only warn and reorder)
-    geo = frame.crs if frame.crs.startswith("+proj") else frame.geo_reference
-    header = Header(name=name, geo_reference=geo, vendor="roadtwin-simulate")
+    header = Header(name=name, geo_reference=frame.geo_reference, vendor="roadtwin-simulate")
     truth_net = RoadNetwork(header, (*main_roads, *ramp_roads), tuple(junctions))
     errors = max_border_error_m(main_fit)
     for r in ramps:
