@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 
-from .._errors import FitError
 from ..fitting import arc_length, fit_cubic_profile, fit_parampoly3_chain
 from ..model import (
     CubicPiece,
@@ -34,7 +33,6 @@ from ..model import (
     RoadNetwork,
     chain_geometry,
 )
-from .alignment import cut_profile
 from .carriageway import Leg, LegSamples, next_lane, sample_leg
 from .route import Passage, TrafficSide
 
@@ -341,28 +339,6 @@ def fit_chain(
         tuple(section_keys),
         tuple(samples),
         tuple(sample_u),
-    )
-
-
-def cut_road(road: Road, u_a: float, u_b: float, *, road_id: str, **fields) -> Road:
-    """The part ``[u_a, u_b]`` of a fitted road whose geometry pieces and lane sections
-    start exactly at ``u_a`` (a break of :func:`fit_chain`), stations re-based to 0."""
-    pieces = [g for g in road.geometry if u_a - 1e-6 <= g.s0 < u_b - 1e-6]
-    sections = [
-        replace(ls, s0=max(ls.s0 - u_a, 0.0))
-        for ls in road.lane_sections
-        if u_a - 1e-6 <= ls.s0 < u_b - 1e-6
-    ]
-    if not pieces or not sections or abs(pieces[0].s0 - u_a) > 1e-6:
-        msg = f"cannot cut road {road.id} at {u_a:.3f} m: not a piece/section boundary"
-        raise FitError(msg)
-    return replace(
-        road,
-        id=road_id,
-        geometry=chain_geometry(pieces),
-        lane_sections=tuple(sections),
-        elevation=cut_profile(road.elevation, u_a, u_b),
-        **fields,
     )
 
 

@@ -47,15 +47,7 @@ from .route_sensor import (
 from .route_truth import RouteTruth, build_route_truth
 from .scenario import Car, Noise, OsmStyle, Sensor
 from .sensor import noisy_poses, observe_edges, observe_markings
-from .writer import (
-    _rng,
-    _write_csv,
-    _write_edges,
-    _write_poses,
-    copy_osm,
-    run_toml_text,
-    write_run_folder,
-)
+from .writer import _rng, copy_osm, run_toml_text, write_run_folder, write_sensor_files
 
 log = logging.getLogger(__name__)
 
@@ -352,13 +344,7 @@ def simulate_network_run(
     out = Path(out_dir)
 
     def fill(tmp: Path) -> None:
-        _write_poses(meas, tmp / "trajectory.csv")
-        _write_poses(poses, tmp / "truth_trajectory.csv")
-        _write_edges(edges, edge_side, tmp / edges_name, cfg.road_edges_format)
-        _write_csv(
-            tmp / "lane_samples.csv",
-            {"frame": frames, "x": ego[:, 0], "y": ego[:, 1], "z": ego[:, 2]},
-        )
+        write_sensor_files(tmp, meas, poses, edges, edge_side, edges_name, frames, ego)
         if cfg.osm_file:
             osm_name = copy_osm(cfg.osm_file, tmp)
             ramp_ways: dict[int, list[int]] = {}

@@ -164,25 +164,28 @@ def continuations(
     junction = network.id_to_junction.get(link.element_id)
     if junction is None:
         return []
-    out: list[Passage] = []
-    if junction.type == "direct":
-        for con in junction.connections:
-            if con.incoming_road != road.id or con.connecting_road not in network.id_to_road:
-                continue
-            links = _links_from(con.lane_links, sign)
-            if con.lane_links and not links:
-                continue
-            target = network.road(con.connecting_road)
-            td = 1 if con.contact_point == "start" else -1
-            out.append(Passage("direct", traversal, Traversal(target.id, td), junction.id, links))
-        return out
-    grouped: dict[Traversal, list[Connector]] = {}
+    # connections from this road whose lane links leave from its traffic lanes
+    usable = []
     for con in junction.connections:
         if con.incoming_road != road.id or con.connecting_road not in network.id_to_road:
             continue
         links = _links_from(con.lane_links, sign)
-        if con.lane_links and not links:
-            continue
+        if not con.lane_links or links:
+            usable.append((con, links))
+    if junction.type == "direct":
+        return [
+            Passage(
+                "direct",
+                traversal,
+                Traversal(con.connecting_road, 1 if con.contact_point == "start" else -1),
+                junction.id,
+                links,
+            )
+            for con, links in usable
+        ]
+    grouped: dict[Traversal, list[Connector]] = {}
+    out: list[Passage] = []
+    for con, links in usable:
         conn = network.road(con.connecting_road)
         cd = 1 if con.contact_point == "start" else -1
         far = conn.successor if cd > 0 else conn.predecessor

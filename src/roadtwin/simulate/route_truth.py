@@ -24,6 +24,7 @@ import numpy as np
 from .._errors import FitError, InputError
 from ..evaluation.mainline_truth import lane_borders
 from ..frames import MappingFrame
+from ..mainline.cut import cut_road
 from ..model import (
     Connection,
     Header,
@@ -33,7 +34,7 @@ from ..model import (
     RoadLink,
     RoadNetwork,
 )
-from .canonical import ChainFit, FitSettings, cut_road, fit_chain, lane_keys, max_border_error_m
+from .canonical import ChainFit, FitSettings, fit_chain, lane_keys, max_border_error_m
 from .carriageway import (
     GapRule,
     Leg,
@@ -530,12 +531,10 @@ def build_route_truth(
     # mainline roads and junctions
     main_roads = []
     for k, (a, e) in enumerate(zip(starts, ends, strict=True)):
+        part = cut_road(main_fit.road, a, e, road_id=main_ids[k])  # exact, re-based to 0
         main_roads.append(
-            cut_road(
-                main_fit.road,
-                a,
-                e,
-                road_id=main_ids[k],
+            replace(
+                part,
                 predecessor=RoadLink("junction", junction_ids[k - 1]) if k > 0 else None,
                 successor=RoadLink("junction", junction_ids[k]) if k < len(cuts) else None,
             )

@@ -170,6 +170,27 @@ def copy_osm(src: str | os.PathLike, folder: Path) -> str:
     return osm_name
 
 
+def write_sensor_files(
+    folder: Path,
+    meas: Poses,
+    poses: Poses,
+    edges: np.ndarray,
+    side: np.ndarray,
+    edges_name: str,
+    frames: np.ndarray,
+    ego: np.ndarray,
+) -> None:
+    """Write the measured and true poses, the road-edge points (format from the suffix of
+    ``edges_name``) and the lane samples (ego frame) of a run into ``folder``."""
+    _write_poses(meas, folder / "trajectory.csv")
+    _write_poses(poses, folder / "truth_trajectory.csv")
+    _write_edges(edges, side, folder / edges_name, edges_name.rsplit(".", 1)[-1])
+    _write_csv(
+        folder / "lane_samples.csv",
+        {"frame": frames, "x": ego[:, 0], "y": ego[:, 1], "z": ego[:, 2]},
+    )
+
+
 def write_run_folder(out_dir: Path, fill: Callable[[Path], None]) -> None:
     """Let ``fill`` write every file into a temporary folder next to ``out_dir``, then
     move them in (so a failure leaves no partial run); files become mode 644."""
@@ -284,13 +305,7 @@ def simulate_run(
     edges_name = f"road_edges.{sc.road_edges_format}"
 
     def fill(tmp: Path) -> None:
-        _write_poses(meas, tmp / "trajectory.csv")
-        _write_poses(poses, tmp / "truth_trajectory.csv")
-        _write_edges(edges, side, tmp / edges_name, sc.road_edges_format)
-        _write_csv(
-            tmp / "lane_samples.csv",
-            {"frame": frames, "x": ego[:, 0], "y": ego[:, 1], "z": ego[:, 2]},
-        )
+        write_sensor_files(tmp, meas, poses, edges, side, edges_name, frames, ego)
         if sc.real_osm:
             osm_name = copy_osm(sc.real_osm, tmp)
             ramp_ways = {i: list(r.osm_way_ids) for i, r in enumerate(sc.ramps)}
