@@ -17,7 +17,6 @@ whose coordinates are the network's.
 from __future__ import annotations
 
 import dataclasses
-import json
 import logging
 import os
 from collections.abc import Sequence
@@ -31,7 +30,7 @@ from pyproj.exceptions import CRSError
 from .._errors import InputError
 from ..frames import MappingFrame, Origin
 from ..model import RoadNetwork
-from ..xodr import read_xodr, write_xodr
+from ..xodr import read_xodr
 from .canonical import FitSettings
 from .markings import MarkingStyle
 from .osm_writer import through_lane_counts, write_route_osm
@@ -47,7 +46,15 @@ from .route_sensor import (
 from .route_truth import RouteTruth, build_route_truth
 from .scenario import Car, Noise, OsmStyle, Sensor
 from .sensor import noisy_poses, observe_edges, observe_markings
-from .writer import _rng, copy_osm, run_toml_text, write_run_folder, write_sensor_files
+from .writer import (
+    _rng,
+    copy_osm,
+    run_toml_text,
+    section_record,
+    write_run_folder,
+    write_sensor_files,
+    write_truth_files,
+)
 
 log = logging.getLogger(__name__)
 
@@ -186,18 +193,8 @@ def route_truth_json(
             k = int(main.section_index(np.array([start + ls.s0 + 1e-6]))[0])
             kinds = _lane_kinds(truth, k)
             lanes = ls.right or ls.left
-            sections.append(
-                {
-                    "road_id": road.id,
-                    "s0_m": round(ls.s0, 6),
-                    "station_m": round(start + ls.s0, 6),
-                    "driving_lanes": kinds.count("driving"),
-                    "aux_lanes": kinds.count("aux"),
-                    "lane_ids": [lane.id for lane in lanes],
-                    "lane_kinds": kinds,
-                    "lane_types": [lane.type for lane in lanes],
-                }
-            )
+            record = section_record(road.id, ls.s0, start, lanes, kinds)
+            sections.append(record | {"lane_types": [lane.type for lane in lanes]})
     ramps = []
     for i, r in enumerate(truth.ramps):
         ramps.append(
@@ -375,8 +372,7 @@ def simulate_network_run(
         doc = route_truth_json(
             truth, cfg, seed=seed, car_lane=car_lane, ramp_ways=ramp_ways, counts=counts
         )
-        (tmp / "truth.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-        write_xodr(truth.network, tmp / "truth.xodr")
+        write_truth_files(tmp, doc, truth.network)
 
     write_run_folder(out, fill)
     log.info(

@@ -191,6 +191,12 @@ def write_sensor_files(
     )
 
 
+def write_truth_files(folder: Path, doc: dict, network) -> None:
+    """Write ``truth.json`` (``doc``) and ``truth.xodr`` (the true ``network``)."""
+    (folder / "truth.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    write_xodr(network, folder / "truth.xodr")
+
+
 def write_run_folder(out_dir: Path, fill: Callable[[Path], None]) -> None:
     """Let ``fill`` write every file into a temporary folder next to ``out_dir``, then
     move them in (so a failure leaves no partial run); files become mode 644."""
@@ -213,6 +219,20 @@ def _aux_lane_ids(truth: Truth, station_m: float, kind: str) -> list[int]:
     return [v for k, v in _lane_ids(spec, truth.sign).items() if k[0] == "aux"]
 
 
+def section_record(road_id: str, s0: float, start: float, lanes, kinds: list[str]) -> dict:
+    """truth.json entry of a mainline lane section: ``kinds`` are ``inner``, ``driving``,
+    ``aux``, ``hard`` (or a lane type) per lane, median side first."""
+    return {
+        "road_id": road_id,
+        "s0_m": round(s0, 6),
+        "station_m": round(start + s0, 6),
+        "driving_lanes": kinds.count("driving"),
+        "aux_lanes": kinds.count("aux"),
+        "lane_ids": [lane.id for lane in lanes],
+        "lane_kinds": kinds,
+    }
+
+
 def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> dict:
     sc = truth.scenario
     roads = [r for r in truth.network.roads if r.name == "mainline"]
@@ -223,17 +243,7 @@ def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> 
             lanes = ls.right if truth.sign < 0 else ls.left
             spec = next(x for x in truth.sections if abs(x.s0 - (start + ls.s0)) < 1e-6)
             kinds = [lane.kind for lane in spec.lanes]
-            sections.append(
-                {
-                    "road_id": road.id,
-                    "s0_m": round(ls.s0, 6),
-                    "station_m": round(start + ls.s0, 6),
-                    "driving_lanes": kinds.count("driving"),
-                    "aux_lanes": kinds.count("aux"),
-                    "lane_ids": [lane.id for lane in lanes],
-                    "lane_kinds": kinds,
-                }
-            )
+            sections.append(section_record(road.id, ls.s0, start, lanes, kinds))
     ramps = []
     for i, rt in enumerate(truth.ramps):
         ramps.append(
@@ -320,9 +330,7 @@ def simulate_run(
             "edges": edge_counts,
             "lanes": lane_counts,
         }
-        doc = _truth_json(truth, ramp_ways, counts)
-        (tmp / "truth.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-        write_xodr(truth.network, tmp / "truth.xodr")
+        write_truth_files(tmp, _truth_json(truth, ramp_ways, counts), truth.network)
 
     write_run_folder(out, fill)
     log.info(
