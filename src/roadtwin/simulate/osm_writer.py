@@ -318,18 +318,47 @@ def through_lane_counts(truth: RouteTruth) -> list[tuple[float, int]]:
     return out
 
 
+MAX_LINK_ANGLE_DEG = 15.0
+"""Mappers join a link way to the motorway way at a shallow angle: the shared node is
+placed where the link's first (exit) / last (entry) segment meets the motorway
+centreline at no more than this angle."""
+
+
+def _link_nodes(truth: RouteTruth, ramp, style: OsmStyle, gap_m: float = 30.0):
+    """Stations and centre points of a ramp's link-way nodes (from ``gap_m`` beyond the
+    gore to the ramp road's far end) and the mainline station of the node it shares."""
+    r = ramp.road
+    if ramp.type == "exit":
+        a = min(max(ramp.station_m - ramp.cut_station_m, 0.0) + gap_m, 0.5 * r.length)
+        rs = node_stations(r, round(a, 3), round(r.length, 3), style)
+        near = rs[0]
+    else:
+        b = r.length - max(ramp.cut_station_m - ramp.station_m, 0.0) - gap_m
+        rs = node_stations(r, 0.0, round(max(b, 0.5 * r.length), 3), style)
+        near = rs[-1]
+    centre = r.to_xy(rs, _through_band(truth, r, rs))
+    main = truth.mainline
+    p_near = r.to_xy(np.array([near]), _through_band(truth, r, np.array([near])))
+    u, t = main.project(p_near, s_init=np.array([ramp.station_m]))
+    off = abs(float(t[0] - _through_band(truth, main, u, keys=truth.mainline_fit.section_keys)[0]))
+    run = max(gap_m, off / math.tan(math.radians(MAX_LINK_ANGLE_DEG)))
+    u_att = float(u[0]) - run if ramp.type == "exit" else float(u[0]) + run
+    return centre, round(float(np.clip(u_att, 0.0, main.length)), 3)
+
+
 def build_route_osm(
     truth: RouteTruth, style: OsmStyle, rng: np.random.Generator
 ) -> tuple[_Osm, dict[int, list[int]]]:
     """A mapper's OSM of a route truth: the carriageway as oneway ``motorway`` ways split
-    at every ramp's gore and lane-count change (``lanes`` = through lanes, sometimes
-    missing), each ramp a ``motorway_link`` way from a node shared with the motorway at its
-    gore to the ramp road's far end. Returns the ways and the link way ids per ramp."""
+    at every link's node and lane-count change (``lanes`` = through lanes, sometimes
+    missing), each ramp a ``motorway_link`` way from a node shared with the motorway (where
+    the link meets it at a shallow angle, near the gore) to the ramp road's far end.
+    Returns the ways and the link way ids per ramp."""
     osm = _Osm()
     road = truth.mainline
     counts = through_lane_counts(truth)
-    gores = [r.station_m for r in truth.ramps]
-    forced = tuple(sorted({round(g, 3) for g in gores} | {round(c[0], 3) for c in counts[1:]}))
+    links = [_link_nodes(truth, ramp, style) for ramp in truth.ramps]
+    forced = tuple(sorted({u for _, u in links} | {round(c[0], 3) for c in counts[1:]} - {0.0}))
     # node_stations compares millimetre-rounded nodes with its end stations: give it
     # millimetre ends, or it drops them as crowding themselves
     s = node_stations(road, 0.0, round(road.length, 3), style, forced=forced)
@@ -347,19 +376,11 @@ def build_route_osm(
             tags["lanes"] = str(lanes)
         osm.add_way([ids[i] for i in sel], tags)
     ramp_ways: dict[int, list[int]] = {}
-    gap = 30.0
-    for i, ramp in enumerate(truth.ramps):
-        gore = ids[int(np.argmin(np.abs(s - ramp.station_m)))]
-        r = ramp.road
+    for i, (ramp, (centre, u_att)) in enumerate(zip(truth.ramps, links, strict=True)):
+        shared = ids[int(np.argmin(np.abs(s - u_att)))]
         if ramp.type == "exit":
-            osm.tag_node(gore, {"highway": "motorway_junction", "ref": str(i + 1)})
-            a = min(max(ramp.station_m - ramp.cut_station_m, 0.0) + gap, 0.5 * r.length)
-            rs = node_stations(r, round(a, 3), round(r.length, 3), style)
-        else:
-            b = r.length - max(ramp.cut_station_m - ramp.station_m, 0.0) - gap
-            rs = node_stations(r, 0.0, round(max(b, 0.5 * r.length), 3), style)
-        centre = r.to_xy(rs, _through_band(truth, r, rs))
-        way = _ramp_way(osm, ramp.type, centre, gore, ramp.lanes, i, rng, style, name=ramp.name)
+            osm.tag_node(shared, {"highway": "motorway_junction", "ref": str(i + 1)})
+        way = _ramp_way(osm, ramp.type, centre, shared, ramp.lanes, i, rng, style, name=ramp.name)
         ramp_ways[i] = [way]
     return osm, ramp_ways
 
