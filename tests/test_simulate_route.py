@@ -51,6 +51,11 @@ NOISE_FREE = NetworkRunSettings(
 )
 
 
+@pytest.fixture(scope="module")
+def town06_truth():
+    return _truth(TOWN06, ["35", "36", "37", "38"])
+
+
 def _truth(path: Path, ids=None, side="right"):
     network = read_xodr(path)
     route = (
@@ -187,8 +192,11 @@ def test_automatic_route_through_the_whole_town06():
         (TOWN06, ["8", "2", "45"]),  # one road driven along s, two against it
     ],
 )
-def test_canonical_truth_is_the_map_within_a_millimetre(path, ids):
-    network, truth = _truth(path, ids)
+def test_canonical_truth_is_the_map_within_a_millimetre(path, ids, request):
+    if ids == ["35", "36", "37", "38"]:
+        network, truth = request.getfixturevalue("town06_truth")
+    else:
+        network, truth = _truth(path, ids)
     # the source borders sampled afresh at another step than the fit used
     for fit in [truth.mainline_fit, *(r.fit for r in truth.ramps)]:
         err = max_border_error_m(fit, network=network, step_m=0.37)
@@ -201,8 +209,8 @@ def test_canonical_truth_is_the_map_within_a_millimetre(path, ids):
         assert np.allclose(road.xy(s), truth.mainline.xy(start + s), atol=1e-9)
 
 
-def test_ramps_of_town06_match_the_map():
-    _, truth = _truth(TOWN06, ["35", "36", "37", "38"])
+def test_ramps_of_town06_match_the_map(town06_truth):
+    _, truth = town06_truth
     ramps = [(r.type, r.source_roads[:2], r.main_before, r.main_after) for r in truth.ramps]
     assert ramps == [
         ("exit", ("570", "8"), "1", "2"),  # left exit: road 35's lane -3 through connector 570
@@ -250,8 +258,11 @@ def test_soderleden_entry_feeds_the_acceleration_lane():
 
 @pytest.fixture(scope="module")
 def town06_clean(tmp_path_factory):
+    """A noise-free run along Town06 35-38, through the in-memory network API."""
     out = tmp_path_factory.mktemp("t6") / "run"
-    simulate_xodr_run(TOWN06, out, route=["35", "36", "37", "38"], settings=NOISE_FREE, seed=2)
+    network = read_xodr(TOWN06)
+    route = ["35", "36", "37", "38"]
+    simulate_network_run(network, out, route=route, settings=NOISE_FREE, seed=2, name="town06")
     return out
 
 
@@ -372,12 +383,10 @@ def test_left_hand_traffic(tmp_path):
     assert np.all(t > 0.0)
 
 
-def test_network_api_and_route_osm(tmp_path):
-    network = read_xodr(TOWN06)
-    out = simulate_network_run(
-        network, tmp_path / "run", route=["35", "36", "37", "38"], seed=1, name="town06"
-    )
+def test_route_osm_links_join_the_motorway(town06_clean):
     from roadtwin.osm import load_osm
+
+    out = town06_clean
 
     run = load_run(out)
     graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)

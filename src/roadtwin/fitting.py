@@ -436,6 +436,25 @@ class _SegmentedSpline:
         idx = np.searchsorted(self.starts, np.asarray(x, dtype=float), side="right") - 1
         return np.clip(idx, 0, len(self.splines) - 1)
 
+    def direction(self, x: float, seg: int, *, max_kink_rad: float = 0.01) -> FloatArray:
+        """Unit tangent at chord station ``x`` of segment ``seg``; at a break where the two
+        segments' tangents differ by less than ``max_kink_rad`` (a smooth curve split
+        there) their mean, so the pieces on both sides meet without a kink."""
+        d = np.asarray(self.splines[seg](x, 1), dtype=float)
+        d = d / np.linalg.norm(d)
+        k = int(np.searchsorted(self.starts, x))  # segment starting exactly at x, if any
+        other = None
+        if k < len(self.starts) and abs(self.starts[k] - x) < 1e-9 and k > 0:
+            other = k - 1 if k == seg else k
+        if other is None or other == seg:
+            return d
+        e = np.asarray(self.splines[other](x, 1), dtype=float)
+        e = e / np.linalg.norm(e)
+        if float(np.dot(d, e)) < math.cos(max_kink_rad):
+            return d  # a real kink of the curve: keep it
+        m = d + e
+        return m / np.linalg.norm(m)
+
     def __call__(self, x: ArrayLike, nu: int = 0, *, seg: ArrayLike | None = None) -> FloatArray:
         if len(self.splines) == 1:
             return self.splines[0](x, nu)
@@ -517,12 +536,16 @@ def fit_parampoly3_chain(
     def piece(ca: float, cb: float) -> tuple[FloatArray, float, float]:
         """Hermite coefficients between chord params ca, cb; returns coef, arc a, arc b."""
         la, lb = float(np.interp(ca, s_in, arc)), float(np.interp(cb, s_in, arc))
-        seg = spline.segment_of(0.5 * (ca + cb))
+        seg = int(spline.segment_of(0.5 * (ca + cb)))
         p0, p1 = spline(ca, seg=seg), spline(cb, seg=seg)
-        d0, d1 = spline(ca, 1, seg=seg), spline(cb, 1, seg=seg)
         span = lb - la
-        m0 = d0 / np.linalg.norm(d0) * span
-        m1 = d1 / np.linalg.norm(d1) * span
+        if len(spline.splines) == 1:
+            d0, d1 = spline(ca, 1, seg=seg), spline(cb, 1, seg=seg)
+            m0 = d0 / np.linalg.norm(d0) * span
+            m1 = d1 / np.linalg.norm(d1) * span
+        else:
+            m0 = spline.direction(ca, seg) * span
+            m1 = spline.direction(cb, seg) * span
         return _hermite_coefficients(p0, p1, m0, m1), la, lb
 
     def error(coef: FloatArray, ca: float, cb: float, la: float, lb: float) -> float:

@@ -386,8 +386,8 @@ def junction_leg(
     used_down: set[int] = set()
     connector_by_id = {c.road_id: c for c in passage.connectors}
     for f, cid, t in passage_carried(passage):
-        if f not in up_types or f in used_up:
-            continue
+        if f not in up_types:
+            continue  # (a lane carried by two connecting roads splits: both are kept)
         conn = network.road(cid)
         c = connector_by_id[cid]
         section_ids = follow_lane(conn, t, c.direction)
@@ -421,7 +421,12 @@ def junction_leg(
             f"{up_road.id} into road {down_road.id} without a sideways jump"
         )
         raise InputError(msg)
-    carried.sort(key=lambda ln: up_order.index(ln.up[1]))
+    carried.sort(
+        key=lambda ln: (
+            up_order.index(ln.up[1]),  # type: ignore[index]
+            down_order.index(ln.down[1]) if ln.down is not None else len(down_order),
+        )
+    )
     kept_up = {ln.up[1] for ln in carried}  # type: ignore[index]
     kept_down = {ln.down[1] for ln in carried if ln.down is not None}
     up_gaps = _gaps(up_order, kept_up)
@@ -458,12 +463,21 @@ def junction_leg(
             marks_b,
         )
 
+    def eligible(order: list[int], ids: frozenset[int], ok: bool) -> list[int]:
+        # the run of eligible lanes next to the carried block: a lane beyond one that is
+        # not bridged here would be placed where that one is
+        out = []
+        for i in order if ok else ():
+            if i not in ids:
+                break
+            out.append(i)
+        return out
+
     def side(gap: str) -> list[LegLane]:
-        a = [(i, up_types[i]) for i in up_gaps[gap] if i in rule.up_ids and gap in rule.up_gaps]
+        a = [(i, up_types[i]) for i in eligible(up_gaps[gap], rule.up_ids, gap in rule.up_gaps)]
         b = [
             (i, down_types[i])
-            for i in down_gaps[gap]
-            if i in rule.down_ids and gap in rule.down_gaps
+            for i in eligible(down_gaps[gap], rule.down_ids, gap in rule.down_gaps)
         ]
         return [bridged(x, y) for x, y in _match(a, b)]
 
