@@ -16,6 +16,7 @@ is the ground truth):
 
 - ``route.py``        through-routes: roads, driving directions, junction passages
 - ``carriageway.py``  the carriageway leg by leg: source lanes, bridging in junctions
+- ``leg_samples.py``  dense cross-sections of a leg (borders, road marks, breakpoints)
 - ``canonical.py``    fitted re-expression of a chain of legs as one road (<= 1 mm)
 - ``route_truth.py``  the canonical truth: mainline roads, ramps, direct junctions, gores
 - ``markings.py``     national marking styles (de/at/us/uk/fr), painted road-mark types

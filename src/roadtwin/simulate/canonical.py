@@ -33,7 +33,8 @@ from ..model import (
     RoadNetwork,
     chain_geometry,
 )
-from .carriageway import Leg, LegSamples, next_lane, sample_leg
+from .carriageway import Leg, next_lane
+from .leg_samples import LegSamples, sample_leg
 from .route import Passage, TrafficSide
 
 FloatArray = NDArray[np.float64]
