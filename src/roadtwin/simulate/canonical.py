@@ -133,6 +133,26 @@ def lane_keys(
     return keys
 
 
+def _merge_pieces(
+    pieces: list[CubicPiece], end: float, tol: float = 1e-6
+) -> tuple[CubicPiece, ...]:
+    """Drop pieces that only continue the cubic before them: where the kept cubic,
+    extended, stays within ``tol`` (metres) of the piece over its whole extent (fits
+    split at breakpoints where the source profile does not change). ``end`` is where the
+    last piece ends (same station frame)."""
+    out: list[CubicPiece] = []
+    for i, p in enumerate(pieces):
+        if out:
+            stop = pieces[i + 1].s0 if i + 1 < len(pieces) else end
+            x = np.linspace(p.s0, max(stop, p.s0), 5)
+            kept = CubicProfile((out[-1],)).value(x)
+            mine = CubicProfile((p,)).value(x)
+            if float(np.max(np.abs(kept - mine))) <= tol:
+                continue
+        out.append(p)
+    return tuple(out)
+
+
 def _intervals(sm: LegSamples) -> list[tuple[int, int]]:
     """Sample index ranges ``[a, b]`` between a leg's ends and its breakpoints."""
     bounds = [0, *sm.breaks, sm.p.size - 1]
@@ -256,7 +276,7 @@ def fit_chain(
                 z_pieces += fit_cubic_profile(
                     u[a : b + 1], sm.median[a : b + 1, 2], tolerance=cfg.width_tolerance_m
                 ).pieces
-    elevation = CubicProfile(tuple(z_pieces))
+    elevation = CubicProfile(_merge_pieces(z_pieces, total))
 
     # lane sections: a new one wherever the keys change or a break is forced
     groups: list[list[int]] = []
@@ -269,6 +289,7 @@ def fit_chain(
     section_keys: list[tuple[int, ...]] = []
     for g, members in enumerate(groups):
         u0 = leg_u[members[0]][0]
+        u_end = leg_u[members[-1]][1]
         gkeys = keys[members[0]]
         widths: list[list[CubicPiece]] = [[] for _ in gkeys]
         marks: list[list[RoadMark]] = [[] for _ in gkeys]
@@ -315,7 +336,7 @@ def fit_chain(
                 Lane(
                     ids[k],
                     lane_type,  # type: ignore[arg-type]
-                    CubicProfile(tuple(widths[k]) or (CubicPiece(0.0, 0.0),)),
+                    CubicProfile(_merge_pieces(widths[k], u_end - u0) or (CubicPiece(0.0, 0.0),)),
                     _merge_marks(marks[k]),
                     predecessor=None if pred is None else int(side_sign * (pred + 1)),
                     successor=None if succ is None else int(side_sign * (succ + 1)),
