@@ -20,7 +20,7 @@ import dataclasses
 import logging
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +41,7 @@ from .route_sensor import (
     opposite_painted_points,
     painted_points,
     resolved_lane,
+    sensor_view,
     true_edges,
 )
 from .route_truth import RouteTruth, build_route_truth
@@ -316,12 +317,14 @@ def simulate_network_run(
     if poses.frame.size < 2:
         raise InputError(f"route {','.join(rt.road_ids)}: too short to drive")
     meas = noisy_poses(poses, cfg.noise, cfg.car.rate_hz, _rng(seed, "poses"))
+    step = cfg.car.speed_kmh / 3.6 / cfg.car.rate_hz
     edge_rng = _rng(seed, "edges")
     xyz, normal, station = true_edges(truth, cfg.sensor.edge_spacing_m, edge_rng)
-    side_code = edge_sides(xyz, station, poses)
+    view, view_station = sensor_view(poses, station, step)
+    side_code = edge_sides(xyz, view_station, view)
     edges, edge_side, edge_counts = observe_edges(
-        xyz, side_code, normal, station, poses, meas, cfg.sensor, edge_rng,
-        length_m=truth.mainline.length,
+        xyz, side_code, normal, view_station, view, replace(meas, station=view.station),
+        cfg.sensor, edge_rng, length_m=truth.mainline.length,
     )  # fmt: skip
     lane_rng = _rng(seed, "lanes")
     paint, paint_station, paint_counts = painted_points(
@@ -334,7 +337,8 @@ def simulate_network_run(
         paint_counts["opposite_paint_points"] = int(other.shape[0])
         paint = np.vstack([paint, other])
         paint_station = np.concatenate([paint_station, np.full(other.shape[0], np.nan)])
-    frames, ego, lane_counts = observe_markings(paint, paint_station, poses, cfg.sensor, lane_rng)
+    view, view_station = sensor_view(poses, paint_station, step)
+    frames, ego, lane_counts = observe_markings(paint, view_station, view, cfg.sensor, lane_rng)
     lane_counts.update(paint_counts)
     car_lane = cfg.car.lane or resolved_lane(truth, poses)
     edges_name = f"road_edges.{cfg.road_edges_format}"

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import numpy as np
 import shapely
@@ -154,19 +155,23 @@ def _key_centre(truth: RouteTruth, u: FloatArray, key: int) -> FloatArray:
     return out
 
 
+PATH_STEP_M = 0.25
+"""Spacing of the stations on which the car's path is laid out before it is sampled."""
+
+
 def drive(
     truth: RouteTruth, car: Car, *, lookahead_m: float = 200.0, lane_change_m: float = 120.0
 ) -> Poses:
-    """Noise-free poses of the car along the mainline (see the module docstring)."""
+    """Noise-free poses of the car: ``speed / rate`` metres apart along its own path
+    (constant speed), ``station`` the mainline station of each pose (metres)."""
     road = truth.mainline
-    step = car.speed_kmh / 3.6 / car.rate_hz
-    u = np.arange(0.0, road.length - 1e-6, step)
+    u = np.arange(0.0, road.length - 1e-6, PATH_STEP_M)
     keys = chosen_lane_keys(truth, u, car.lane, lookahead_m=lookahead_m)
     t = np.full(u.size, np.nan)
     for key in np.unique(keys):
         sel = keys == key
         t[sel] = _key_centre(truth, u[sel], int(key))
-    n_w = max(1, round(lane_change_m / step))
+    n_w = max(1, round(lane_change_m / PATH_STEP_M))
     changes = np.nonzero(keys[1:] != keys[:-1])[0] + 1
     for j, i in enumerate(changes):
         stop = min(i + n_w, u.size, changes[j + 1] if j + 1 < changes.size else u.size)
@@ -177,12 +182,29 @@ def drive(
         old = np.where(np.isfinite(old), old, t[seg])
         t[seg] = (1.0 - w) * old + w * t[seg]
     t = np.where(np.isfinite(t), t, 0.0)
-    xy = road.to_xy(u, t)
-    d = np.gradient(xy, axis=0)
-    yaw = np.unwrap(np.arctan2(d[:, 1], d[:, 0])) if u.size > 1 else road.heading(u)
-    z = road.elevation.value(u)
-    frame = np.arange(u.size, dtype=np.int64)
-    return Poses(frame, car.t0_s + frame / car.rate_hz, np.column_stack([xy, z]), yaw, u)
+    path = road.to_xy(u, t)
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    step = car.speed_kmh / 3.6 / car.rate_hz
+    s_pose = np.arange(0.0, arc[-1], step)
+    u_pose = np.interp(s_pose, arc, u)
+    t_pose = np.interp(s_pose, arc, t)
+    xy = road.to_xy(u_pose, t_pose)
+    heading = np.unwrap(np.arctan2(*np.gradient(path, axis=0)[:, ::-1].T))
+    yaw = np.interp(s_pose, arc, heading)
+    z = road.elevation.value(u_pose)
+    frame = np.arange(u_pose.size, dtype=np.int64)
+    return Poses(frame, car.t0_s + frame / car.rate_hz, np.column_stack([xy, z]), yaw, u_pose)
+
+
+def sensor_view(poses: Poses, station: FloatArray, step_m: float) -> tuple[Poses, FloatArray]:
+    """Poses and point stations in the form the shared sensor code expects: poses
+    ``step_m`` apart in station, so a point's station is its observing frame times the
+    step (mainline stations mapped through the poses'; NaN stays NaN)."""
+    even = poses.frame * step_m
+    mapped = np.full(station.shape, np.nan)
+    ok = np.isfinite(station)
+    mapped[ok] = np.interp(station[ok], poses.station, even)
+    return replace(poses, station=even), mapped
 
 
 def resolved_lane(truth: RouteTruth, poses: Poses) -> int:
