@@ -122,11 +122,101 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 
 
 def _add_simulate(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="simulate a mapping run with ground truth from a scenario")
-    p.add_argument("scenario", help="scenario TOML file, or the name of a bundled example")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a mapping run with ground truth from a scenario or an OpenDRIVE map",
+    )
+    p.add_argument(
+        "scenario", nargs="?", help="scenario TOML file, or the name of a bundled example"
+    )
     p.add_argument("-o", "--output", type=Path, required=True, help="run folder to write")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    g = p.add_argument_group("runs along a route through an OpenDRIVE map (the map is the truth)")
+    g.add_argument("--xodr", type=Path, default=None, help="OpenDRIVE map to drive through")
+    g.add_argument(
+        "--route",
+        default=None,
+        help="road ids in driving order, comma separated (default: the longest through-route)",
+    )
+    g.add_argument(
+        "--lane",
+        type=int,
+        default=0,
+        help="lane to drive, counted from the median side (default 0: the outermost through lane)",
+    )
+    g.add_argument(
+        "--style", default="de", help="national marking style: de, at, us, uk, fr (default de)"
+    )
+    g.add_argument(
+        "--traffic",
+        choices=["right", "left"],
+        default=None,
+        help="traffic side (default: from the map's road rule, else right)",
+    )
+    g.add_argument(
+        "--osm",
+        type=Path,
+        default=None,
+        help="copy this OSM file into the run instead of drawing one",
+    )
     p.set_defaults(func=_cmd_simulate)
+
+
+def _cmd_simulate_xodr(args: argparse.Namespace) -> int:
+    import json
+    import time
+
+    from .simulate import NetworkRunSettings, simulate_xodr_run
+    from .simulate.markings import marking_style
+    from .simulate.scenario import Car
+
+    started = time.perf_counter()
+    if args.osm is not None and not args.osm.is_file():
+        raise InputError(f"{args.osm}: OSM file not found")
+    settings = NetworkRunSettings(
+        car=Car(lane=args.lane),
+        style=marking_style(args.style),
+        osm_file=str(args.osm) if args.osm is not None else "",
+    )
+    route = [r for r in args.route.split(",") if r.strip()] if args.route else None
+    out = simulate_xodr_run(
+        args.xodr,
+        args.output,
+        route=route,
+        settings=settings,
+        seed=args.seed or 0,
+        traffic_side=args.traffic,
+    )
+    truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
+    counts = truth["counts"]
+    ramps = ", ".join(
+        f"{r['type']} at {r['station_m']:.0f} m ({r['lanes']} lane)" for r in truth["ramps"]
+    )
+    route_txt = ",".join(
+        f"{r['road_id']}{'' if r['direction'] == '+s' else '(-s)'}"
+        for r in truth["source"]["route"]
+    )
+    fit = truth["source"]["fit_max_error_mm"]
+    files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
+    print(
+        "\n".join(
+            [
+                f"map        {args.xodr} (seed {truth['seed']}, {truth['traffic_side']}-hand "
+                f"traffic, {args.style} markings)",
+                f"route      roads {route_txt}",
+                f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
+                f"{len(truth['mainline_roads'])} roads, car in lane {truth['car_lane']}",
+                f"ramps      {ramps or 'none'}",
+                f"truth fit  max {fit['median_edge']:.2f} mm (median edge), "
+                f"{fit['lane_borders']:.2f} mm (lane borders) from the map",
+                f"run        {counts['frames']:,} frames, {counts['edge_points']:,} road-edge "
+                f"points, {counts['lane_samples']:,} lane samples",
+                f"wrote      {out}: {files}",
+                f"time       {time.perf_counter() - started:.2f} s",
+            ]
+        )
+    )
+    return 0
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -135,6 +225,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     from .simulate import load_scenario, simulate_run
 
+    if (args.scenario is None) == (args.xodr is None):
+        raise InputError("simulate: give either a SCENARIO or --xodr MAP (not both)")
+    if args.xodr is not None:
+        return _cmd_simulate_xodr(args)
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
     out = simulate_run(scenario, args.output, seed=args.seed)

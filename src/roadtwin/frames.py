@@ -83,7 +83,8 @@ class MappingFrame:
         """PROJ string for OpenDRIVE ``<geoReference>`` (without ``+no_defs``)."""
         if self.crs == "local":
             return local_proj_string(self.origin)
-        text = self._crs.to_proj4() or ""
+        # a PROJ string as given (pyproj's round trip only warns and reorders it)
+        text = self.crs if self.crs.lstrip().startswith("+proj=") else self._crs.to_proj4() or ""
         return " ".join(tok for tok in text.split() if tok not in ("+no_defs", "+type=crs"))
 
     @cached_property

@@ -510,13 +510,18 @@ class Road:
         s = np.linspace(0.0, self.length, n)
         return s, cKDTree(self.xy(s))
 
-    def project(self, points: ArrayLike, *, iterations: int = 4) -> tuple[FloatArray, FloatArray]:
+    def project(
+        self, points: ArrayLike, *, iterations: int = 4, s_init: ArrayLike | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Frenet projection of mapping-frame points onto the reference line.
 
         Parameters
         ----------
         points
             ``(N, 2)`` or ``(N, 3)`` array (only x, y are used), mapping frame, metres.
+        s_init
+            Optional ``(N,)`` first guesses of the stations (metres) instead of the
+            nearest sampled point, for a road that comes back near itself (a loop).
 
         Returns
         -------
@@ -525,9 +530,12 @@ class Road:
             metres. Points beyond the ends get the offset at the end station.
         """
         pts = np.asarray(points, dtype=float)[:, :2]
-        s_tab, tree = self._projection_index
-        _, nearest = tree.query(pts)
-        s = s_tab[nearest]
+        if s_init is None:
+            s_tab, tree = self._projection_index
+            _, nearest = tree.query(pts)
+            s = s_tab[nearest]
+        else:
+            s = np.clip(np.asarray(s_init, dtype=float), 0.0, self.length)
         for _ in range(iterations):  # Newton steps on d/ds |P - C(s)|^2 = 0
             x, y, h, k = self.evaluate(s)
             dx, dy = pts[:, 0] - x, pts[:, 1] - y
