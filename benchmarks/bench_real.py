@@ -110,23 +110,7 @@ def simulate(spec: RealRun, out: Path, *, osm_dir: Path, xodr_dir: Path) -> Path
         return sim.simulate_xodr_run(
             xodr_dir / spec.path, out, route=list(spec.route) or None, seed=spec.seed
         )
-    from roadtwin.simulate.osm_truth import truth_from_osm
-
-    truth = truth_from_osm(osm_dir / spec.path, chain=spec.chain, seed=spec.seed)
-    settings = sim.NetworkRunSettings(
-        traffic_side=truth.style.traffic_side,
-        origin=truth.origin,
-        osm_file=str(truth.osm_path),
-        style=truth.marking_style(),
-    )
-    return sim.simulate_network_run(
-        truth.network,
-        out,
-        route=list(truth.route),
-        settings=settings,
-        seed=spec.seed,
-        name=spec.name,
-    )
+    return sim.simulate_osm_run(osm_dir / spec.path, out, chain=spec.chain, seed=spec.seed)
 
 
 # ---------------------------------------------------------------------------

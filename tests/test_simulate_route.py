@@ -442,3 +442,23 @@ def test_build_and_evaluate_end_to_end(tmp_path):
     # wrong place would be metres off) and nothing is undefined
     assert math.isfinite(rep.truth["road_edge"]["rmse_m"])
     assert rep.truth["road_edge"]["rmse_m"] < 1.0
+
+
+def test_cli_simulates_a_real_osm_carriageway(tmp_path, capsys):
+    """``simulate --from-osm``: the chain's lane-level truth driven by the car; the real
+    extract is the run's map input, the run loads and its truth lies on the OSM chain."""
+    from roadtwin.cli import main
+
+    osm = Path(__file__).parent / "data" / "osm" / "kotka-e18.osm.pbf"
+    out = tmp_path / "run"
+    assert main(["simulate", "--from-osm", str(osm), "--seed", "2", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "kotka-e18.osm.pbf chain (longest)" in text
+    run = load_run(out)
+    assert run.osm_path is not None
+    assert run.osm_path.read_bytes() == osm.read_bytes()
+    truth = json.loads((out / "truth.json").read_text())
+    assert truth["mainline_length_m"] > 1000.0
+    assert truth["ramps"], "the Kotka chain has link ways"
+    assert main(["simulate", "--from-osm", str(tmp_path / "none.osm"), "-o", str(out)]) == 2
+    assert main(["simulate", "straight_curve_2km", "--from-osm", str(osm), "-o", str(out)]) == 2

@@ -159,34 +159,67 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="copy this OSM file into the run instead of drawing one",
     )
+    h = p.add_argument_group(
+        "runs along a real OSM carriageway (a lane-level truth is built from the OSM chain)"
+    )
+    h.add_argument(
+        "--from-osm",
+        type=Path,
+        default=None,
+        metavar="EXTRACT",
+        help="OSM extract (.osm, .osm.gz, .osm.bz2, .osm.pbf); it is the run's map input",
+    )
+    h.add_argument(
+        "--chain",
+        default=None,
+        help="the carriageway: an OSM way id or a ref such as 'A 70' (default: the longest "
+        "one-way motorway/trunk chain)",
+    )
     p.set_defaults(func=_cmd_simulate)
 
 
-def _cmd_simulate_xodr(args: argparse.Namespace) -> int:
+def _cmd_simulate_network(args: argparse.Namespace) -> int:
+    """``simulate --xodr MAP`` or ``simulate --from-osm EXTRACT``: a run along a route."""
     import json
     import time
 
-    from .simulate import NetworkRunSettings, simulate_xodr_run
+    from .simulate import NetworkRunSettings, simulate_osm_run, simulate_xodr_run
     from .simulate.markings import marking_style
     from .simulate.scenario import Car
 
     started = time.perf_counter()
-    if args.osm is not None and not args.osm.is_file():
-        raise InputError(f"{args.osm}: OSM file not found")
-    settings = NetworkRunSettings(
-        car=Car(lane=args.lane),
-        style=marking_style(args.style),
-        osm_file=str(args.osm) if args.osm is not None else "",
-    )
-    route = [r for r in args.route.split(",") if r.strip()] if args.route else None
-    out = simulate_xodr_run(
-        args.xodr,
-        args.output,
-        route=route,
-        settings=settings,
-        seed=args.seed or 0,
-        traffic_side=args.traffic,
-    )
+    if args.from_osm is not None:
+        if not args.from_osm.is_file():
+            raise InputError(f"{args.from_osm}: OSM extract not found")
+        chain = args.chain
+        if chain is not None and chain.strip().isdigit():
+            chain = int(chain)
+        source = f"{args.from_osm} chain {args.chain or '(longest)'}"
+        out = simulate_osm_run(
+            args.from_osm,
+            args.output,
+            chain=chain,
+            seed=args.seed or 0,
+            settings=NetworkRunSettings(car=Car(lane=args.lane)),
+        )
+    else:
+        if args.osm is not None and not args.osm.is_file():
+            raise InputError(f"{args.osm}: OSM file not found")
+        settings = NetworkRunSettings(
+            car=Car(lane=args.lane),
+            style=marking_style(args.style),
+            osm_file=str(args.osm) if args.osm is not None else "",
+        )
+        route = [r for r in args.route.split(",") if r.strip()] if args.route else None
+        source = str(args.xodr)
+        out = simulate_xodr_run(
+            args.xodr,
+            args.output,
+            route=route,
+            settings=settings,
+            seed=args.seed or 0,
+            traffic_side=args.traffic,
+        )
     truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
     counts = truth["counts"]
     ramps = ", ".join(
@@ -198,11 +231,12 @@ def _cmd_simulate_xodr(args: argparse.Namespace) -> int:
     )
     fit = truth["source"]["fit_max_error_mm"]
     files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
+    style = truth["noise"].get("markings", {}).get("name", args.style)
     print(
         "\n".join(
             [
-                f"map        {args.xodr} (seed {truth['seed']}, {truth['traffic_side']}-hand "
-                f"traffic, {args.style} markings)",
+                f"map        {source} (seed {truth['seed']}, {truth['traffic_side']}-hand "
+                f"traffic, {style} markings)",
                 f"route      roads {route_txt}",
                 f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
                 f"{len(truth['mainline_roads'])} roads, car in lane {truth['car_lane']}",
@@ -225,10 +259,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     from .simulate import load_scenario, simulate_run
 
-    if (args.scenario is None) == (args.xodr is None):
-        raise InputError("simulate: give either a SCENARIO or --xodr MAP (not both)")
-    if args.xodr is not None:
-        return _cmd_simulate_xodr(args)
+    given = [x for x in (args.scenario, args.xodr, args.from_osm) if x is not None]
+    if len(given) != 1:
+        raise InputError("simulate: give one of SCENARIO, --xodr MAP or --from-osm EXTRACT")
+    if args.xodr is not None or args.from_osm is not None:
+        return _cmd_simulate_network(args)
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
     out = simulate_run(scenario, args.output, seed=args.seed)

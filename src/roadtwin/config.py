@@ -53,6 +53,13 @@ class MainlineConfig:
     """Cut-off wavelength of the elevation / cross-slope smoother (metres)."""
     elevation_tolerance_m: float = 0.005
     """Max deviation of the C1 elevation pieces from the smoothed heights (metres)."""
+    elevation_gate_m: float = 0.5
+    """Road-edge points farther above or below the surface under the car than this plus
+    the steepest cross slope over their distance from the car belong to another level
+    (a ramp passing over or under) and give no heights (metres)."""
+    superelevation_max_rad: float = 0.1
+    """Steepest plausible cross slope (radians; design guides stop at about 8 %); the
+    superelevation is clipped to it."""
     superelevation_min_rad: float = 0.005
     """Superelevation is written only where the mean cross slope over
     ``superelevation_min_length_m`` exceeds this (radians) and is significant."""

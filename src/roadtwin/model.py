@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Literal
 
@@ -633,8 +633,6 @@ class RoadNetwork:
 
 def chain_geometry(pieces: Sequence[Geometry]) -> tuple[Geometry, ...]:
     """Re-number ``s0`` of consecutive pieces so each starts where the previous ends."""
-    from dataclasses import replace
-
     out: list[Geometry] = []
     s = 0.0
     for piece in pieces:
@@ -657,3 +655,21 @@ def constant_lane(
         CubicProfile.constant(width_m),
         (RoadMark(0.0, mark),),
     )
+
+
+def continue_width(lane: Lane, w_start: float) -> Lane:
+    """``lane`` with its first width piece corrected to start at ``w_start`` (metres); the
+    correction fades out linearly over that piece (a lane that continues across a section
+    boundary or a link keeps its width there: fits of neighbouring sections differ by
+    millimetres)."""
+    pieces = lane.width.pieces
+    if not pieces:
+        return lane
+    p0 = pieces[0]
+    delta = w_start - p0.a
+    if abs(delta) < 1e-7:
+        return lane
+    span = (pieces[1].s0 if len(pieces) > 1 else p0.s0 + 1e9) - p0.s0
+    slope = -delta / span if len(pieces) > 1 else 0.0
+    first = replace(p0, a=p0.a + delta, b=p0.b + slope)
+    return replace(lane, width=replace(lane.width, pieces=(first, *pieces[1:])))

@@ -12,6 +12,7 @@ import time
 from dataclasses import dataclass, field, replace
 
 import networkx as nx
+from threadpoolctl import threadpool_limits
 
 from .config import PipelineConfig
 from .evaluation import data_quality
@@ -90,7 +91,14 @@ def build_map(
         The network (header with the run's geoReference, OpenDRIVE 1.8) and every stage's
         result. A ramp that cannot be built or integrated is skipped with a warning.
     """
-    cfg = config or PipelineConfig()
+    # the stages solve many small dense problems: BLAS threads only contend for the cores
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _build_map(run, osm_graph, config or PipelineConfig())
+
+
+def _build_map(
+    run: MappingRun, osm_graph: nx.MultiDiGraph | None, cfg: PipelineConfig
+) -> BuildResult:
     timings: dict[str, float] = {}
     warnings: list[str] = []
 

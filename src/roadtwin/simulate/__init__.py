@@ -22,6 +22,8 @@ is the ground truth):
 - ``markings.py``     national marking styles (de/at/us/uk/fr), painted road-mark types
 - ``route_sensor.py`` the car's path along a lane, paved-area edges, paint points
 - ``network_run.py``  :func:`simulate_network_run` / :func:`simulate_xodr_run`: the run
+- ``osm_truth/``      a lane-level truth from any real OSM motorway / trunk chain
+- ``osm_run.py``      :func:`simulate_osm_run`: that truth driven, the real extract as map
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ __all__ = [
     "bundled_scenarios",
     "load_scenario",
     "simulate_network_run",
+    "simulate_osm_run",
     "simulate_run",
     "simulate_xodr_run",
 ]
@@ -41,6 +44,7 @@ __all__ = [
 _LAZY = {
     "simulate_run": "writer",
     "simulate_network_run": "network_run",
+    "simulate_osm_run": "osm_run",
     "simulate_xodr_run": "network_run",
     "NetworkRunSettings": "network_run",
 }
