@@ -41,7 +41,8 @@ so it is checked with ``xmlschema.XMLSchema11`` exactly as the ASAM checker does
 
 Reader
 ------
-:func:`read_xodr` parses OpenDRIVE 1.4 to 1.8 with lxml (namespaces are ignored):
+:func:`read_xodr` parses OpenDRIVE 1.4 to 1.8 with lxml (namespaces are ignored; DTDs,
+entities and network access off, see :mod:`roadtwin._xml`):
 planView ``line, arc, spiral, poly3, paramPoly3`` (``pRange`` ``arcLength`` or
 ``normalized``, the default when absent), elevation, superelevation, laneOffset, lane
 sections with width records, road marks, lane and road links, junctions (``default``,
@@ -57,7 +58,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -67,6 +67,8 @@ from pathlib import Path
 from lxml import etree
 
 from ._errors import InputError, InputWarning
+from ._files import atomic_write_bytes
+from ._xml import parse_xml
 from .model import (
     Arc,
     Connection,
@@ -356,18 +358,8 @@ def to_xodr_bytes(network: RoadNetwork) -> bytes:
 
 def write_xodr(network: RoadNetwork, path: str | os.PathLike) -> Path:
     """Write ``network`` to ``path`` atomically (temporary file in the same folder, then
-    ``os.replace``). Returns the path."""
-    path = Path(path)
-    data = to_xodr_bytes(network)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    ``os.replace``; ordinary file mode). Returns the path."""
+    path = atomic_write_bytes(path, to_xodr_bytes(network))
     log.info("wrote %s: %d roads, %d junctions", path, len(network.roads), len(network.junctions))
     return path
 
@@ -413,7 +405,7 @@ def schema_errors(data: bytes | str | os.PathLike, *, rev_minor: int = 8) -> lis
     list of str
         One ``"line N: reason"`` per violation; empty when valid.
     """
-    doc = etree.fromstring(data) if isinstance(data, bytes) else etree.parse(str(data))
+    doc = parse_xml(data if isinstance(data, bytes) else Path(data))
     schema = _schema(rev_minor)
     if isinstance(schema, etree.XMLSchema):
         schema.validate(doc)
@@ -426,7 +418,27 @@ def schema_errors(data: bytes | str | os.PathLike, *, rev_minor: int = 8) -> lis
 # ---------------------------------------------------------------------------
 
 
-def _num(el: etree._Element, key: str, default: float | None = None, *, where: str = "") -> float:
+_MAX_COORDINATE_M = 1.0e8
+"""Largest absolute station, coordinate or length (metres) a map may hold: no place on
+earth is farther from a projected CRS's origin (as ``pointfiles.MAX_COORDINATE_M``)."""
+
+
+_MAX_COEFFICIENT = 1.0e15
+"""Largest absolute b, c, d of a cubic profile: a 1 mm width piece needs ~1e10; larger values
+overflow when the profile is evaluated over a road's length."""
+
+
+def _num(
+    el: etree._Element,
+    key: str,
+    default: float | None = None,
+    *,
+    where: str = "",
+    finite: bool = True,
+    limit: float | None = None,
+) -> float:
+    """A numeric attribute; refused when missing (without default), not a number,
+    non-finite (unless ``finite=False``) or beyond ``limit`` in absolute value."""
     raw = el.get(key)
     if raw is None:
         if default is None:
@@ -434,20 +446,33 @@ def _num(el: etree._Element, key: str, default: float | None = None, *, where: s
             raise InputError(msg)
         return default
     try:
-        return float(raw)
+        value = float(raw)
     except ValueError:
-        msg = f"{where}: <{el.tag}> line {el.sourceline}: {key}={raw!r} is not a number"
+        msg = f"{where}: <{el.tag}> line {el.sourceline}: attribute {key} is not a number"
         raise InputError(msg) from None
+    if finite and not math.isfinite(value):
+        msg = (
+            f"{where}: <{el.tag}> line {el.sourceline}: attribute {key} is {value} "
+            "(expected a finite number)"
+        )
+        raise InputError(msg)
+    if limit is not None and abs(value) > limit:
+        msg = (
+            f"{where}: <{el.tag}> line {el.sourceline}: attribute {key} = {value:.3g} is beyond "
+            f"{limit:.0e} m (no road is that long or that far from the CRS origin)"
+        )
+        raise InputError(msg)
+    return value
 
 
 def _cubic_pieces(els, s_key: str, *, where: str) -> tuple[CubicPiece, ...]:
     pieces = [
         CubicPiece(
-            _num(e, s_key, 0.0, where=where),
-            _num(e, "a", 0.0, where=where),
-            _num(e, "b", 0.0, where=where),
-            _num(e, "c", 0.0, where=where),
-            _num(e, "d", 0.0, where=where),
+            _num(e, s_key, 0.0, where=where, limit=_MAX_COORDINATE_M),
+            _num(e, "a", 0.0, where=where, limit=_MAX_COORDINATE_M),
+            _num(e, "b", 0.0, where=where, limit=_MAX_COEFFICIENT),
+            _num(e, "c", 0.0, where=where, limit=_MAX_COEFFICIENT),
+            _num(e, "d", 0.0, where=where, limit=_MAX_COEFFICIENT),
         )
         for e in els
     ]
@@ -488,11 +513,14 @@ def _active(profile: CubicProfile, s: float) -> CubicPiece | None:
 
 
 def _read_geometry(gel: etree._Element, *, where: str) -> Geometry | None:
-    s = _num(gel, "s", where=where)
-    x = _num(gel, "x", where=where)
-    y = _num(gel, "y", where=where)
-    hdg = _num(gel, "hdg", where=where)
-    length = _num(gel, "length", where=where)
+    s = _num(gel, "s", where=where, limit=_MAX_COORDINATE_M)
+    x = _num(gel, "x", where=where, limit=_MAX_COORDINATE_M)
+    y = _num(gel, "y", where=where, limit=_MAX_COORDINATE_M)
+    hdg = _num(gel, "hdg", where=where, limit=1e6)
+    length = _num(gel, "length", where=where, limit=_MAX_COORDINATE_M)
+    if length < 0:
+        msg = f"{where}: <geometry> line {gel.sourceline}: attribute length is negative"
+        raise InputError(msg)
     kinds = [c for c in gel if isinstance(c.tag, str)]
     if not kinds:
         msg = f"{where}: <geometry> line {gel.sourceline} has no line/arc/spiral/poly3 child"
@@ -674,6 +702,7 @@ def _read_road(rel: etree._Element, *, where: str) -> Road:
                 speed = float(sp.get("max")) * _SPEED_TO_MPS.get(sp.get("unit", "m/s"), 1.0)
             except ValueError:
                 speed = None
+    _num(rel, "length", 0.0, where=where, limit=_MAX_COORDINATE_M)  # validated, not stored
     return Road(
         id=rid,
         geometry=geometry,
@@ -743,7 +772,7 @@ def _read_header(hel: etree._Element | None, *, where: str) -> Header:
             ("z_absolute", "zAbsolute"),
             ("z_relative", "zRelative"),
         ):
-            v = _num(dq, attr, math.nan, where=where)
+            v = _num(dq, attr, math.nan, where=where, finite=False)
             if not math.isnan(v):
                 quality[key] = v
     return Header(
@@ -785,14 +814,10 @@ def read_xodr(path: str | os.PathLike) -> RoadNetwork:
     """
     path = Path(path)
     if not path.is_file():
-        msg = f"{path}: file not found"
+        what = "not a file" if path.exists() else "file not found"
+        msg = f"{path}: {what}"
         raise InputError(msg)
-    parser = etree.XMLParser(remove_comments=True, huge_tree=True)
-    try:
-        root = etree.parse(str(path), parser).getroot()
-    except etree.XMLSyntaxError as exc:
-        msg = f"{path}: not well-formed XML: {exc}"
-        raise InputError(msg) from None
+    root = parse_xml(path).getroot()
     _strip_namespaces(root)
     if root.tag != "OpenDRIVE":
         msg = f"{path}: root element is <{root.tag}>, expected <OpenDRIVE>"

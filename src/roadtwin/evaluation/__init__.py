@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -193,7 +194,7 @@ def load_truth(path: str | Path) -> tuple[RoadNetwork, dict | None]:
     InputError
         The xodr cannot be read or truth.json is not valid JSON.
     """
-    from .._errors import InputError
+    from .._errors import InputError, reason
     from ..xodr import read_xodr
 
     path = Path(path)
@@ -203,10 +204,44 @@ def load_truth(path: str | Path) -> tuple[RoadNetwork, dict | None]:
         return network, None
     try:
         info = json.loads(info_path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        msg = f"{info_path}: not valid JSON: {exc}"
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        msg = f"{info_path}: not valid JSON ({reason(exc)})"
         raise InputError(msg) from None
+    _check_truth_info(info, info_path)
     return network, info
+
+
+def _check_truth_info(info: Any, path: Path) -> None:
+    """``truth.json`` must be an object whose ``ramps`` (if any) is a list of objects with
+    ``road_id``, ``type`` (``exit``/``entry``) and an optional numeric ``station_m``."""
+    from .._errors import InputError
+
+    if not isinstance(info, dict):
+        kind = type(info).__name__
+        msg = f"{path}: expected a JSON object (the simulator's truth.json), not a {kind}"
+        raise InputError(msg)
+    ramps = info.get("ramps")
+    if ramps is None:
+        return
+    if not isinstance(ramps, list):
+        msg = f"{path}: 'ramps' must be a list of ramp objects"
+        raise InputError(msg)
+    for i, ramp in enumerate(ramps):
+        where = f"{path}: ramps[{i}]"
+        if not isinstance(ramp, dict):
+            raise InputError(f"{where}: expected an object")
+        for key in ("road_id", "type"):
+            if not isinstance(ramp.get(key), (str, int)) or isinstance(ramp.get(key), bool):
+                raise InputError(f"{where}: missing or invalid '{key}'")
+        if ramp["type"] not in ("exit", "entry"):
+            raise InputError(f"{where}: 'type' must be 'exit' or 'entry'")
+        station = ramp.get("station_m")
+        if station is not None and (
+            isinstance(station, bool)
+            or not isinstance(station, (int, float))
+            or not math.isfinite(station)
+        ):
+            raise InputError(f"{where}: 'station_m' must be a finite number (metres) or null")
 
 
 def evaluate_paths(
