@@ -939,6 +939,18 @@ def _xodr_cases() -> list[Case]:
             if cmd_name == "evaluate" and kind in ("deep_nesting", "garbage", "lane_id_text"):
                 continue
             cases.append(Case(f"xodr/{cmd_name}/{kind}", edit_map(edit), argv, expect="map.xodr"))
+    def oversized(d: Dirs) -> None:  # sparse: 70 MB on paper, nothing on disk
+        with d.map.open("r+b") as fh:
+            fh.truncate(70 * 2**20)
+
+    def many_pieces(d: Dirs) -> None:
+        text = d.map.read_text(encoding="utf-8")
+        i = text.index("</planView>")
+        d.map.write_text(text[:i] + "<geometry/>" * 500_001 + text[i:], encoding="utf-8")
+
+    cases.append(Case("xodr/check/over_64MiB", oversized, check, expect="map.xodr"))
+    cases.append(Case("xodr/evaluate/over_64MiB", oversized, evaluate, expect="map.xodr"))
+    cases.append(Case("xodr/check/over_500k_pieces", many_pieces, check, expect="map.xodr"))
     cases.append(Case("xodr/check/missing", lambda d: d.map.unlink(), check, expect="map.xodr"))
     cases.append(
         Case(
@@ -1079,6 +1091,16 @@ def before(d: Dirs) -> Before:
     return Before(snapshot(d.run), snapshot(d.out))
 
 
+SECRETS = (CANARY.lower(), "root:x:0:0:")
+"""Text that must never appear in any output: the canary, and the first line of
+``/etc/passwd`` (cases name it directly); compared case-insensitively."""
+
+
+def _has_secret(text: str) -> bool:
+    low = text.lower()
+    return any(secret in low for secret in SECRETS)
+
+
 PROBLEMS = ("hang", "traceback", "exit", "message", "noise", "leak", "leftover", "clobbered")
 """Kinds of failure :func:`judge` reports."""
 
@@ -1118,9 +1140,9 @@ def judge(case: Case, d: Dirs, outcome: Outcome, was: Before, tmp: Path) -> dict
     leaked = [
         str(p)
         for p in written
-        if p.stat().st_size < 50_000_000 and CANARY.encode() in p.read_bytes()
+        if p.stat().st_size < 50_000_000 and _has_secret(p.read_bytes().decode("latin1"))
     ]
-    if CANARY in outcome.stdout + outcome.stderr:
+    if _has_secret(outcome.stdout + outcome.stderr):
         leaked.insert(0, "stdout/stderr")
     if leaked:
         problems["leak"] = ", ".join(leaked[:3])
