@@ -939,6 +939,7 @@ def _xodr_cases() -> list[Case]:
             if cmd_name == "evaluate" and kind in ("deep_nesting", "garbage", "lane_id_text"):
                 continue
             cases.append(Case(f"xodr/{cmd_name}/{kind}", edit_map(edit), argv, expect="map.xodr"))
+
     def oversized(d: Dirs) -> None:  # sparse: 70 MB on paper, nothing on disk
         with d.map.open("r+b") as fh:
             fh.truncate(70 * 2**20)

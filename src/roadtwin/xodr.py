@@ -14,6 +14,10 @@ superelevation, road links, road type/speed, and junctions (``default`` with
 scenariogeneration cannot express some things exactly, so the element tree it returns is
 post-processed with lxml (:func:`_postprocess`):
 
+* ``<userData>``: the header's ``user_data`` pairs (generator, method, self-consistency)
+  and, on every road built from OpenStreetMap, ``roadtwin:osm_way_ids`` with its source
+  way ids; read back by :func:`read_xodr`.
+
 * ``<header>``: scenariogeneration always writes ``date=datetime.now()`` (not
   deterministic) and zero ``north/south/east/west``; the attributes are rewritten in a
   fixed order (``revMajor``, ``revMinor``, ``name``, ``version``, ``date`` only when
@@ -94,6 +98,10 @@ from .model import (
 log = logging.getLogger(__name__)
 
 __all__ = ["read_xodr", "schema_errors", "to_xodr_bytes", "write_xodr"]
+
+
+OSM_WAY_IDS_CODE = "roadtwin:osm_way_ids"
+"""``<userData code>`` of a road's source OSM way ids (space separated)."""
 
 
 def _f(value: float) -> str:
@@ -284,9 +292,18 @@ def _postprocess(root: etree._Element, network: RoadNetwork) -> None:
             zAbsolute=_f(q.get("z_absolute", math.nan)),
             zRelative=_f(q.get("z_relative", math.nan)),
         )
+    for code, value in hdr.user_data:
+        etree.SubElement(header, "userData", code=code, value=value)
     road_elements = root.findall("road")
     for road, el in zip(network.roads, road_elements, strict=False):
         el.set("length", _f(road.length))
+        if road.osm_way_ids:
+            etree.SubElement(
+                el,
+                "userData",
+                code=OSM_WAY_IDS_CODE,
+                value=" ".join(str(w) for w in road.osm_way_ids),
+            )
         geoms = el.find("planView").findall("geometry")
         for g, gel in zip(road.geometry, geoms, strict=False):
             _set_attrs(
@@ -717,7 +734,19 @@ def _read_road(rel: etree._Element, *, where: str) -> Road:
         junction=rel.get("junction", "-1"),
         road_type=road_type,
         speed_limit_mps=speed,
+        osm_way_ids=_osm_way_ids(rel, where=where),
     )
+
+
+def _osm_way_ids(rel: etree._Element, *, where: str) -> tuple[int, ...]:
+    for u in rel.findall("userData"):
+        if u.get("code") == OSM_WAY_IDS_CODE:
+            try:
+                return tuple(int(w) for w in (u.get("value") or "").split())
+            except ValueError:
+                msg = f"{where}: <userData> line {u.sourceline}: OSM way ids are not integers"
+                raise InputError(msg) from None
+    return ()
 
 
 def _read_junction(jel: etree._Element, *, where: str) -> Junction:
@@ -776,7 +805,9 @@ def _read_header(hel: etree._Element | None, *, where: str) -> Header:
             v = _num(dq, attr, math.nan, where=where, finite=False)
             if not math.isnan(v):
                 quality[key] = v
+    user_data = tuple((u.get("code", ""), u.get("value", "")) for u in hel.findall("userData"))
     return Header(
+        user_data=user_data,
         name=hel.get("name", ""),
         rev_major=int(_num(hel, "revMajor", 1.0, where=where)),
         rev_minor=int(_num(hel, "revMinor", 4.0, where=where)),
