@@ -36,6 +36,10 @@ def _lane(lane_id: int) -> str:
     )
 
 
+def _road_ref(road_id: int) -> str:
+    return f'elementType="road" elementId="{road_id}"'
+
+
 def write_roads(path: Path, n: int, length_m: float = 20.0) -> None:
     """N chained straight roads along +x (rows of 1000 roads, 100 m apart)."""
     with path.open("w", encoding="utf-8") as fh:
@@ -45,9 +49,9 @@ def write_roads(path: Path, n: int, length_m: float = 20.0) -> None:
             x, y = col * length_m, row * 100.0
             links = []
             if col > 0:
-                links.append(f'<predecessor elementType="road" elementId="{i - 1}" contactPoint="end"/>')
+                links.append(f'<predecessor {_road_ref(i - 1)} contactPoint="end"/>')
             if col < 999 and i + 1 < n:
-                links.append(f'<successor elementType="road" elementId="{i + 1}" contactPoint="start"/>')
+                links.append(f'<successor {_road_ref(i + 1)} contactPoint="start"/>')
             fh.write(
                 f'  <road name="r{i}" length="{length_m}" id="{i}" junction="-1">\n'
                 f"    <link>{''.join(links)}</link>\n"
@@ -55,7 +59,7 @@ def write_roads(path: Path, n: int, length_m: float = 20.0) -> None:
                 "<line/></geometry></planView>\n"
                 '    <elevationProfile><elevation s="0.0" a="0.0" b="0.0" c="0.0" d="0.0"/>'
                 "</elevationProfile>\n"
-                "    <lanes><laneSection s=\"0.0\">\n"
+                '    <lanes><laneSection s="0.0">\n'
                 "        <left>\n" + _lane(2) + _lane(1) + "        </left>\n"
                 '        <center><lane id="0" type="none" level="false"/></center>\n'
                 "        <right>\n" + _lane(-1) + _lane(-2) + "        </right>\n"
@@ -76,8 +80,8 @@ def write_pieces(path: Path, m: int, piece_m: float = 0.001) -> None:
                 f'      <geometry s="{s!r}" x="{s!r}" y="0.0" hdg="0.0" length="{piece_m}">'
                 "<line/></geometry>\n"
             )
-        fh.write("    </planView>\n    <lanes><laneSection s=\"0.0\">\n")
-        fh.write("        <center><lane id=\"0\" type=\"none\" level=\"false\"/></center>\n")
+        fh.write('    </planView>\n    <lanes><laneSection s="0.0">\n')
+        fh.write('        <center><lane id="0" type="none" level="false"/></center>\n')
         fh.write("        <right>\n" + _lane(-1) + "        </right>\n")
         fh.write("    </laneSection></lanes>\n  </road>\n</OpenDRIVE>\n")
 
