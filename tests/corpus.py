@@ -1001,6 +1001,34 @@ def _xodr_cases() -> list[Case]:
     return cases
 
 
+def _limit_cases() -> list[Case]:
+    """Size limits, lowered through ``--config`` so that the run stays small: the same code
+    refuses a 5 M-pose trajectory or a 10^9-point LAZ (from its header) at the defaults."""
+
+    def limited(table: str, key: str, value: str) -> tuple[Mutate, Argv]:
+        def mutate(d: Dirs) -> None:
+            d.config.write_text(f"[{table}]\n{key} = {value}\n", encoding="utf-8")
+
+        return mutate, lambda d: [*_build(d), "--config", str(d.config)]
+
+    cases = []
+    for name, (key, value, fmt, expect) in {
+        "poses": ("max_poses", "500", None, "trajectory.csv"),
+        "driven_km": ("max_driven_km", "1.0", None, "trajectory.csv"),
+        "points_laz": ("max_points", "1000", None, "road_edges.laz"),
+        "points_csv": ("max_points", "1000", "csv", "road_edges.csv"),
+        "points_ply": ("max_points", "1000", "ply", "road_edges.ply"),
+        "points_npy": ("max_points", "1000", "npy", "road_edges.npy"),
+        "points_parquet": ("max_points", "1000", "parquet", "road_edges.parquet"),
+        "origin_distance": ("max_origin_distance_km", "0.5", None, "trajectory.csv"),
+    }.items():
+        mutate, argv = limited("load", key, value)
+        if fmt is not None:
+            mutate = _seq(_edges_as(fmt), mutate)
+        cases.append(Case(f"limits/{name}", mutate, argv, expect=expect))
+    return cases
+
+
 def all_cases() -> list[Case]:
     """Every case of the corpus, in a stable order."""
     cases = [
@@ -1012,6 +1040,7 @@ def all_cases() -> list[Case]:
         *_config_cases(),
         *_output_cases(),
         *_xodr_cases(),
+        *_limit_cases(),
     ]
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"

@@ -736,7 +736,7 @@ def _near_trajectory(
     """
     limit = cfg.max_point_distance_m
     kdtree, stations = tree
-    dist, idx = kdtree.query(xy, k=1, distance_upper_bound=limit, workers=-1)
+    dist, _ = kdtree.query(xy, k=1, distance_upper_bound=limit, workers=-1)
     keep = np.isfinite(dist)
     dropped = int(keep.size - np.count_nonzero(keep))
     if dropped == keep.size:
@@ -745,12 +745,12 @@ def _near_trajectory(
             "(expected points in the mapping frame of run.toml; wrong CRS or units?)"
         )
         raise InputError(msg)
-    along = stations[idx[keep]]
-    span = float(along.max() - along.min())
+    kept = xy[keep]
+    span = float(np.hypot(*(kept.max(axis=0) - kept.min(axis=0))))
     needed = min(cfg.min_driven_m, 0.5 * float(stations[-1]))
     if span < needed:
         msg = (
-            f"{path}: the {what} cover only {span:.1f} m along the {stations[-1]:.0f} m "
+            f"{path}: the {what} span only {span:.1f} m, along a {stations[-1]:.0f} m "
             f"trajectory (all at one spot?); expected {what} along the run"
         )
         raise InputError(msg)

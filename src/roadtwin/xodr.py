@@ -70,7 +70,7 @@ from pathlib import Path
 
 from lxml import etree
 
-from ._errors import InputError, InputWarning
+from ._errors import InputError, InputWarning, RoadtwinError
 from ._files import atomic_write_bytes
 from ._perf import gc_paused
 from ._xml import parse_xml
@@ -383,7 +383,14 @@ def write_xodr(network: RoadNetwork, path: str | os.PathLike) -> Path:
 
 
 def _schema_file(rev_minor: int) -> Path:
-    import qc_opendrive
+    try:
+        import qc_opendrive
+    except ImportError:
+        msg = (
+            "schema validation needs the OpenDRIVE XSD of the ASAM quality checker: "
+            'pip install "roadtwin[validate]"'
+        )
+        raise RoadtwinError(msg) from None
 
     base = Path(qc_opendrive.__file__).parent / "schema"
     candidates = {
