@@ -256,6 +256,13 @@ def _hostile_xml(xml: str, root_tag: str, attack: str, d: Dirs, *, target: str) 
         head = decl
         xi = 'xmlns:xi="http://www.w3.org/2001/XInclude"'
         ref = f'<xi:include {xi} href="file://{d.secret}" parse="text"/>'
+    if "@" in target and make is not None:  # an attribute value (internal entities only)
+        tag, attr = target.split("@")
+        i = body.index(f"<{tag} ")
+        a = body.index(f'{attr}="', i) + len(attr) + 2
+        b = body.index('"', a)
+        return head + body[:a] + ref + body[b:]
+    target = target.split("@")[0] if "@" in target else target
     i = body.index(f"<{target}")
     j = body.index(">", i) + 1
     if body[j - 2] == "/":  # <target .../> -> <target ...>ref</target>
@@ -863,10 +870,10 @@ def _xodr_cases() -> list[Case]:
         def apply(d: Dirs) -> None:
             p = path(d)
             xml = p.read_text(encoding="utf-8")
-            p.write_text(
-                _hostile_xml(xml, "OpenDRIVE", attack, d, target="geoReference"),
-                encoding="utf-8",
-            )
+            # the secret as a link target: a dangling link is printed by check (the issue's
+            # leak); XInclude cannot sit in an attribute and goes into <geoReference>
+            target = "geoReference" if attack == "xinclude" else "successor@elementId"
+            p.write_text(_hostile_xml(xml, "OpenDRIVE", attack, d, target=target), encoding="utf-8")
 
         return apply
 
