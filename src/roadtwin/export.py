@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+from ._errors import FitError
 from ._files import atomic_write_bytes
 from .frames import MappingFrame
 from .model import LaneSection, Road, RoadNetwork
@@ -90,7 +91,14 @@ def network_lines(
 
 def _lonlat(frame: MappingFrame, xy: NDArray[np.float64]) -> NDArray[np.float64]:
     lon, lat = frame.to_lonlat(xy[:, 0], xy[:, 1])
-    return np.stack([lon, lat], axis=1)
+    ll = np.stack([lon, lat], axis=1)
+    if not np.isfinite(ll).all():  # never write Infinity/NaN into KML or GeoJSON
+        msg = (
+            f"map coordinates (up to {np.nanmax(np.abs(xy)):.3g} m) have no WGS84 position in "
+            f"the frame {frame.crs!r}: cannot write KML/GeoJSON"
+        )
+        raise FitError(msg)
+    return ll
 
 
 def kml_bytes(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2.0) -> bytes:
@@ -254,7 +262,9 @@ def write_geojson(
     LineString), ``road_id``, ``road_name``, ``section``, ``lane_id``, ``type`` (lane
     type; ``"center"`` for lane 0) and, for boundaries, ``mark`` (road mark type).
     """
-    data = json.dumps(geojson_dict(network, frame, step_m=step_m), separators=(",", ":"))
+    data = json.dumps(
+        geojson_dict(network, frame, step_m=step_m), separators=(",", ":"), allow_nan=False
+    )
     return atomic_write_bytes(path, data.encode("utf-8"))
 
 
