@@ -947,17 +947,17 @@ def _xodr_cases() -> list[Case]:
                 continue
             cases.append(Case(f"xodr/{cmd_name}/{kind}", edit_map(edit), argv, expect="map.xodr"))
 
-    def oversized(d: Dirs) -> None:  # sparse: 70 MB on paper, nothing on disk
+    def oversized(d: Dirs) -> None:  # sparse: 40 MiB on paper, nothing on disk
         with d.map.open("r+b") as fh:
-            fh.truncate(70 * 2**20)
+            fh.truncate(40 * 2**20)
 
     def many_pieces(d: Dirs) -> None:
         text = d.map.read_text(encoding="utf-8")
         i = text.index("</planView>")
         d.map.write_text(text[:i] + "<geometry/>" * 500_001 + text[i:], encoding="utf-8")
 
-    cases.append(Case("xodr/check/over_64MiB", oversized, check, expect="map.xodr"))
-    cases.append(Case("xodr/evaluate/over_64MiB", oversized, evaluate, expect="map.xodr"))
+    cases.append(Case("xodr/check/over_32MiB", oversized, check, expect="map.xodr"))
+    cases.append(Case("xodr/evaluate/over_32MiB", oversized, evaluate, expect="map.xodr"))
     cases.append(Case("xodr/check/over_500k_pieces", many_pieces, check, expect="map.xodr"))
     cases.append(Case("xodr/check/missing", lambda d: d.map.unlink(), check, expect="map.xodr"))
     cases.append(

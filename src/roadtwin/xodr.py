@@ -832,14 +832,16 @@ def _strip_namespaces(root: etree._Element) -> None:
             el.tag = etree.QName(el).localname
 
 
-MAX_XODR_BYTES = 64 * 1024 * 1024
-"""Largest map file :func:`read_xodr` reads by default (64 MiB, about 40,000 roads). Reading
-and checking cost about 1.5 ms and 40 KB of memory per road, linear in size: a 64 MiB
-map is read and checked in well under a minute on a 2-core machine; larger maps are
-refused with this reason rather than running for minutes (pass ``max_bytes=None``)."""
+MAX_XODR_BYTES = 32 * 1024 * 1024
+"""Largest map file :func:`read_xodr` reads by default (32 MiB, about 20,000 simple roads;
+the 2 km demo map is 0.1 MiB). Reading, checking and evaluating cost about 0.5, 0.8 and
+1.5 ms and 40 KB of memory per road, linear in size (``benchmarks/bench_limits.py``), so
+``check`` and ``evaluate`` finish a 32 MiB map within a minute on a 2-core machine; larger
+maps are refused with this reason rather than running for minutes (``max_bytes=None``
+lifts the limit in Python)."""
 MAX_GEOMETRIES = 500_000
 """Largest number of planView pieces :func:`read_xodr` reads by default (a map of
-1 mm pieces packs more into 64 MiB than any real map has)."""
+1 mm pieces can pack more into 32 MiB than any real map has)."""
 
 
 def read_xodr(
@@ -877,8 +879,8 @@ def read_xodr(
     if max_bytes is not None and size > max_bytes:
         msg = (
             f"{path}: {size / 2**20:.0f} MiB; maps larger than {max_bytes / 2**20:.0f} MiB "
-            "are refused (roadtwin.xodr.MAX_XODR_BYTES: about 40,000 roads, checked in under "
-            "a minute): split the map"
+            "are refused (roadtwin.xodr.MAX_XODR_BYTES: about 20,000 roads, checked and "
+            "evaluated within a minute): split the map"
         )
         raise InputError(msg)
     with gc_paused():
