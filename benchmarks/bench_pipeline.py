@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import importlib
 import json
 import os
@@ -247,7 +246,7 @@ def child(run_dir: Path, out_json: Path, *, method: str, trace: bool, external: 
     from roadtwin.xodr import write_xodr
 
     cfg = PipelineConfig()
-    cfg = dataclasses.replace(cfg, mainline=dataclasses.replace(cfg.mainline, method=method))
+    cfg = cfg.with_method(method)
     records: dict[str, dict[str, float]] = {}
     # Heavy libraries some stages import lazily (osmnx alone pulls in geopandas and
     # scikit-learn: seconds): imported up front and timed on their own, so that the stage

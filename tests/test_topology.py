@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from dataclasses import replace
 
 import networkx as nx
 import numpy as np
@@ -306,6 +307,68 @@ def test_topology_links_and_routes(mainline, ramps, side, junctions):
     g0 = lane_graph(net)
     assert nx.has_path(g0, ("1", len(first.lane_sections) - 1, sign * 5), (exit_id, 0, sign * 2))
     assert nx.has_path(g0, (entry_id, 0, sign * 2), ("3", 0, sign * 5))
+
+
+@pytest.mark.parametrize("junctions", ["default", "direct"])
+def test_junction_lane_links_join_driving_lanes(mainline, ramps, side, junctions):
+    """Between mainline and ramp a junction lane link joins two driving lanes (esmini warns
+    "target lane not driving" on one into a shoulder); lanes of the same road continuing
+    (through lanes, the ramp into its connecting road) link shoulders with shoulders. The
+    exit's connecting road keeps the hard shoulder's width at the gore without the link. A
+    ramp whose source lanes name the hard shoulder is still fed by driving lanes only."""
+    sign = -1 if side == "right" else 1
+    # the hard shoulder beside both gores is lane 6 (after the deceleration/acceleration lane)
+    ramps = [replace(r, shoulder_lane_id=sign * 6) for r in ramps]
+    bad_sources = [
+        replace(r, mainline_lane_ids=(sign * 6, *r.mainline_lane_ids)) if r.type == "exit" else r
+        for r in ramps
+    ]
+    for ramp_set in (ramps, bad_sources):
+        topo = build_topology(
+            mainline, ramp_set, traffic_side=side, config=TopologyConfig(junctions=junctions)
+        )
+        net = _network(topo)
+        ids = net.id_to_road
+        n_ramp_links = 0
+        for junction in net.junctions:
+            for conn in junction.connections:
+                inc, tgt = ids[conn.incoming_road], ids[conn.connecting_road]
+                end_in = inc.successor is not None and inc.successor.element_id == junction.id
+                inc_sec = inc.lane_sections[-1 if end_in else 0]
+                tgt_sec = tgt.lane_sections[0 if conn.contact_point == "start" else -1]
+                types_in = {ln.id: ln.type for ln in (*inc_sec.left, *inc_sec.right)}
+                types_to = {ln.id: ln.type for ln in (*tgt_sec.left, *tgt_sec.right)}
+                ramp_side = {inc.name, tgt.name} & {"exit", "entry"} or (
+                    tgt.name == "connector"
+                    and any(ids[x].name in ("exit", "entry") for x in _ends(tgt))
+                )
+                for ll in conn.lane_links:
+                    pair = (types_in[ll.from_lane], types_to[ll.to_lane])
+                    assert pair[0] == pair[1], (junction.id, conn.id, ll, pair)
+                    if ramp_side and inc.name == "mainline":
+                        assert pair == ("driving", "driving"), (junction.id, conn.id, ll)
+                        n_ramp_links += 1
+        assert n_ramp_links >= 1
+        findings = [f for f in check_network(net) if f.severity == "error"]
+        assert not findings, [f.message for f in findings]
+    if junctions == "default":
+        exit_id = next(r.id for r in net.roads if r.name == "exit")
+        conn = next(r for r in net.roads if r.junction != "-1" and exit_id in _ends(r))
+        hard = (
+            conn.lane_sections[0].right[-1] if side == "right" else conn.lane_sections[0].left[-1]
+        )
+        assert hard.type == "shoulder"
+        assert hard.predecessor is None
+        width = float(hard.width.value(np.array([0.0]))[0])
+        assert width == pytest.approx(2.5, abs=0.01)  # the mainline's hard shoulder
+
+
+def _ends(road: Road) -> set[str]:
+    return {
+        link.element_id
+        for link in (road.predecessor, road.successor)
+        if link is not None and link.element_type == "road"
+    }
 
 
 def test_lane_sections_follow_lane_count(mainline, ramps, side):

@@ -226,6 +226,10 @@ def _add_build(sub: argparse._SubParsersAction) -> None:
         help="fetch OSM around the trajectory through OSMnx instead of a local file",
     )
     p.add_argument("--no-check", action="store_true", help="skip roadtwin check on the result")
+    p.add_argument(
+        "--no-drive", action="store_true", help="skip driving the map in esmini (roadtwin drive)"
+    )
+    _add_esmini_option(p)
     p.add_argument("--config", type=Path, default=None, help="TOML file with stage settings")
     p.set_defaults(func=_cmd_build)
 
@@ -245,17 +249,22 @@ def _cmd_build(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     cfg = _load_config(args.config)
     if args.method is not None:
-        cfg = dataclasses.replace(
-            cfg, mainline=dataclasses.replace(cfg.mainline, method=args.method)
-        )
+        cfg = cfg.with_method(args.method)
     if args.junctions is not None:
         cfg = dataclasses.replace(
             cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
         )
     names = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
+    tools = None
+    if not args.no_drive:
+        from .drive import find_esmini
+
+        tools = find_esmini(args.esmini)
     steps = ["load run", "load OSM", "build map", "write files"]
     if not args.no_check:
         steps.append("check")
+    if tools is not None:
+        steps.append("drive")
     bar = progress(args, total=len(steps), unit="step")
     times: dict[str, float] = {}
 
@@ -334,6 +343,14 @@ def _cmd_build(args: argparse.Namespace) -> int:
         report = check_file(out / "map.xodr", external=True)
         times["check"] = time.perf_counter() - t0
         bar.update()
+    drive_report = None
+    if tools is not None:
+        t0 = time.perf_counter()
+        step("drive")
+        drive_report = _drive(out / "map.xodr", out / "drive", args, cfg.drive, tools=tools)
+        _add_drive_to_build_json(out / "build.json", drive_report)
+        times["drive"] = time.perf_counter() - t0
+        bar.update()
     bar.close()
 
     s = result.summary()
@@ -360,11 +377,43 @@ def _cmd_build(args: argparse.Namespace) -> int:
     lines.append(f"written    {', '.join(str(out / n) for n in names[:4])}")
     for w in result.warnings:
         lines.append(f"note       {w}")
+    lines += _drive_lines(drive_report, skipped=args.no_drive, out=out)
     print("\n".join(lines))
+    failed = drive_report is not None and not drive_report.ok
     if report is not None:
         print(report.format_text())
-        return 0 if report.errors == 0 else 1
-    return 0
+        failed = failed or report.errors > 0
+    return 1 if failed else 0
+
+
+def _drive_lines(drive_report, *, skipped: bool, out: Path | None = None) -> list[str]:
+    """Summary lines of a drive for ``build`` (one line, then each failed route)."""
+    if skipped:
+        return []
+    if drive_report is None:
+        return ["drive      skipped: esmini not found (--esmini DIR, ESMINI_BIN or PATH)"]
+    lines = [f"drive      {drive_report.summary()}"]
+    for r in drive_report.results:
+        lines += [f"  {r.route.name}: {f.code}: {f.message}" for f in r.faults]
+    lines += [f"  esmini {m} ({n} route(s))" for m, n in drive_report.warnings.items()]
+    if out is not None:
+        lines.append(f"           {out / 'drive' / 'drive.json'}, {out / 'drive' / 'scenarios'}/")
+    return lines
+
+
+def _add_drive_to_build_json(path: Path, drive_report) -> None:
+    """Record the drive's summary in ``build.json`` (rewritten atomically)."""
+    import json
+
+    info = json.loads(path.read_text(encoding="utf-8"))
+    doc = drive_report.to_dict()
+    info["drive"] = {
+        k: doc[k] for k in ("ok", "routes_total", "passed", "failed", "esmini_warnings", "wall_s")
+    }
+    info["drive"]["report"] = "drive/drive.json"
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
+    tmp.replace(path)
 
 
 # ---------------------------------------------------------------------------
@@ -381,20 +430,46 @@ def _add_check(sub: argparse._SubParsersAction) -> None:
         action="store_true",
         help="skip SUMO netconvert and the ASAM quality checker",
     )
+    p.add_argument(
+        "--drive",
+        action="store_true",
+        help="also drive every route in esmini (as roadtwin drive, in a temporary folder)",
+    )
+    _add_esmini_option(p)
     p.set_defaults(func=_cmd_check)
 
 
 def _cmd_check(args: argparse.Namespace) -> int:
     import json
+    import tempfile
 
     from .check import check_file
 
     report = check_file(args.xodr, external=not args.no_external)
+    drive_report = tools = None
+    if args.drive:
+        from .drive import find_esmini
+
+        tools = find_esmini(args.esmini)
+        with tempfile.TemporaryDirectory(prefix="roadtwin-drive-") as tmp:
+            drive_report = _drive(args.xodr, Path(tmp), args, _drive_config(args), tools=tools)
     if args.json:
-        print(json.dumps(report.to_dict(), indent=2))
+        doc = report.to_dict()
+        if drive_report is not None:
+            doc["drive"] = drive_report.to_dict()
+        print(json.dumps(doc, indent=2))
     else:
         print(report.format_text())
-    return 0 if report.ok else 1
+        if drive_report is not None:
+            print(drive_report.format_text())
+    if args.drive and tools is None:
+        print(
+            "roadtwin: esmini not found: give --esmini DIR, set ESMINI_BIN to its folder or "
+            "put it on PATH (releases: https://github.com/esmini/esmini/releases)",
+            file=sys.stderr,
+        )
+        return 2
+    return 0 if report.ok and (drive_report is None or drive_report.ok) else 1
 
 
 # ---------------------------------------------------------------------------
@@ -501,6 +576,89 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------
+# drive  (issue: drive every ramp in esmini)
+# ---------------------------------------------------------------------------
+
+_ESMINI_HELP = "folder with esmini and dat2csv (default: the folder in $ESMINI_BIN, then PATH)"
+
+
+def _add_esmini_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--esmini", type=Path, default=None, metavar="DIR", help=_ESMINI_HELP)
+
+
+def _add_drive(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "drive", help="drive every route of a map in esmini (one OpenSCENARIO file per route)"
+    )
+    p.add_argument("xodr", type=Path, help="OpenDRIVE map")
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="folder for scenarios/, runs/ and drive.json (default: MAP_DIR/drive)",
+    )
+    _add_esmini_option(p)
+    p.add_argument("--speed", type=float, default=None, metavar="M_S", help="car speed (m/s)")
+    p.add_argument("--config", type=Path, default=None, help="TOML file with stage settings")
+    p.set_defaults(func=_cmd_drive)
+
+
+def _esmini_missing_note(report) -> str:
+    """How to get esmini, and how to run the written scenarios without roadtwin."""
+    first = next(iter(sorted(report.scenario_dir.glob("*.xosc"))), None)
+    lines = [
+        "roadtwin: esmini not found: give --esmini DIR, set ESMINI_BIN to its folder or put it "
+        "on PATH (releases: https://github.com/esmini/esmini/releases)",
+        f"roadtwin: the scenarios are in {report.scenario_dir}",
+    ]
+    if first is not None:
+        lines.append(
+            f"roadtwin: run one with: esmini --headless --osc {first} --fixed_timestep "
+            f"{report.config.timestep_s:g} --record sim.dat && dat2csv sim.dat --extended"
+        )
+    return "\n".join(lines)
+
+
+def _drive(map_path: Path, out_dir: Path, args: argparse.Namespace, drive_cfg, *, tools=None):
+    """Drive ``map_path`` (the shared step of ``drive``, ``build``, ``demo``, ``check``)."""
+    from .drive import drive_map
+
+    def routes(items, total):
+        return progress(args, items, total=total, desc="drive", unit="route", leave=False)
+
+    return drive_map(map_path, out_dir, esmini=tools, config=drive_cfg, progress=routes)
+
+
+def _drive_config(args: argparse.Namespace):
+    import dataclasses
+
+    cfg = _load_config(getattr(args, "config", None)).drive
+    if getattr(args, "speed", None) is not None:
+        if not args.speed > 0:
+            raise InputError(f"--speed must be > 0 m/s, got {args.speed}")
+        cfg = dataclasses.replace(cfg, speed_m_s=args.speed)
+    return cfg
+
+
+def _cmd_drive(args: argparse.Namespace) -> int:
+    from .drive import find_esmini
+
+    if not args.xodr.is_file():
+        raise InputError(f"{args.xodr}: map not found")
+    cfg = _drive_config(args)
+    tools = find_esmini(args.esmini)
+    out = args.output if args.output is not None else args.xodr.parent / "drive"
+    report = _drive(args.xodr, out, args, cfg, tools=tools)
+    print(report.format_text())
+    print(f"wrote      {out / 'drive.json'}, {report.scenario_dir}/ ({len(report.results)} routes)")
+    if tools is None:
+        print(_esmini_missing_note(report), file=sys.stderr)
+        return 2
+    return 0 if report.ok else 1
+
+
+# ---------------------------------------------------------------------------
 # demo  (simulator issue; grows as stages land)
 # ---------------------------------------------------------------------------
 
@@ -519,6 +677,7 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
         default="straight_curve_2km",
         help="bundled scenario name or scenario TOML file",
     )
+    _add_esmini_option(p)
     p.set_defaults(func=_cmd_demo)
 
 
@@ -594,12 +753,27 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         verdict = "ok" if report.ok else f"{report.errors} errors"
         return f"{target.name}: {verdict}, {len(report.findings)} own findings; {consumers}"
 
+    def drive() -> str:
+        from .drive import find_esmini
+
+        tools = find_esmini(args.esmini)
+        if tools is None:
+            return "skipped: esmini not found (--esmini DIR, ESMINI_BIN or PATH)"
+        report = _drive(
+            out_dir / "map.xodr", out_dir / "drive", args, _drive_config(args), tools=tools
+        )
+        state["drive"] = report.to_dict()
+        wrote.append(out_dir / "drive" / "drive.json")
+        lines = [report.summary()]
+        lines += [f"  {r.route.name}: {f.message}" for r in report.results for f in r.faults]
+        return "\n".join(lines)
+
     def evaluate() -> str:
         from .evaluation import evaluate_paths
         from .report import write_report
 
         report = evaluate_paths(out_dir / "map.xodr", [run_dir], truth_path=run_dir / "truth.xodr")
-        paths = write_report(report, out_dir / "report")
+        paths = write_report(report, out_dir / "report", drive=state.get("drive"))
         wrote.append(Path(paths["html"]))
         t = report.runs[0].truth or {}
         edge = (t.get("road_edge") or {}).get("rmse_m")
@@ -611,6 +785,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     stages = [("simulate", simulate, True), ("inspect", inspect, has("io", "load_run"))]
     stages.append(("build", build, has("pipeline", "build_map")))
     stages.append(("check", check, has("check", "check_file")))
+    stages.append(("drive", drive, has("pipeline", "build_map")))
     can_evaluate = has("pipeline", "build_map") and has("evaluation", "evaluate_paths")
     stages.append(("evaluate", evaluate, can_evaluate))
     bar = progress(args, stages, desc="demo", unit="stage", leave=False)
@@ -625,7 +800,9 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         except NotImplementedError:
             lines.append(f"{name:<10} not available yet")
             continue
-        lines.append(f"{name:<10} {text} ({time.perf_counter() - t0:.1f} s)")
+        first, *details = text.split("\n")
+        lines.append(f"{name:<10} {first} ({time.perf_counter() - t0:.1f} s)")
+        lines += [f"{'':<10} {d}" for d in details]
     bar.close()
     lines.append(f"{'folder':<10} {root}")
     lines += [f"{'':<10} {p}" for p in wrote if p.exists()]
@@ -664,7 +841,15 @@ def build_parser() -> argparse.ArgumentParser:
         return original_add(name, parents=[common, *kwargs.pop("parents", [])], **kwargs)
 
     sub.add_parser = add_parser  # type: ignore[method-assign]
-    for add in (_add_inspect, _add_simulate, _add_build, _add_check, _add_evaluate, _add_demo):
+    for add in (
+        _add_inspect,
+        _add_simulate,
+        _add_build,
+        _add_check,
+        _add_evaluate,
+        _add_drive,
+        _add_demo,
+    ):
         add(sub)
     return parser
 

@@ -185,6 +185,20 @@ class MainlineConfig:
     """Lane sections shorter than this are merged into a neighbour (metres)."""
     seed: int = 0
     """Seed of the paper method's K-means and silhouette sub-sampling."""
+    quality_bin_m: float = 25.0
+    """Station bin of the stretch warnings (:mod:`roadtwin.mainline.quality`), metres."""
+    quality_min_points: int = 15
+    """Points a bin needs before its residuals count."""
+    quality_edge_bias_m: float = 0.2
+    """A bin whose edge points lie on median farther than this from the built edge
+    (metres) is poorly determined (the sensor's own noise is a few centimetres)."""
+    quality_marking_m: float = 0.3
+    """A lane sample farther than this from every built lane boundary is unexplained."""
+    quality_min_marking_samples: int = 8
+    """Unexplained lane samples that line up in a bin (one dash of a broken line gives
+    about 12) before the bin counts as a marking the map lacks."""
+    quality_max_lane_m: float = 5.0
+    """A driving lane wider than this (metres) is flagged: a boundary was missed."""
 
     _ZERO_OK: ClassVar[frozenset[str]] = frozenset(
         {"edge_outlier_min_m", "superelevation_min_rad", "superelevation_k_sigma"}
@@ -214,7 +228,12 @@ class RampConfig:
     lane_width_m: float = 3.5
     """Ramp lane width (metres)."""
     blend_length_m: float = 60.0
-    """Length over which a re-anchored ramp blends back into the OSM shape (metres)."""
+    """Length over which the first ramp lanes blend from the widths of the mainline lanes they
+    continue to the ramp lane width (metres)."""
+    link_lane_rule: Literal["osm", "paper"] = "osm"
+    """Lane count of a ``*_link`` way without lane tags: ``osm`` (1 lane, OSM's convention
+    for link roads) or ``paper`` (the seed paper's Algorithm 2 class default: motorway 3,
+    trunk/primary 2)."""
     lane_type: Literal["driving", "spec"] = "driving"
     """``driving`` ramp lanes (CARLA-friendly) or the spec's onRamp/offRamp types."""
     savgol_polyorder: int = 3
@@ -249,6 +268,24 @@ class RampConfig:
     """A ramp's inner shoulder opens from zero width at the gore (exit) or closes to zero
     width there (entry) over this length, metres (the gore area, where the two edges
     diverge)."""
+    min_radius_m: float = 15.0
+    """Smallest radius of a ramp's reference line (metres); on the side of its lanes the
+    outer lane border keeps it too. Loop ramps go down to about 25-30 m in design
+    guides; the bound only stops a fit from knotting."""
+    shape_knot_m: float = 15.0
+    """Knot spacing of the ramp's curvature (metres): curvature is linear between knots
+    (a chain of clothoids)."""
+    shape_step_m: float = 0.5
+    """Step of the dense fitted reference line (metres)."""
+    shape_smoothness: float = 2000.0
+    """Weight of the second differences of the knot curvatures (per knot spacing squared)
+    against the target points (in units of their sigma)."""
+    osm_sigma_m: float = 2.0
+    """Standard deviation of an OSM ramp point as a target of the ramp shape (metres): OSM
+    is drawn 1-5 m off; the fit is robust beyond twice this."""
+    evidence_sigma_m: float = 0.1
+    """Standard deviation of the measured ramp line (where the LiDAR saw the ramp) as a
+    target of the ramp shape (metres)."""
     use_evidence: bool = True
     """Shape the ramps' first part and widths from the measured points past the gores
     (False: OSM shape and default widths only, the paper's method)."""
@@ -260,15 +297,11 @@ class RampConfig:
     span ``evidence_min_span_m``) before they correct it; else OSM and defaults decide."""
     evidence_min_span_m: float = 20.0
     """Minimum extent along the ramp (metres) of the matched points."""
-    evidence_blend_m: float = 60.0
-    """Beyond the last measured point the fitted correction fades into the (re-anchored)
-    OSM shape over this length (metres)."""
     evidence_max_shift_m: float = 15.0
-    """Where the fitted first part of a ramp blends into the OSM shape, a gap larger than
-    this (metres) rejects the fit (the points belong to another road). Generous on
-    purpose: the re-anchored OSM shape itself can be metres off near the gore (OSM drawn
-    with offset, an OSM attachment far from the measured gore), which is what the fit
-    corrects."""
+    """A fit to the measured points that moves the ramp farther than this (metres) from the
+    line fitted to the OSM shape alone is rejected (the points belong to another road).
+    Generous on purpose: OSM itself can be metres off near the gore (drawn with offset, an
+    OSM attachment far from the measured gore), which is what the fit corrects."""
     evidence_exclude_m: float = 0.3
     """Measured points within this (metres) of a mainline boundary of their kind belong to
     the mainline and are not used as ramp evidence."""
@@ -334,6 +367,50 @@ class EvaluationConfig:
 
 
 @dataclass(frozen=True)
+class DriveConfig:
+    """Drive-throughs of a map in esmini (``roadtwin.drive``)."""
+
+    speed_m_s: float = 25.0
+    """Speed of the car on every route (metres per second; 25 m/s = 90 km/h)."""
+    timestep_s: float = 0.05
+    """esmini's fixed simulation step (seconds); the recording has one row per step."""
+    approach_m: float = 150.0
+    """Lane driven before the junction of an exit or a junction connection (metres), where
+    the map has that much lane before it."""
+    follow_m: float = 400.0
+    """Longest stretch driven on the target road (metres); shorter roads to their end."""
+    min_on_target_m: float = 50.0
+    """A route passes only if the car drove at least this far on its target road (metres),
+    or to the target when the road is shorter."""
+    min_lane_width_m: float = 2.0
+    """Routes start and end where their lane is at least this wide (metres), not inside a
+    taper."""
+    end_margin_m: float = 2.0
+    """Start and target stay this far (metres) inside the lane's usable stretch."""
+    reach_tolerance_m: float = 2.0
+    """The car has reached the target within this distance (metres)."""
+    max_jump_m: float = 1.0
+    """Largest allowed jump (metres): the distance between where the car is after a step and
+    where its own speed and heading would have put it. A continuous map gives millimetres
+    (up to 0.56 m where esmini steps across a curvature jump of a tight arc far from the
+    reference line, seen on CARLA's Town06); a 1.5 m gap across a link gives 1.5 m in any
+    direction, while the raw step of 1.25 m + a sideways 1.5 m is only 1.95 m: a bound on
+    the raw step ("no step over 2 m") would miss it."""
+    workers: int = 2
+    """esmini runs at the same time (each is one single-threaded process)."""
+    stuck_s: float = 2.0
+    """The car is stuck when it moved less than 0.1 m during this time (seconds)."""
+    timeout_s: float = 120.0
+    """Wall-clock limit of one esmini run (seconds)."""
+
+    _ZERO_OK: ClassVar[frozenset[str]] = frozenset({"end_margin_m"})
+    _RANGES: ClassVar[dict[str, tuple[float, float]]] = {"workers": (1, 64)}
+
+    def __post_init__(self) -> None:
+        check_fields(self, "drive")
+
+
+@dataclass(frozen=True)
 class PipelineConfig:
     """All stage configurations together."""
 
@@ -342,6 +419,16 @@ class PipelineConfig:
     ramps: RampConfig = field(default_factory=RampConfig)
     topology: TopologyConfig = field(default_factory=TopologyConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    drive: DriveConfig = field(default_factory=DriveConfig)
+
+    def with_method(self, method: Literal["default", "paper"]) -> PipelineConfig:
+        """The same settings built with ``method``: the mainline method and the ramps' lane
+        rule for untagged links (``paper``: the seed paper's Algorithm 2 class default)."""
+        return replace(
+            self,
+            mainline=replace(self.mainline, method=method),
+            ramps=replace(self.ramps, link_lane_rule="paper" if method == "paper" else "osm"),
+        )
 
     @classmethod
     def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> PipelineConfig:

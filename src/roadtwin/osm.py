@@ -234,14 +234,15 @@ class _Ways:
         self.node_tags: dict[int, dict[str, str]] = {}
 
 
-def _read_highway_ways(path: Path) -> _Ways:
+def _read_highway_ways(path: Path, *, extra_tags: tuple[str, ...] = ()) -> _Ways:
+    """Every drivable way of an extract (``WAY_TAGS`` plus ``extra_tags`` kept)."""
     import osmium
 
     out = _Ways()
     refs: list[list[int]] = []
     lons: list[list[float]] = []
     lats: list[list[float]] = []
-    keep = (*WAY_TAGS, *_EXTRA_TAGS)
+    keep = (*WAY_TAGS, *_EXTRA_TAGS, *extra_tags)
     try:
         processor = (
             osmium.FileProcessor(str(path))

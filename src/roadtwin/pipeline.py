@@ -110,6 +110,7 @@ def build_map(
     t0 = time.perf_counter()
     mainline = build_mainline(run, config=cfg.mainline)
     timings["mainline"] = time.perf_counter() - t0
+    warnings.extend(st.message() for st in mainline.stretches)
 
     t0 = time.perf_counter()
     if osm_graph is not None and osm_graph.number_of_edges() > 0:

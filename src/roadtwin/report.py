@@ -361,8 +361,58 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "run"
 
 
-def render_html(report: EvaluationReport, images: dict[str, bytes]) -> str:
-    """The report page: tables and the given PNGs (name -> bytes) embedded as base64."""
+def _drive_tables(drive: dict | None) -> str:
+    """The drive-throughs in esmini (``roadtwin drive``'s ``drive.json``): one row per
+    route, its faults, and esmini's warnings about the map."""
+    if drive is None:
+        return '<p class="note">Not driven: esmini not found (roadtwin drive --esmini DIR).</p>'
+    head = ["Route", "Kind", "Roads", "Result", "Driven (m)", "On target (m)", "Max jump (m)"]
+    rows = []
+    for r in drive["routes"]:
+        rows.append(
+            [
+                r["name"],
+                r["kind"],
+                " ".join(r["roads"]),
+                r["status"],
+                r["driven_m"],
+                r["on_target_m"],
+                r["max_jump_m"],
+            ]
+        )
+    verdict = "ok" if drive["ok"] else "bad"
+    out = [
+        f'<p class="{verdict}">{drive["passed"]} of {drive["routes_total"]} routes passed, '
+        f"{drive['failed']} failed, {drive['not_run']} not run; speed "
+        f"{drive['speed_m_s']:g} m/s, step {drive['timestep_s']:g} s.</p>",
+        _table(head, rows),
+    ]
+    faults = [(r["name"], f["message"]) for r in drive["routes"] for f in r["faults"]]
+    if faults:
+        out.append(_table(["Route", "Fault"], [list(x) for x in faults]))
+    warnings = drive.get("esmini_warnings") or {}
+    if warnings:
+        out.append(
+            _table(["esmini warning or error", "Routes"], [[m, n] for m, n in warnings.items()])
+        )
+    else:
+        out.append('<p class="note">esmini logged no warning or error about the map.</p>')
+    esmini = drive.get("esmini") or {}
+    out.append(
+        '<p class="note">A car driven in esmini ('
+        + html.escape(esmini.get("version", "not found"))
+        + ") along every route: it must reach the target road and drive on it, never jump "
+        "(position off by more than its own motion), never use a lane that is not a driving "
+        "lane, never leave the route and never get stuck.</p>"
+    )
+    return "".join(out)
+
+
+def render_html(
+    report: EvaluationReport, images: dict[str, bytes], *, drive: dict | None = None
+) -> str:
+    """The report page: tables and the given PNGs (name -> bytes) embedded as base64;
+    with ``drive`` (a ``drive.json`` document) also the drive-throughs in esmini."""
     doc = report.to_dict()
     parts = [
         "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
@@ -377,8 +427,10 @@ def render_html(report: EvaluationReport, images: dict[str, bytes]) -> str:
         _truth_tables(doc),
         "<h2>Topology</h2>",
         _topology_tables(doc),
-        "<h2>Plots</h2>",
     ]
+    if drive is not None:
+        parts += ["<h2>Drive-throughs (esmini)</h2>", _drive_tables(drive)]
+    parts.append("<h2>Plots</h2>")
     for name, png in images.items():
         b64 = base64.b64encode(png).decode("ascii")
         parts.append(f"<h3>{html.escape(name)}</h3>")
@@ -387,8 +439,13 @@ def render_html(report: EvaluationReport, images: dict[str, bytes]) -> str:
     return "\n".join(parts)
 
 
-def write_report(report: EvaluationReport, out_dir: str | Path) -> dict[str, Path]:
+def write_report(
+    report: EvaluationReport, out_dir: str | Path, *, drive: dict | None = None
+) -> dict[str, Path]:
     """Write ``report.json``, ``report.html`` and the PNG plots into ``out_dir``.
+
+    ``drive`` (the ``drive.json`` document of ``roadtwin drive``) adds the drive-throughs
+    to the HTML page.
 
     Each file is written to a temporary name and renamed. PNG names are
     ``map_errors.png``, ``error_along_s.png``, ``error_histogram.png`` for a single run,
@@ -419,6 +476,6 @@ def write_report(report: EvaluationReport, out_dir: str | Path) -> dict[str, Pat
         paths["json"], (json.dumps(doc, indent=2, sort_keys=True) + "\n").encode("utf-8")
     )
     paths["html"] = out / "report.html"
-    atomic_write_bytes(paths["html"], render_html(report, images).encode("utf-8"))
+    atomic_write_bytes(paths["html"], render_html(report, images, drive=drive).encode("utf-8"))
     log.info("wrote evaluation report (%d run(s)) to %s", len(report.runs), out)
     return paths

@@ -319,7 +319,7 @@ def _ramp_pairs(
     to outer), the mainline hard shoulder at a gore with the ramp's hard shoulder. The
     ramp's inner shoulder (and any surplus driving lane) opens from zero width: no pair."""
     lanes_ = _traffic_lanes(road.lane_sections[0], side)
-    driving = [lane.id for lane in lanes_ if lane.type != "shoulder"]
+    driving = [lane.id for lane in lanes_ if lane.type == "driving"]
     pairs = list(zip(sources, driving, strict=False))
     ids = {lane.id: lane for lane in _traffic_lanes(section, side)}
     outer = lanes_[-1] if len(lanes_) > 1 and lanes_[-1].type == "shoulder" else None
@@ -335,12 +335,23 @@ def _ramp_pairs(
 
 
 def _valid_sources(section: LaneSection, wanted: Sequence[int], side: TrafficSide) -> list[int]:
-    ids = {lane.id for lane in _traffic_lanes(section, side)}
-    got = [i for i in wanted if i in ids]
-    if got:
-        return got
+    """The wanted mainline lanes that are driving lanes of ``section`` (a ramp is fed by
+    driving lanes only); else the outermost driving lane."""
     driving = [lane.id for lane in _traffic_lanes(section, side) if lane.type == "driving"]
-    return driving[-1:]
+    got = [i for i in wanted if i in driving]
+    return got or driving[-1:]
+
+
+def _driving_pairs(
+    pairs: Sequence[tuple[int, int]], section: LaneSection, ramp_section: LaneSection, side
+) -> list[tuple[int, int]]:
+    """The (mainline lane, ramp lane) pairs that join two driving lanes: the junction lane
+    links between mainline and ramp. The hard shoulder beside a gore keeps its width into
+    the ramp but is not linked: esmini takes every junction lane link as a way to drive and
+    logs "GetJunctionConnection target lane not driving" for one into a shoulder."""
+    main = {lane.id: lane.type for lane in _traffic_lanes(section, side)}
+    ramp = {lane.id: lane.type for lane in _traffic_lanes(ramp_section, side)}
+    return [(x, y) for x, y in pairs if main.get(x) == "driving" and ramp.get(y) == "driving"]
 
 
 # ---------------------------------------------------------------------------
@@ -495,8 +506,15 @@ def build_topology(
             sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side)
             pairs = _ramp_pairs(road, down_sec, sources, shoulder, traffic_side, main=down)
         # ramp driving lane k <-> mainline source lane k, hard shoulder <-> hard shoulder at
-        # a gore; the other ramp lanes open from (entry: close to) zero width
+        # a gore (widths only, not linked); the other ramp lanes open from (entry: close to)
+        # zero width
         paired = {y: x for x, y in pairs}
+        pairs = _driving_pairs(
+            pairs,
+            up_sec if ramp.type == "exit" else down_sec,
+            road.lane_sections[0 if ramp.type == "exit" else -1],
+            traffic_side,
+        )
 
         up = replace(up, successor=RoadLink("junction", jid))
         down = replace(down, predecessor=RoadLink("junction", jid))
@@ -634,8 +652,9 @@ def _ramp_connecting_road(
     ``ids`` = (ramp road id, connecting road id, junction id). The connecting road runs in
     the driving direction: from the end of ``main`` into the ramp (exit) or from the ramp's
     end onto the start of ``main`` (entry), with the widths, heights and outer border of
-    ``main``'s lane ``source_lane`` at its mainline end. ``pairs`` holds (mainline lane,
-    ramp lane) pairs, ``paired`` maps ramp lane -> mainline lane.
+    ``main``'s lane ``source_lane`` at its mainline end. ``pairs`` holds the linked
+    (mainline lane, ramp lane) pairs (driving lanes), ``paired`` maps ramp lane -> mainline
+    lane for the widths (with the hard shoulder at a gore).
     """
     ramp_id, c_id, jid = ids
     if exit_:

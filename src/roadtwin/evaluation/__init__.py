@@ -329,8 +329,6 @@ def compare_methods(
         One :class:`RunEvaluation` per method (``method`` set), in the order given, then
         the truth's.
     """
-    from dataclasses import replace
-
     from ..config import PipelineConfig
     from ..pipeline import build_map
 
@@ -343,7 +341,7 @@ def compare_methods(
         )
     reports = []
     for method in methods:
-        build_cfg = replace(cfg, mainline=replace(cfg.mainline, method=method))
+        build_cfg = cfg.with_method(method)
         result = build_map(run, osm_graph, config=build_cfg)
         reports.append(
             evaluate(

@@ -54,6 +54,7 @@ from ._common import BoundaryTrack, LaneEvent, Mainline, self_consistency
 from .cut import cut_road
 from .lanes import fit_lanes, fit_outer_edge
 from .paper import _build_paper
+from .quality import Stretch, poorly_determined
 from .reference import _build_default, fit_elevation, fit_reference_edge
 
 log = logging.getLogger(__name__)
@@ -62,12 +63,14 @@ __all__ = [
     "BoundaryTrack",
     "LaneEvent",
     "Mainline",
+    "Stretch",
     "build_mainline",
     "cut_road",
     "fit_elevation",
     "fit_lanes",
     "fit_outer_edge",
     "fit_reference_edge",
+    "poorly_determined",
     "self_consistency",
 ]
 
@@ -105,6 +108,9 @@ def build_mainline(run: MappingRun, *, config: MainlineConfig | None = None) -> 
         result = _build_default(run, cfg, timings)
     t0 = time.perf_counter()
     residuals = self_consistency(result.road, run)
+    stretches = poorly_determined(result.road, run, config=cfg)
+    for stretch in stretches:
+        log.warning("%s", stretch.message())
     timings["self_consistency"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     road = result.road
@@ -127,4 +133,5 @@ def build_mainline(run: MappingRun, *, config: MainlineConfig | None = None) -> 
         tracks=result.tracks,
         timings_s=timings,
         residuals=residuals,
+        stretches=stretches,
     )

@@ -85,6 +85,7 @@ class Mainline:
     timings_s : seconds per stage.
     residuals : self-consistency RMSE (metres) of the paper's metric
         ``e = |t_measured - t_boundary(s)|``: ``road_edge``, ``lane_boundary``, ``overall``.
+    stretches : where the run's own points disagree with the road (warnings with stations).
     """
 
     road: Road
@@ -93,6 +94,8 @@ class Mainline:
     tracks: tuple[BoundaryTrack, ...] = ()
     timings_s: dict[str, float] = field(default_factory=dict)
     residuals: dict[str, float] = field(default_factory=dict)
+    stretches: tuple = ()
+    """Stretches whose evidence disagrees with the road (:mod:`.quality` ``Stretch``)."""
 
 
 @dataclass(frozen=True)
@@ -219,6 +222,60 @@ def _road_frame(road: Road, step_m: float = 0.5) -> PolylineFrame:
     return PolylineFrame(s, np.stack([x, y], axis=1), np.stack([np.cos(h), np.sin(h)], axis=1))
 
 
+@dataclass(frozen=True)
+class PointResiduals:
+    """Measured points of one kind against the nearest boundary of their kind.
+
+    Attributes
+    ----------
+    s, t : station and lateral offset (left positive) of each point on the road, metres.
+    error : signed ``t - t_boundary`` of the nearest boundary, metres.
+    boundary : row of that boundary (edges: 0 reference line, 1 outer edge; markings:
+        the lane whose outer border it is, inner to outer).
+    fraction_used : share of the points within the road's ends that lie in its corridor.
+    """
+
+    s: FloatArray
+    t: FloatArray
+    error: FloatArray
+    boundary: NDArray[np.int64]
+    fraction_used: float
+
+
+def point_residuals(road: Road, run: MappingRun) -> dict[str, PointResiduals]:
+    """Road-edge points and lane samples against the nearest boundary of their kind.
+
+    Only points between the two road edges (plus 1 m for edge points, 0.5 m for lane
+    samples) count, as in the paper's corridor: ramp edges and markings beyond a gore and
+    points of other roads are not measurements of this road. Keys ``road_edge`` and
+    ``lane_boundary``.
+    """
+    frame = _road_frame(road)
+    out: dict[str, PointResiduals] = {}
+    for name, pts in (("road_edge", run.edges), ("lane_boundary", run.lane_samples)):
+        empty = np.zeros(0)
+        if pts.shape[0] == 0:
+            out[name] = PointResiduals(empty, empty, empty, empty.astype(np.int64), 0.0)
+            continue
+        s, t = frame.project(pts)
+        ok = (s >= 0) & (s <= road.length)
+        s, t = s[ok], t[ok]
+        edges = _border_matrix(road, s, edges=True)[:2]
+        margin = 1.0 if name == "road_edge" else 0.5
+        inside = (t >= np.nanmin(edges, axis=0) - margin) & (t <= np.nanmax(edges, axis=0) + margin)
+        s, t = s[inside], t[inside]
+        borders = _border_matrix(road, s, edges=(name == "road_edge"))
+        signed = t[None, :] - borders
+        if s.size and np.any(np.isfinite(signed)):
+            nearest = np.nanargmin(np.where(np.isfinite(signed), np.abs(signed), np.inf), axis=0)
+        else:
+            nearest = np.zeros(s.size, dtype=np.int64)
+        error = signed[nearest, np.arange(s.size)] if s.size else empty
+        used = float(np.mean(inside)) if inside.size else 0.0
+        out[name] = PointResiduals(s, t, error, nearest.astype(np.int64), used)
+    return out
+
+
 def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
     """RMSE of ``e = |t_measured - t_boundary(s)|`` (the paper's Table 4), metres.
 
@@ -228,27 +285,12 @@ def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
     the two road edges (plus 1 m for edge points, 0.5 m for lane samples) count, as in the
     paper's corridor; ``<kind>_fraction_used`` says how many did.
     """
-    frame = _road_frame(road)
     out: dict[str, float] = {}
     errs = {}
     used: dict[str, float] = {}
-    for name, pts in (("road_edge", run.edges), ("lane_boundary", run.lane_samples)):
-        if pts.shape[0] == 0:
-            errs[name] = np.zeros(0)
-            used[name] = 0.0
-            continue
-        s, t = frame.project(pts)
-        ok = (s >= 0) & (s <= road.length)
-        s, t = s[ok], t[ok]
-        # only points on the carriageway (+- margin): ramp edges/markings beyond a gore
-        # and points of other roads are not measurements of this road
-        edges = _border_matrix(road, s, edges=True)[:2]
-        margin = 1.0 if name == "road_edge" else 0.5
-        inside = (t >= np.nanmin(edges, axis=0) - margin) & (t <= np.nanmax(edges, axis=0) + margin)
-        s, t = s[inside], t[inside]
-        used[name] = float(np.mean(inside)) if inside.size else 0.0
-        borders = _border_matrix(road, s, edges=(name == "road_edge"))
-        errs[name] = np.nanmin(np.abs(borders - t[None, :]), axis=0)
+    for name, res in point_residuals(road, run).items():
+        errs[name] = np.abs(res.error)
+        used[name] = res.fraction_used
     for name, e in errs.items():
         out[name] = float(np.sqrt(np.nanmean(e * e))) if e.size else math.nan
         out[f"{name}_fraction_used"] = used[name]

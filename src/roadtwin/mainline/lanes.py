@@ -319,7 +319,9 @@ def fit_lanes(
     if np.all(np.isfinite(d_edge)):
         keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
-    tracks, evidence = _tracks_from_samples(s_l, d_l, grid, length, cfg)
+    tracks, evidence = _tracks_from_samples(
+        s_l, d_l, grid, length, cfg, d_edge if np.all(np.isfinite(d_edge)) else None
+    )
     if not np.all(np.isfinite(d_edge)):
         last = max((float(np.max(tr.d)) for tr in tracks), default=3.0)
         d_edge = np.full(grid.size, last + 2.5)
@@ -358,7 +360,12 @@ class _Track:
 
 
 def _tracks_from_samples(
-    s: FloatArray, d: FloatArray, grid: FloatArray, length: float, cfg: MainlineConfig
+    s: FloatArray,
+    d: FloatArray,
+    grid: FloatArray,
+    length: float,
+    cfg: MainlineConfig,
+    d_edge: FloatArray | None = None,
 ) -> tuple[list[_Track], list[tuple[float, float]]]:
     """Marking tracks: histogram peaks linked along s, false positives removed, samples
     assigned exclusively to the nearest track, each track smoothed robustly.
@@ -449,7 +456,7 @@ def _tracks_from_samples(
         ss, dd = ss[within], dd[within]  # sorted by station already
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
-    return _merge_collinear(final, cfg), evidence
+    return _merge_collinear(final, cfg, grid, d_edge), evidence
 
 
 def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
@@ -802,8 +809,31 @@ def _add_hidden_lanes(
     return out
 
 
-def _merge_collinear(tracks: list[_Track], cfg: MainlineConfig) -> list[_Track]:
-    """Join a track that ends and another that starts at the same offset (occlusion)."""
+def _merge_collinear(
+    tracks: list[_Track],
+    cfg: MainlineConfig,
+    grid: FloatArray | None = None,
+    d_edge: FloatArray | None = None,
+) -> list[_Track]:
+    """Join a track that ends and another that starts at the same offset (occlusion).
+
+    With the outer edge ``d_edge`` on ``grid``: never across a stretch where the road is
+    too narrow to hold the marking (the edge comes within half a metre of the bridged
+    line): there the marking really ended and another began (an exit and a later entry at
+    the same offset), it was not hidden.
+    """
+
+    def road_holds(a: _Track, b: _Track) -> bool:
+        if grid is None or d_edge is None:
+            return True
+        inside = (grid > a.hi) & (grid < b.lo)
+        if not np.any(inside):
+            return True
+        x = (grid[inside] - a.hi) / max(b.lo - a.hi, 1e-9)
+        line = (1.0 - x) * a.d[-1] + x * b.d[0]
+        edge = d_edge[inside]
+        return not np.any(np.isfinite(edge) & (edge < line + 0.5))
+
     tracks = sorted(tracks, key=lambda tr: tr.lo)
     merged = True
     while merged:
@@ -812,7 +842,7 @@ def _merge_collinear(tracks: list[_Track], cfg: MainlineConfig) -> list[_Track]:
             for j, b in enumerate(tracks):
                 if i == j or b.lo <= a.hi - 1.0 or b.lo - a.hi > 5.0 * cfg.lane_max_gap_m:
                     continue
-                if abs(a.d[-1] - b.d[0]) > cfg.lane_link_m:
+                if abs(a.d[-1] - b.d[0]) > cfg.lane_link_m or not road_holds(a, b):
                     continue
                 tracks[i] = _Track(
                     a.id,

@@ -17,21 +17,20 @@ attach to the measured road (DESIGN.md section 4):
    > highway class); the measured mainline lane-count change at the gore
    (:func:`gores_from_lane_events`, :func:`gore_events`) overrides it when present, and
    the measured gore decides the station where the ramp leaves or joins.
-4. :func:`build_ramp_road` -- OSM polyline resampled at 0.5 m, Savitzky-Golay smoothed,
-   offset by half the ramp width to its median-side boundary (the reference line), kept
-   outside the measured carriageway, trimmed or extended to the gore, and re-anchored:
-   its mainline end is moved exactly onto the inner border of the mainline lane it
-   continues (the deceleration/acceleration lane: i.e. the outer border of the outermost
-   through lane; without a measured gore the outermost lane, which the ramp splits off)
-   with the mainline's heading, blended into the OSM shape over ``blend_length_m``, the
-   attachment piece made an exact Hermite ParamPoly3; the rest fitted with
-   :func:`roadtwin.fitting.fit_parampoly3_chain`.
-5. :func:`fit_ramp_evidence` -- the road edges and lane markings the LiDAR measured past
-   the gore (not explained by the mainline) are tracked outward from the gore and give
-   the ramp's first part (a spline offset from the through lane's outer border, tangent
-   at the gore) and its shoulder and lane widths; beyond the last measured point the
-   fitted line blends into the OSM shape. No or too little evidence: OSM shape and the
-   documented default widths (``RampConfig``).
+4. :func:`build_ramp_road` -- the reference line (the ramp's median-side edge, offset from
+   the smoothed OSM centreline, trimmed or extended to the gore) is a curvature-bounded
+   clothoid spline anchored exactly on the inner border of the mainline lane it continues
+   (the deceleration/acceleration lane: i.e. the outer border of the outermost through
+   lane; without a measured gore the outermost lane, which the ramp splits off) with the
+   mainline's heading and curvature (:func:`fit_ramp_shape`): no knots on tight loops,
+   radius >= ``min_radius_m``; the attachment piece is an exact Hermite ParamPoly3, the
+   rest fitted with :func:`roadtwin.fitting.fit_parampoly3_chain`.
+5. LiDAR evidence: the road edges and lane markings measured past the gore (not explained
+   by the mainline) are tracked outward from the gore in the same fit: each point is
+   associated with the nearest predicted ramp boundary of its kind and gives the ramp's
+   first part and its shoulder and lane widths; beyond the last measured point the OSM
+   shape decides again. No or too little evidence: OSM shape and the documented default
+   widths (``RampConfig``).
 
 Ramp cross-section = the mainline's layout: inner shoulder (opening from zero width at
 the gore), driving lanes (the first ones starting with the widths of the mainline lanes
@@ -51,8 +50,9 @@ split with one concern per module; everything is imported from ``roadtwin.ramps`
 - :mod:`.lanes` -- Algorithm 2, lane count from OSM tags.
 - :mod:`.candidates` -- Algorithm 1, ramp chains, direction and side checks.
 - :mod:`.gores` -- measured gores and the mainline borders a ramp attaches to.
-- :mod:`.geometry` -- Hermite pieces, smoothing, re-anchoring, base line.
-- :mod:`.evidence` -- LiDAR evidence past the gore (:func:`fit_ramp_evidence`).
+- :mod:`.geometry` -- Hermite pieces, smoothing, mainline boundary distances.
+- :mod:`.shape` -- the curvature-bounded reference line and the evidence fit
+  (:func:`fit_ramp_shape`).
 - :mod:`.road` -- the ramp road and its cross-section (:func:`build_ramp_road`).
 - :mod:`.build` -- the stage, :func:`build_ramps`.
 """
@@ -60,7 +60,6 @@ split with one concern per module; everything is imported from ``roadtwin.ramps`
 # Names after "as" are kept importable from roadtwin.ramps as before but stay out of __all__.
 from .build import build_ramps
 from .candidates import extract_ramp_chains, find_candidates
-from .evidence import fit_ramp_evidence
 from .geometry import hermite_piece
 from .gores import gore_events, gores_from_lane_events
 from .gores import outer_driving_lane as outer_driving_lane
@@ -72,6 +71,7 @@ from .records import RampType as RampType
 from .records import TrafficSide as TrafficSide
 from .road import build_ramp_road
 from .road import width_transition as width_transition
+from .shape import fit_ramp_shape
 
 __all__ = [
     "GoreEvent",
@@ -84,7 +84,7 @@ __all__ = [
     "build_ramps",
     "extract_ramp_chains",
     "find_candidates",
-    "fit_ramp_evidence",
+    "fit_ramp_shape",
     "gore_events",
     "gores_from_lane_events",
     "hermite_piece",

@@ -91,7 +91,7 @@ def build_ramps(
     edge_xy, lane_xy
         The run's measured road-edge points and lane samples (``(N, 2+)``, mapping frame,
         metres): those past each gore shape the ramp's first part and give its widths
-        (:func:`fit_ramp_evidence`). ``None``: OSM shape and default widths.
+        (:func:`~roadtwin.ramps.shape.fit_ramp_shape`). ``None``: OSM shape and default widths.
     config
         Ramp settings.
 
@@ -137,7 +137,7 @@ def build_ramps(
     for i, (chain, s_osm) in enumerate(zip(chains, stations, strict=False)):
         what = f"{chain.type} ways {', '.join(str(w) for w in chain.osm_way_ids)}"
         notes: list[str] = []
-        osm_lanes, osm_rule = infer_lane_count(chain.tags)
+        osm_lanes, osm_rule = infer_lane_count(chain.tags, link_rule=cfg.link_lane_rule)
         if osm_rule == "highway class":
             notes.append(f"{what}: no lane tags, lane count {osm_lanes} from the highway class")
         if chain.type != chain.type_geometry:

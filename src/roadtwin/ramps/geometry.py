@@ -1,5 +1,5 @@
-"""Ramp shape helpers: exact Hermite ParamPoly3 pieces, smoothing of the OSM polyline,
-re-anchoring on the mainline and the base line of the ramp's first part.
+"""Ramp geometry helpers: exact Hermite ParamPoly3 pieces, smoothing of the OSM polyline
+and distances to the mainline's boundaries.
 
 All coordinates are in the mapping frame (metres, radians CCW from +x).
 """
@@ -11,10 +11,10 @@ import math
 import numpy as np
 
 from ..config import RampConfig
-from ..fitting import PolylineFrame, arc_length, resample_polyline, savgol_smooth
+from ..fitting import resample_polyline, savgol_smooth
 from ..model import ParamPoly3, Road
 from .gores import _traffic_lanes
-from .records import FloatArray, RampType, TrafficSide
+from .records import FloatArray, TrafficSide
 
 # ---------------------------------------------------------------------------
 # geometry
@@ -66,32 +66,11 @@ def hermite_piece(
     )
 
 
-def _smootherstep(x: FloatArray) -> FloatArray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * x * (x * (6.0 * x - 15.0) + 10.0)
-
-
 def _smooth_polyline(xy: FloatArray, cfg: RampConfig) -> FloatArray:
     dense = resample_polyline(xy, cfg.resample_step_m)
     window = max(5, round(cfg.savgol_window_m / cfg.resample_step_m))
     smooth = savgol_smooth(dense, window=window, polyorder=cfg.savgol_polyorder)
     return smooth
-
-
-def _anchor_start(
-    xy: FloatArray, target_xy: FloatArray, target_hdg: float, blend_m: float
-) -> FloatArray:
-    """Move the start of a dense polyline onto ``target_xy`` with heading ``target_hdg``,
-    blending the correction out over ``blend_m`` (C2 smootherstep)."""
-    sigma = arc_length(xy)
-    frame = PolylineFrame.from_points(xy)
-    u0 = frame.tangent[0]
-    u_star = np.array([math.cos(target_hdg), math.sin(target_hdg)])
-    delta = target_xy - xy[0]
-    fade = 1.0 - _smootherstep(sigma / max(blend_m, 1e-6))
-    out = xy + fade[:, None] * (delta[None, :] + sigma[:, None] * (u_star - u0)[None, :])
-    out[0] = target_xy
-    return out
 
 
 def _mainline_boundary_distance(
@@ -119,22 +98,3 @@ def _mainline_boundary_distance(
             best = np.minimum(best, np.abs(t[sel] - tb))
         out[sel] = best
     return out
-
-
-def _base_line(
-    road: Road, station_m: float, through_lane_id: int, ramp_type: RampType, reach_m: float
-) -> PolylineFrame | None:
-    """The outer border of the through lane from the gore ``reach_m`` along the ramp's
-    direction (exit: downstream, entry: upstream), in driving order, as a Frenet frame."""
-    direction = 1.0 if ramp_type == "exit" else -1.0
-    far = float(np.clip(station_m + direction * reach_m, 0.0, road.length))
-    n = int(abs(far - station_m) / 0.5) + 1
-    if n < 8:
-        return None
-    s = np.linspace(station_m, far, n)
-    s = np.clip(s, 1e-6, road.length - 1e-6)
-    t = road.lane_border_t(s, through_lane_id)
-    if not np.all(np.isfinite(t)):
-        return None
-    xy = road.to_xy(s, t).reshape(-1, 2)
-    return PolylineFrame.from_points(xy if ramp_type == "exit" else xy[::-1])

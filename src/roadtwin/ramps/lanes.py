@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal
 
 # ---------------------------------------------------------------------------
 # Algorithm 2: lane count from tags
@@ -29,16 +29,25 @@ def _parse_int(value: Any) -> int | None:
     return n if n > 0 else None
 
 
-def infer_lane_count(tags: dict[str, Any]) -> tuple[int, str]:
+def infer_lane_count(
+    tags: dict[str, Any], *, link_rule: Literal["osm", "paper"] = "osm"
+) -> tuple[int, str]:
     """Lane count of one OSM edge by the paper's Algorithm 2, and the rule that decided.
 
     Priority: ``lanes:forward`` > ``lanes`` > ``turn:lanes`` (number of ``|`` + 1) >
-    highway class (``motorway*`` 3, ``trunk*``/``primary*`` 2, else 1).
+    highway class. The class default follows OSM's own convention with ``link_rule="osm"``
+    (the default method): a ``*_link`` way without lane tags is 1 lane (the OSM wiki's
+    ``lanes`` default for link roads; the paper's class default built real one-lane ramps
+    3 lanes wide); ``motorway`` 3, ``trunk``/``primary`` 2, else 1. ``link_rule="paper"``
+    is the paper's Algorithm 2 as written (``motorway*`` 3, ``trunk*``/``primary*`` 2, else
+    1, links included).
 
     Parameters
     ----------
     tags
         OSM edge attributes (values may be strings, numbers or lists, as OSMnx gives them).
+    link_rule
+        ``"osm"`` or ``"paper"``: the class default for ``*_link`` ways (see above).
 
     Returns
     -------
@@ -57,6 +66,8 @@ def infer_lane_count(tags: dict[str, Any]) -> tuple[int, str]:
         return turn.count("|") + 1, "turn:lanes"
     highway = tags.get("highway", "")
     highway = " ".join(highway) if isinstance(highway, (list, tuple)) else str(highway)
+    if link_rule == "osm" and "_link" in highway:
+        return 1, "highway class"
     if "motorway" in highway:
         return 3, "highway class"
     if "trunk" in highway or "primary" in highway:

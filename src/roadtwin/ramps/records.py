@@ -96,18 +96,18 @@ class GoreEvent:
 
 @dataclass(frozen=True)
 class RampEvidence:
-    """The measured points past a gore fitted to a ramp (:func:`fit_ramp_evidence`).
+    """The measured points past a gore fitted to a ramp (:func:`.shape.fit_ramp_shape`).
 
     Attributes
     ----------
-    xy : ``(N, 2)`` corrected reference line (driving order, mapping frame, metres).
+    xy : ``(N, 2)`` fitted reference line (driving order, mapping frame, metres).
     widths : ``(inner shoulder, driving lane, hard shoulder)`` widths, metres (measured
         where the points saw the boundary, else the defaults given).
     points : measured points matched to a ramp boundary.
     counts : matched points per boundary ``(left edge, markings, right edge)``.
     span_m : extent along the ramp of the matched points (metres from the gore).
-    max_shift_m : distance between the fitted line and the OSM shape where the blend
-        into the OSM shape begins, metres.
+    max_shift_m : largest distance between the fitted line and the line fitted to the
+        OSM shape alone, metres.
     rmse_m : residual RMSE of the matched points against the fitted boundaries, metres.
     """
 

@@ -12,16 +12,18 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from .._errors import FitError
 from ..config import RampConfig
 from ..fitting import PolylineFrame, arc_length, fit_parampoly3_chain, resample_polyline
 from ..model import CubicPiece, CubicProfile, Lane, LaneSection, Road, RoadMark, chain_geometry
 from .candidates import _wrap
-from .evidence import fit_ramp_evidence
-from .geometry import _anchor_start, _smooth_polyline, hermite_piece
+from .geometry import _mainline_boundary_distance, _smooth_polyline, hermite_piece
 from .gores import _outer_border_t
 from .records import FloatArray, RampEvidence, RampType, TrafficSide
+from .shape import fit_ramp_shape
 
 log = logging.getLogger(__name__)
 
@@ -72,8 +74,9 @@ def _build_ramp_road(
         ``None``: the ramp's hard shoulder opens from zero width.
     edge_xy, lane_xy
         Measured road-edge points and lane samples (``(N, 2+)``, mapping frame, metres).
-        Those past the gore on the ramp (:func:`fit_ramp_evidence`) shape the ramp's first
-        part and give its shoulder and lane widths; ``None``: OSM and defaults decide.
+        Those past the gore on the ramp (:func:`.shape.fit_ramp_shape`) shape the
+        ramp's first part and give its shoulder and lane widths; ``None``: OSM and
+        defaults decide.
 
     Returns
     -------
@@ -148,9 +151,12 @@ def _build_ramp_road(
     t_edge = _outer_border_t(mainline_road, np.clip(s_i, 0.0, mainline_road.length), traffic_side)
     t_edge = np.where(np.isfinite(t_edge), t_edge, t_i)
     separation = (t_i - t_edge) * outward
-    # points near the carriageway on the wrong side of the gore (a ramp folding back
-    # across the mainline, or an offset curve folding) are dropped
-    wrong = ((s_i - s_att) * direction < -1e-6) & (separation < 2.0 * lanes * width)
+    # points near the carriageway on the wrong side of the gore before the ramp has left
+    # it (OSM drawn across the gore, an offset curve folding) are dropped; later ones are
+    # the ramp itself (a loop coming back across the mainline on a bridge)
+    away = separation > 2.0 * lanes * width
+    leaving = np.arange(len(ref)) < (int(np.argmax(away)) if np.any(away) else len(ref))
+    wrong = leaving & ((s_i - s_att) * direction < -1e-6) & (separation < 2.0 * lanes * width)
     if np.any(wrong):
         ref, s_i, t_i = ref[~wrong], s_i[~wrong], t_i[~wrong]
         t_edge, separation = t_edge[~wrong], separation[~wrong]
@@ -169,40 +175,78 @@ def _build_ramp_road(
     if length < cfg.min_ramp_length_m:
         msg = f"{road_id}: only {length:.1f} m of ramp remain after trimming"
         raise FitError(msg)
-    hdg = h_main if ramp_type == "exit" else h_main + math.pi
-    ref = _anchor_start(ref, target, hdg, min(cfg.blend_length_m, 0.6 * length))
-    if ramp_type == "entry":
-        ref = ref[::-1]
+    # the reference line as a clothoid spline from the anchor pose (attachment-first:
+    # an entry is fitted from its end, heading reversed, lanes on the other side)
+    backwards = ramp_type == "entry"
+    hdg = h_main + (math.pi if backwards else 0.0)
+    k_main = float(mainline_road.curvature(np.array([s_att]))[0])
+    k_border = k_main / max(1.0 - t_att * k_main, 0.1)
+    lane_side = outward * (-1.0 if backwards else 1.0)
     w_hs = cfg.hard_shoulder_width_m
+
+    anchor = (float(target[0]), float(target[1]), hdg)
+    k_start = -k_border if backwards else k_border
+    sigma_osm = np.full(len(ref), cfg.osm_sigma_m)
+    osm_fit = fit_ramp_shape(
+        ref,
+        sigma_osm,
+        anchor=anchor,
+        curvature0=k_start,
+        lane_side=lane_side,
+        lanes=lanes,
+        widths=(w_in, width, w_hs),
+        config=cfg,
+    )
     fit = None
-    if edge_xy is not None or lane_xy is not None:
-        fit = fit_ramp_evidence(
+    measured = _measured_near_ramp(
+        osm_fit.xy, mainline_road, edge_xy, lane_xy, lanes * width + 8.0, traffic_side, cfg
+    )
+    if measured is not None:
+        shape = fit_ramp_shape(
             ref,
-            mainline_road,
-            ramp_type=ramp_type,
+            sigma_osm,
+            anchor=anchor,
+            curvature0=k_start,
+            lane_side=lane_side,
             lanes=lanes,
             widths=(w_in, width, w_hs),
-            station_m=s_att,
-            through_lane_id=first_id + (1 if first_id < 0 else -1),
-            edge_xy=edge_xy,
-            lane_xy=lane_xy,
-            traffic_side=traffic_side,
+            points=measured,
             config=cfg,
         )
-        if fit is not None:
-            ref = fit.xy
-            w_in, width, w_hs = fit.widths
+        shift = float(np.max(np.hypot(*(shape.xy - osm_fit.xy).T)))
+        if shape.points < cfg.evidence_min_points or shape.span_m < cfg.evidence_min_span_m:
+            shape = None
+        elif shift > cfg.evidence_max_shift_m:
+            log.warning(
+                "%s: measured points pull the ramp %.1f m off the OSM shape; not used",
+                road_id,
+                shift,
+            )
+            shape = None
+        if shape is not None:
+            w_in, width, w_hs = shape.widths
+            fit = RampEvidence(
+                xy=shape.xy[::-1] if backwards else shape.xy,
+                widths=shape.widths,
+                points=shape.points,
+                counts=shape.counts,
+                span_m=shape.span_m,
+                max_shift_m=shift,
+                rmse_m=shape.rmse_m,
+            )
             log.info(
-                "%s: %d measured points past the gore (max correction %.2f m, residual "
-                "RMSE %.3f m); widths %.2f / %.2f / %.2f m",
+                "%s: %d measured points past the gore up to %.0f m (max correction %.2f m, "
+                "residual RMSE %.3f m); widths %.2f / %.2f / %.2f m",
                 road_id,
                 fit.points,
+                fit.span_m,
                 fit.max_shift_m,
                 fit.rmse_m,
                 w_in,
                 width,
                 w_hs,
             )
+    ref = fit.xy if fit is not None else (osm_fit.xy[::-1] if backwards else osm_fit.xy)
     w_hs_src = 0.0
     if shoulder_lane_id is not None:
         inner_id = shoulder_lane_id + (1 if shoulder_lane_id < 0 else -1)
@@ -246,6 +290,42 @@ def _build_ramp_road(
     gap = float(math.hypot(float(x[0]) - target[0], float(y[0]) - target[1]))
     dh = abs(float(_wrap(float(h[0]) - h_main)))
     return road, gap, math.degrees(dh), fit
+
+
+def _measured_near_ramp(
+    ramp_xy: FloatArray,
+    mainline_road: Road,
+    edge_xy: FloatArray | None,
+    lane_xy: FloatArray | None,
+    lateral_m: float,
+    traffic_side: TrafficSide,
+    cfg: RampConfig,
+) -> tuple[FloatArray, NDArray[np.bool_]] | None:
+    """Measured edge points and lane samples within ``lateral_m`` of the first
+    ``evidence_length_m`` of a provisional ramp line (attachment-first), without those
+    the mainline explains (within ``evidence_exclude_m`` of a mainline boundary of their
+    kind): ``(xy, is_edge)`` or None."""
+    a = arc_length(ramp_xy)
+    probe = ramp_xy[a <= cfg.evidence_length_m + 1.0][:: max(1, round(2.0 / cfg.shape_step_m))]
+    parts, kinds = [], []
+    for is_edge, pts in ((True, edge_xy), (False, lane_xy)):
+        if pts is None or len(pts) == 0 or probe.shape[0] == 0:
+            continue
+        xy = np.asarray(pts, dtype=float)[:, :2]
+        near = cKDTree(probe).query(xy, distance_upper_bound=lateral_m)[0] < np.inf
+        sub = xy[near]
+        if sub.shape[0] == 0:
+            continue
+        kind = "edge" if is_edge else "lane"
+        d_main = _mainline_boundary_distance(
+            mainline_road, sub, kind=kind, traffic_side=traffic_side
+        )
+        sub = sub[d_main > cfg.evidence_exclude_m]
+        parts.append(sub)
+        kinds.append(np.full(sub.shape[0], is_edge))
+    if not parts or sum(p.shape[0] for p in parts) < cfg.evidence_min_points:
+        return None
+    return np.vstack(parts), np.concatenate(kinds)
 
 
 def build_ramp_road(*args: Any, **kwargs: Any) -> tuple[Road, float, float]:
