@@ -182,6 +182,8 @@ def test_cli_outputs_and_consumers(built):
     consumers = {c.name.lower(): c for c in built.report.consumers}
     asam = next(c for n, c in consumers.items() if "asam" in n or "qc" in n)
     sumo = next(c for n, c in consumers.items() if "sumo" in n)
+    if "not installed" in (asam.status, sumo.status):
+        pytest.skip("external checkers not installed (roadtwin[validate])")
     assert asam.status == "passed", asam
     assert asam.errors == 0
     assert sumo.status == "passed", sumo

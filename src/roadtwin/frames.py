@@ -113,5 +113,5 @@ class MappingFrame:
     @cached_property
     def origin_xy(self) -> tuple[float, float]:
         """The GPS origin in mapping-frame metres ((0, 0) for ``local``)."""
-        x, y = self.from_lonlat([self.origin.lon_deg], [self.origin.lat_deg])
-        return float(x[0]), float(y[0])
+        x, y = self._from_wgs84.transform(float(self.origin.lon_deg), float(self.origin.lat_deg))
+        return float(x), float(y)

@@ -60,6 +60,9 @@ class CubicProfile:
 
     pieces: tuple[CubicPiece, ...] = ()
 
+    def __repr__(self) -> str:
+        return f"CubicProfile({len(self.pieces)} pieces)"
+
     @staticmethod
     def constant(value: float, s0: float = 0.0) -> CubicProfile:
         """A profile equal to ``value`` everywhere."""
@@ -336,6 +339,12 @@ class Lane:
     successor: int | None = None
     level: bool = False
 
+    def __repr__(self) -> str:
+        return (
+            f"Lane({self.id}, {self.type!r}, width={self.width!r}, "
+            f"predecessor={self.predecessor}, successor={self.successor})"
+        )
+
 
 @dataclass(frozen=True)
 class LaneSection:
@@ -350,6 +359,10 @@ class LaneSection:
     center: Lane = field(default_factory=lambda: Lane(0, "none"))
     right: tuple[Lane, ...] = ()
     single_side: bool = False
+
+    def __repr__(self) -> str:
+        ids = [lane.id for lane in self.lanes if lane.id != 0]
+        return f"LaneSection(s0={self.s0:.3f}, lanes={ids})"
 
     @property
     def lanes(self) -> tuple[Lane, ...]:
@@ -410,6 +423,22 @@ class Road:
     junction: str = "-1"
     road_type: str = "motorway"
     speed_limit_mps: float | None = None
+    osm_way_ids: tuple[int, ...] = ()
+    """OSM ways the road was built from (ramps; empty for roads from the LiDAR run).
+    Written to the map as ``<userData code="roadtwin:osm_way_ids">``."""
+
+    def __repr__(self) -> str:
+        links = [
+            f"{which}={link.element_type}:{link.element_id}"
+            for which, link in (("predecessor", self.predecessor), ("successor", self.successor))
+            if link is not None
+        ]
+        extra = "".join(", " + x for x in links)
+        return (
+            f"Road({self.id!r}, name={self.name!r}, length={self.length:.3f} m, "
+            f"{len(self.geometry)} pieces, {len(self.lane_sections)} lane sections, "
+            f"junction={self.junction!r}{extra})"
+        )
 
     @property
     def length(self) -> float:
@@ -582,6 +611,9 @@ class Junction:
     name: str = ""
     type: Literal["default", "direct"] = "default"
 
+    def __repr__(self) -> str:
+        return f"Junction({self.id!r}, {self.type!r}, {len(self.connections)} connections)"
+
 
 @dataclass(frozen=True)
 class Header:
@@ -590,7 +622,11 @@ class Header:
     ``geo_reference`` is the PROJ string of the mapping frame (no ``+no_defs``);
     ``offset`` an optional ``(x, y, z, hdg)`` of the OpenDRIVE ``<offset>`` element;
     ``data_quality`` optional absolute/relative errors in metres
-    (``{"xy_absolute": .., "z_absolute": .., "xy_relative": .., "z_relative": ..}``).
+    (``{"xy_absolute": .., "z_absolute": .., "xy_relative": .., "z_relative": ..}``) of the
+    measurement data, as OpenDRIVE's ``<dataQuality><error>`` defines them (absolute error,
+    and relative error between adjacent entries; not a fit residual);
+    ``user_data`` ``(code, value)`` pairs written as ``<userData>`` (generator, version,
+    method, measured self-consistency).
     """
 
     name: str = "roadtwin"
@@ -601,6 +637,7 @@ class Header:
     vendor: str = "roadtwin"
     date: str = ""
     data_quality: dict[str, float] | None = None
+    user_data: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -610,6 +647,13 @@ class RoadNetwork:
     header: Header
     roads: tuple[Road, ...]
     junctions: tuple[Junction, ...] = ()
+
+    def __repr__(self) -> str:
+        km = sum(r.length for r in self.roads) / 1000.0
+        return (
+            f"RoadNetwork({self.header.name!r}, {len(self.roads)} roads, "
+            f"{len(self.junctions)} junctions, {km:.3f} km)"
+        )
 
     @cached_property
     def id_to_road(self) -> dict[str, Road]:

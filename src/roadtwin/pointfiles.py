@@ -22,7 +22,26 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ._errors import InputError, InputWarning
+from ._errors import InputError, InputWarning, one_line, reason
+
+__all__ = [
+    "EDGE_SUFFIXES",
+    "MAX_COORDINATE_M",
+    "SIDE_LEFT",
+    "SIDE_RIGHT",
+    "check_coordinates",
+    "float_column",
+    "int_column",
+    "one_line",
+    "read_road_edges",
+    "read_table",
+    "require_columns",
+]
+
+MAX_COORDINATE_M = 1.0e8
+"""Largest absolute coordinate (metres) of any point or pose. No place on earth lies farther
+than ~2e7 m from a projected CRS's origin; beyond this the data are corrupt or not metres
+(and squares of such numbers overflow)."""
 
 EDGE_SUFFIXES = (".las", ".laz", ".ply", ".csv", ".npy", ".parquet")
 SIDE_LEFT = 1
@@ -31,17 +50,12 @@ SIDE_RIGHT = -1
 """Edge side code of a right road-edge point."""
 
 
-def one_line(exc: BaseException | str) -> str:
-    """An exception's text on one line (CLI errors are one line)."""
-    return " ".join(str(exc).split())
-
-
 # ---------------------------------------------------------------------------
 # tables (CSV / Parquet) -> validated float columns
 # ---------------------------------------------------------------------------
 
 
-def read_table(path: Path, what: str) -> pd.DataFrame:
+def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.DataFrame:
     """Read a CSV file with a header row.
 
     Parameters
@@ -50,6 +64,8 @@ def read_table(path: Path, what: str) -> pd.DataFrame:
         CSV file (comma separated, UTF-8 with or without BOM).
     what
         What the file should hold, for error messages (``"columns x,y,z[,side]"``).
+    max_rows
+        Refuse files with more data rows (``None``: no limit).
 
     Returns
     -------
@@ -59,30 +75,68 @@ def read_table(path: Path, what: str) -> pd.DataFrame:
     if path.stat().st_size == 0:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg)
+    nul = _first_nul(path)
+    if nul is not None:  # pandas would silently cut the field at the NUL
+        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
+        raise InputError(msg)
     try:
-        df = pd.read_csv(path, skipinitialspace=True, low_memory=False, encoding="utf-8-sig")
+        df = pd.read_csv(
+            path,
+            skipinitialspace=True,
+            low_memory=False,
+            encoding="utf-8-sig",
+            nrows=None if max_rows is None else max_rows + 1,
+        )
     except pd.errors.EmptyDataError:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg) from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        msg = f"{path}: not a readable CSV file ({one_line(exc)}); expected {what}"
+    except UnicodeDecodeError:
+        msg = f"{path}: not a UTF-8 text file; expected a CSV table with {what}"
+        raise InputError(msg) from None
+    except (pd.errors.ParserError, ValueError) as exc:
+        msg = f"{path}: not a readable CSV file ({reason(exc)}); expected {what}"
         raise InputError(msg) from None
     df.columns = [str(c).strip().lower() for c in df.columns]
     if df.shape[0] == 0:
         msg = f"{path}: file has a header but no data rows (expected {what})"
         raise InputError(msg)
+    if max_rows is not None and df.shape[0] > max_rows:
+        msg = (
+            f"{path}: more than {max_rows:,} data rows; larger files are refused "
+            "([load] max_poses / max_points): thin or split them"
+        )
+        raise InputError(msg)
     return df
+
+
+def _first_nul(path: Path, chunk: int = 1 << 22) -> int | None:
+    """Byte offset of the first NUL byte in a file, or None (read in 4 MiB chunks)."""
+    offset = 0
+    with path.open("rb") as fh:
+        while block := fh.read(chunk):
+            at = block.find(b"\0")
+            if at >= 0:
+                return offset + at
+            offset += len(block)
+    return None
+
+
+def _column_names(columns: Iterable[str]) -> str:
+    """The found column names when they look like names; never other file content."""
+    names = [str(c) for c in columns]
+    plain = all(len(n) <= 32 and n.replace("_", "").replace(" ", "").isalnum() for n in names)
+    if plain and len(names) <= 20:
+        return "found: " + ", ".join(names)
+    return f"found {len(names)} column(s) that are not such names"
 
 
 def require_columns(columns: Iterable[str], needed: Iterable[str], path: Path, what: str) -> None:
     """Raise an InputError naming the first of ``needed`` missing from ``columns``."""
+    columns = list(columns)
     have = set(columns)
     for name in needed:
         if name not in have:
-            msg = (
-                f"{path}: missing column '{name}' (expected {what}; "
-                f"found: {', '.join(map(str, columns))})"
-            )
+            msg = f"{path}: missing column '{name}' (expected {what}; {_column_names(columns)})"
             raise InputError(msg)
 
 
@@ -96,8 +150,10 @@ def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
         bad_text = np.isnan(arr) & series.notna().to_numpy()
         if bad_text.any():
             row = int(np.argmax(bad_text))
+            count = int(np.count_nonzero(bad_text))
             msg = (
-                f"{path}: data row {row + 1}, column '{name}': {series.iloc[row]!r} is not a number"
+                f"{path}: data row {row + 1}, column '{name}': not a number "
+                f"({count} such value(s) in this column; expected numbers)"
             )
             raise InputError(msg)
     finite = np.isfinite(arr)
@@ -110,6 +166,21 @@ def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
         )
         raise InputError(msg)
     return arr
+
+
+def check_coordinates(xyz: NDArray[np.float64], path: Path) -> None:
+    """Refuse coordinates beyond :data:`MAX_COORDINATE_M` (corrupt, or not metres)."""
+    if xyz.size == 0:
+        return
+    big = np.abs(xyz) > MAX_COORDINATE_M
+    if big.any():
+        row, col = np.unravel_index(int(np.argmax(big)), big.shape)
+        msg = (
+            f"{path}: data row {row + 1}: coordinate {xyz[row, col]:.3g} is beyond "
+            f"{MAX_COORDINATE_M:.0e} m ({int(big.any(axis=1).sum())} row(s)); expected "
+            "metres in the mapping frame"
+        )
+        raise InputError(msg)
 
 
 def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
@@ -129,7 +200,9 @@ def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
 # ---------------------------------------------------------------------------
 
 
-def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
+def read_road_edges(
+    path: str | Path, *, max_points: int | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
     """Read road-edge points from LAS/LAZ, PLY, CSV, NPY or Parquet.
 
     Parameters
@@ -138,6 +211,9 @@ def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.i
         Point file; ``x, y, z`` in the mapping frame (metres), optional ``side``
         (strings ``left``/``right``, or integers 1 = left, 2 = right, 0 = unknown;
         -1 is accepted for right).
+    max_points
+        Refuse files with more points (``None``: no limit); LAS/LAZ, PLY, NPY and Parquet
+        are refused from their headers, before the points are read.
 
     Returns
     -------
@@ -149,19 +225,20 @@ def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.i
     if path.stat().st_size == 0:
         msg = f"{path}: file is empty (expected road-edge points x,y,z)"
         raise InputError(msg)
+    limit = max_points if max_points is not None else np.iinfo(np.int64).max
     if name.endswith((".las", ".laz")):
-        cols, side = _read_las(path)
+        cols, side = _read_las(path, limit)
     elif name.endswith(".ply"):
-        cols, side = _read_ply(path)
+        cols, side = _read_ply(path, limit)
     elif name.endswith(".csv"):
-        df = read_table(path, "columns x,y,z[,side]")
+        df = read_table(path, "columns x,y,z[,side]", max_rows=max_points)
         require_columns(df.columns, "xyz", path, "columns x,y,z[,side]")
         cols = {c: df[c] for c in "xyz"}
         side = df.get("side")
     elif name.endswith(".npy"):
-        cols, side = _read_npy(path)
+        cols, side = _read_npy(path, limit)
     elif name.endswith(".parquet"):
-        cols, side = _read_parquet(path)
+        cols, side = _read_parquet(path, limit)
     else:
         msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
         raise InputError(msg)
@@ -169,6 +246,7 @@ def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.i
     if xyz.shape[0] == 0:
         msg = f"{path}: no points (expected road-edge points x,y,z)"
         raise InputError(msg)
+    check_coordinates(xyz, path)
     codes = _side_codes(side, path, xyz.shape[0])
     return xyz, codes
 
@@ -210,13 +288,26 @@ def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
     return out
 
 
-def _read_las(path: Path) -> tuple[dict[str, Any], Any]:
+def _too_many(path: Path, count: int, limit: int) -> None:
+    if count > limit:
+        msg = (
+            f"{path}: {count:,} points; files with more than {limit:,} are refused "
+            "([load] max_points): thin or split them"
+        )
+        raise InputError(msg)
+
+
+def _read_las(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
     import laspy
 
     try:
-        las = laspy.read(path)
+        with laspy.open(path) as reader:
+            _too_many(path, int(reader.header.point_count), limit)
+            las = reader.read()
+    except InputError:
+        raise
     except Exception as exc:  # laspy raises many kinds on corrupt files
-        msg = f"{path}: not a readable LAS/LAZ file ({one_line(exc)})"
+        msg = f"{path}: not a readable LAS/LAZ file ({reason(exc)})"
         raise InputError(msg) from None
     cols = {"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z)}
     names = {d.lower(): d for d in las.point_format.dimension_names}
@@ -224,12 +315,19 @@ def _read_las(path: Path) -> tuple[dict[str, Any], Any]:
     return cols, side
 
 
-def _read_npy(path: Path) -> tuple[dict[str, Any], Any]:
-    try:
-        arr = np.load(path, allow_pickle=False)
-    except (ValueError, OSError) as exc:
-        msg = f"{path}: not a readable .npy array ({one_line(exc)})"
+def _read_npy(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
+    try:  # memory-mapped first: the header's shape is checked against the file's size
+        mapped = np.load(path, allow_pickle=False, mmap_mode="r")
+    except (ValueError, OSError, EOFError) as exc:
+        msg = f"{path}: not a readable .npy array ({reason(exc)})"
         raise InputError(msg) from None
+    if mapped.ndim >= 1:
+        _too_many(path, int(mapped.shape[0]), limit)
+    if mapped.dtype.kind not in "fiub" and not mapped.dtype.names:
+        msg = f"{path}: array of dtype {mapped.dtype}; expected numbers (x,y,z[,side])"
+        raise InputError(msg)
+    arr = np.array(mapped)
+    del mapped
     if arr.dtype.names:
         names = {n.lower(): n for n in arr.dtype.names}
         require_columns(names, "xyz", path, "fields x,y,z[,side]")
@@ -257,20 +355,27 @@ def _read_npy(path: Path) -> tuple[dict[str, Any], Any]:
     return cols, fourth
 
 
-def _read_parquet(path: Path) -> tuple[dict[str, Any], Any]:
+def _read_parquet(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
     import pyarrow.parquet as pq
 
     try:
-        schema = pq.read_schema(path)
+        meta = pq.ParquetFile(path)
+        schema = meta.schema_arrow
+        rows = int(meta.metadata.num_rows)
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
-        msg = f"{path}: not a readable Parquet file ({one_line(exc)})"
+        msg = f"{path}: not a readable Parquet file ({reason(exc)})"
         raise InputError(msg) from None
+    _too_many(path, rows, limit)
     names = {n.lower(): n for n in schema.names}
     require_columns(names, "xyz", path, "columns x,y,z[,side]")
     wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
-    table = pq.read_table(path, columns=wanted)
-    cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
-    side = table.column(names["side"]).to_pandas() if "side" in names else None
+    try:
+        table = pq.read_table(path, columns=wanted)
+        cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
+        side = table.column(names["side"]).to_pandas() if "side" in names else None
+    except Exception as exc:  # corrupt pages surface only when the data is read
+        msg = f"{path}: Parquet data not readable ({reason(exc)})"
+        raise InputError(msg) from None
     return cols, side
 
 
@@ -294,7 +399,7 @@ _PLY_TYPES = {
 }
 
 
-def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
+def _read_ply(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
     """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
     with path.open("rb") as fh:
         head = fh.read(65536)
@@ -314,6 +419,9 @@ def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
         if tok[0] == "format" and len(tok) >= 2:
             fmt = tok[1]
         elif tok[0] == "element" and len(tok) == 3:
+            if not tok[2].isdigit():
+                msg = f"{path}: PLY header: element count is not a number"
+                raise InputError(msg)
             elements.append((tok[1], int(tok[2]), []))
         elif tok[0] == "property" and elements:
             if tok[1] == "list":
@@ -321,7 +429,10 @@ def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
             elif len(tok) == 3 and tok[1] in _PLY_TYPES:
                 elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]]))
             else:
-                msg = f"{path}: PLY header line {raw.strip()!r}: unknown property type"
+                msg = (
+                    f"{path}: PLY header: a property of unknown type "
+                    f"(expected {', '.join(_PLY_TYPES)})"
+                )
                 raise InputError(msg)
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         msg = f"{path}: PLY format {fmt!r}; expected ascii or binary_little/big_endian"
@@ -350,6 +461,7 @@ def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
     if count == 0:
         msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
         raise InputError(msg)
+    _too_many(path, count, limit)
     if fmt == "ascii":
         try:
             df = pd.read_csv(
@@ -363,7 +475,7 @@ def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
                 engine="c",
             )
         except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
-            msg = f"{path}: PLY ascii body not readable ({one_line(exc)})"
+            msg = f"{path}: PLY ascii body not readable ({reason(exc)})"
             raise InputError(msg) from None
         if df.shape[0] != count:
             msg = f"{path}: PLY header says {count} vertices, body has {df.shape[0]}"
