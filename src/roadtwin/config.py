@@ -122,6 +122,19 @@ class MainlineConfig:
     edge_outlier_mad: float = 4.0
     """Edge points farther than this many robust sigmas (1.4826 MAD, local) from the
     running fit are outliers."""
+    edge_rank_cost: float = 3.0
+    """Outer edge path (:mod:`roadtwin.mainline.edge_levels`): cost of each level of edge
+    points inside the chosen one in a bin (the mainline's edge is the innermost level)."""
+    edge_skip_cost: float = 0.6
+    """... cost of skipping a bin that holds edge points (the mainline's edge unseen there,
+    another road's edge seen instead)."""
+    edge_level_sigma_m: float = 0.15
+    """... lateral change of the edge between neighbouring 2 m bins that costs 1."""
+    edge_step_m: float = 2.0
+    """... a level change larger than this is a step (a gore: about a lane width); smaller
+    changes pay the continuity cost (a change of a metre between bins is neither)."""
+    edge_step_cost: float = 6.0
+    """... cost of a step."""
     edge_outlier_min_m: float = 0.08
     """Outlier threshold never below this (metres), so clean data keeps all points."""
     elevation_bin_m: float = 5.0

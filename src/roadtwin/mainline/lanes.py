@@ -13,7 +13,6 @@ from numpy.typing import NDArray
 
 from ..config import MainlineConfig
 from ..fitting import (
-    binned_quantile,
     fit_cubic_profile,
     moving_median,
 )
@@ -30,6 +29,7 @@ from ._common import (
     _grid,
     robust_offset_fit,
 )
+from .edge_levels import edge_level_path
 from .gores import (
     ShoulderTaper,
     fit_shoulder_taper,
@@ -214,8 +214,10 @@ def fit_outer_edge(
     bin_m = 2.0
     cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
     cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
-    q_raw = binned_quantile(s[ok], d[ok], cedges, 0.25)
-    q = moving_median(q_raw, window=5)
+    # the innermost continuous level of the points, not a quantile: ramp edges beside the
+    # mainline's, guardrails and other roads seen through a gap must not pull it out
+    q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg)
+    q = q_raw
     have = np.isfinite(q)
     if not np.any(have):
         return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
