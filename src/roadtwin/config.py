@@ -194,6 +194,12 @@ class MainlineConfig:
     hidden_gore_slope: float = 0.004
     """Where the outer edge is occluded, a marking that starts (ends) converging (diverging)
     faster than this (m/m) is a ramp line up to the gore."""
+    shoulder_max_m: float = 2.2
+    """A lane between a road edge and the nearest marking narrower than this is a shoulder
+    (metres)."""
+    edge_lane_min_m: float = 3.3
+    """... one at least this wide is a driving lane (roads without shoulders); in between a
+    shoulder unless the car drove in it (hard shoulders are 2.5-3.0 m)."""
     hidden_lane_min_m: float = 2.0
     """An outer shoulder wider than the run's typical one by more than this hides a lane
     whose outer marking was not observed (metres)."""

@@ -296,6 +296,7 @@ def fit_lanes(
     length: float,
     sign: float,
     config: MainlineConfig | None = None,
+    car: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...], FloatArray]:
     """Lane sections from lane samples and outer-edge points in the reference frame.
 
@@ -310,6 +311,9 @@ def fit_lanes(
         Road length (metres).
     sign
         +1 right-hand traffic (lanes get negative ids), -1 left-hand traffic.
+    car
+        Stations (sorted) and offsets (same frame) of the vehicle poses: the lane the car
+        drove in is a driving lane (:func:`_lane_types`). None: not used.
 
     Returns
     -------
@@ -345,7 +349,9 @@ def fit_lanes(
             )
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
-    sections, events, out_tracks = _sections_from_tracks(tracks, grid, d_edge, breaks, sign, cfg)
+    sections, events, out_tracks = _sections_from_tracks(
+        tracks, grid, d_edge, breaks, sign, cfg, car
+    )
     return sections, events, out_tracks, used
 
 
@@ -1001,6 +1007,46 @@ def _fit_taper(
     return s_fit, l_fit
 
 
+def _lane_types(
+    borders: FloatArray,
+    gs: FloatArray,
+    car: tuple[FloatArray, FloatArray] | None,
+    cfg: MainlineConfig,
+) -> list[str]:
+    """Lane types of one section from its borders (rows inner to outer, on ``gs``).
+
+    The lanes between a road edge and the nearest marking are shoulders when they are
+    narrower than ``shoulder_max_m``, driving lanes when the car drove in them
+    (``car``: stations and offsets of the poses) or when they are at least
+    ``edge_lane_min_m`` wide (a road without shoulders, whose edge lines run along its
+    edges); in between (2.2-3.3 m: a hard shoulder or a narrow lane) a shoulder where the
+    section has three lanes or more. Lanes between two markings are driving lanes.
+    """
+    n_l = borders.shape[0] - 1
+    types = ["driving"] * n_l
+    if n_l < 2:
+        return types
+    widths = np.median(np.diff(borders, axis=0), axis=1)
+    share = np.zeros(n_l)
+    if car is not None and car[0].size:
+        s_car, d_car = car
+        on = (s_car >= gs[0]) & (s_car <= gs[-1])
+        if np.any(on):
+            i_g = np.clip(np.searchsorted(gs, s_car[on]), 0, gs.size - 1)
+            inside = (d_car[on][None, :] > borders[:-1, i_g]) & (
+                d_car[on][None, :] <= borders[1:, i_g]
+            )
+            share = inside.mean(axis=1)
+    for i in (0, n_l - 1):
+        if widths[i] < cfg.shoulder_max_m:
+            types[i] = "shoulder"
+        elif share[i] > 0.3 or widths[i] >= cfg.edge_lane_min_m:
+            types[i] = "driving"
+        elif n_l >= 3:
+            types[i] = "shoulder"
+    return types
+
+
 def _sections_from_tracks(
     tracks: list[_Track],
     grid: FloatArray,
@@ -1008,6 +1054,7 @@ def _sections_from_tracks(
     breaks: FloatArray,
     sign: float,
     cfg: MainlineConfig,
+    car: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...]]:
     """Lane sections (constant set of tracks), lane links, road marks and lane events."""
     length = float(grid[-1])
@@ -1103,11 +1150,12 @@ def _sections_from_tracks(
         labels.append("edge")
         stack = np.maximum.accumulate(np.vstack(rows), axis=0)
         n_l = len(stack) - 1
+        types = _lane_types(stack, gs, car, cfg)
         lanes: list[Lane] = []
         bounds: list[tuple[object, object]] = []
         for i in range(n_l):
             width = np.clip(stack[i + 1] - stack[i], 0.0, None)
-            lane_type = "shoulder" if n_l >= 3 and i in (0, n_l - 1) else "driving"
+            lane_type = types[i]
             if i == n_l - 1:
                 mark = "none"
             else:

@@ -64,6 +64,8 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     t0 = time.perf_counter()
     s_out, t_out = frame.project(outer_pts)
     s_lane, t_lane = frame.project(run.lane_samples)
+    s_car, t_car = frame.project(run.trajectory.xy)
+    order = np.argsort(s_car)
     sections, events, tracks, used = fit_lanes(
         s_lane,
         -sign * t_lane,
@@ -72,6 +74,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         length=length,
         sign=sign,
         config=cfg,
+        car=(s_car[order], -sign * t_car[order]),
     )
     timings["lanes"] = time.perf_counter() - t0
 
