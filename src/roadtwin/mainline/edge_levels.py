@@ -26,6 +26,7 @@ Offsets ``d`` are metres from the reference edge towards the carriageway (positi
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -180,3 +181,95 @@ def _beam_viterbi(bins: list[tuple[FloatArray, FloatArray]], cfg: MainlineConfig
             out[i] = hist_level[i][k]
         k = int(hist_back[i][k])
     return out
+
+
+def refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, starts: bool) -> float:
+    """Station (metres, sub-metre) where the low level of an edge step starts
+    (``starts``: exit gore) or ends (entry gore), from the points within 10 m; ``d`` is
+    measured so that the low level lies nearer the carriageway.
+
+    The step lies half a mean point spacing before the first (after the last) point of
+    the low level; an isolated first (last) point more than 5 m from the next one is an
+    outlier.
+    """
+    win = (np.abs(s - s_step) < 10.0) & (np.abs(d - low) < 0.5)
+    if np.count_nonzero(win) < 4:
+        return s_step
+    ss = np.sort(s[win])
+    if not starts:
+        ss = -ss[::-1]  # mirror: the last point of the low level becomes the first
+    if ss[1] - ss[0] > 5.0:
+        ss = ss[1:]
+    spacing = (ss[-1] - ss[0]) / (ss.size - 1)
+    edge = float(ss[0] - 0.5 * spacing)
+    return edge if starts else -edge
+
+
+@dataclass(frozen=True)
+class EdgeSteps:
+    """Steps of an edge level path (gores where lanes begin or end at full width).
+
+    Attributes
+    ----------
+    stations : ``(n,)`` refined step stations, metres, increasing.
+    offsets : ``(n + 1,)`` level of each segment between steps relative to the base level
+        (the level the longest stretch of the road has), metres, in the offsets' own
+        direction (positive: farther from the carriageway).
+    """
+
+    stations: FloatArray
+    offsets: FloatArray
+
+    def at(self, s: FloatArray) -> FloatArray:
+        """Offset (metres) of the segment each station lies in."""
+        return self.offsets[np.searchsorted(self.stations, np.asarray(s, dtype=float))]
+
+
+def edge_steps(
+    s: FloatArray,
+    u: FloatArray,
+    edges_s: FloatArray,
+    level: FloatArray,
+    *,
+    config: MainlineConfig | None = None,
+) -> EdgeSteps:
+    """The steps of a level path (:func:`edge_level_path`) and each segment's offset.
+
+    ``s``, ``u``: the edge points (stations, offsets, metres, larger ``u`` farther from the
+    carriageway); ``level`` the path on the bins ``edges_s``. A step is a change of more
+    than ``edge_step_m`` between neighbouring seen bins with points right before and after
+    it (an occlusion gap has none); its size is the change of the median level over five
+    seen bins on either side, its station where the level nearer the carriageway starts
+    or ends (:func:`refine_step`).
+    """
+    cfg = config or MainlineConfig()
+    centres = 0.5 * (edges_s[1:] + edges_s[:-1])
+    seen = np.flatnonzero(np.isfinite(level))
+    if seen.size < 2:
+        return EdgeSteps(np.zeros(0), np.zeros(1))
+    jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
+    stations, sizes = [], []
+    for j in jumps:
+        before = float(np.median(level[seen[max(j - 4, 0) : j + 1]]))
+        after = float(np.median(level[seen[j + 1 : j + 6]]))
+        guess = 0.5 * (centres[seen[j]] + centres[seen[j + 1]])
+        station = refine_step(s, u, guess, min(before, after), starts=after < before)
+        if np.count_nonzero((s >= station - 5.0) & (s < station)) < 3:
+            continue
+        if np.count_nonzero((s > station) & (s <= station + 5.0)) < 3:
+            continue
+        stations.append(station)
+        sizes.append(after - before)
+    if not stations:
+        return EdgeSteps(np.zeros(0), np.zeros(1))
+    order = np.argsort(stations)
+    st = np.asarray(stations)[order]
+    values = np.concatenate([[0.0], np.cumsum(np.asarray(sizes)[order])])
+    bounds = np.concatenate([[float(edges_s[0])], st, [float(edges_s[-1])]])
+    lengths = np.diff(bounds)
+    # the base level is the one the longest stretch has (levels within 0.5 m are one)
+    rounded = np.round(values / 0.5)
+    totals = {r: float(lengths[rounded == r].sum()) for r in np.unique(rounded)}
+    base_key = max(totals, key=lambda r: (totals[r], -abs(r)))
+    base = float(np.median(values[rounded == base_key]))
+    return EdgeSteps(st, values - base)

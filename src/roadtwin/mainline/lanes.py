@@ -29,7 +29,7 @@ from ._common import (
     _grid,
     robust_offset_fit,
 )
-from .edge_levels import edge_level_path
+from .edge_levels import EdgeSteps, edge_level_path, refine_step
 from .gores import (
     ShoulderTaper,
     fit_shoulder_taper,
@@ -40,6 +40,8 @@ from .gores import (
 )
 
 log = logging.getLogger(__name__)
+
+_GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that gore
 
 FloatArray = NDArray[np.float64]
 
@@ -160,27 +162,6 @@ def _mark_type(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig)
     return "broken" if frac > cfg.broken_gap_fraction else "solid"
 
 
-def _refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, starts: bool) -> float:
-    """Station (metres, sub-metre) where the low level of an outer-edge step starts
-    (``starts``: exit gore) or ends (entry gore), from the points within 10 m.
-
-    The step lies half a mean point spacing before the first (after the last) point of
-    the low level; an isolated first (last) point more than 5 m from the next one is an
-    outlier.
-    """
-    win = (np.abs(s - s_step) < 10.0) & (np.abs(d - low) < 0.5)
-    if np.count_nonzero(win) < 4:
-        return s_step
-    ss = np.sort(s[win])
-    if not starts:
-        ss = -ss[::-1]  # mirror: the last point of the low level becomes the first
-    if ss[1] - ss[0] > 5.0:
-        ss = ss[1:]
-    spacing = (ss[-1] - ss[0]) / (ss.size - 1)
-    edge = float(ss[0] - 0.5 * spacing)
-    return edge if starts else -edge
-
-
 def fit_outer_edge(
     s: FloatArray,
     d: FloatArray,
@@ -230,7 +211,7 @@ def fit_outer_edge(
     sv, dv = s[ok], d[ok]
     for n, j in enumerate(jumps):
         q0, q1 = q[qi[j]], q[qi[j + 1]]
-        breaks[n] = _refine_step(sv, dv, float(breaks[n]), min(q0, q1), starts=q1 < q0)
+        breaks[n] = refine_step(sv, dv, float(breaks[n]), min(q0, q1), starts=q1 < q0)
     # a real step has edge points right before and after it; an occlusion gap has none
     real = [
         np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
@@ -297,6 +278,7 @@ def fit_lanes(
     sign: float,
     config: MainlineConfig | None = None,
     car: tuple[FloatArray, FloatArray] | None = None,
+    median: EdgeSteps | None = None,
 ) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...], FloatArray]:
     """Lane sections from lane samples and outer-edge points in the reference frame.
 
@@ -314,6 +296,10 @@ def fit_lanes(
     car
         Stations (sorted) and offsets (same frame) of the vehicle poses: the lane the car
         drove in is a driving lane (:func:`_lane_types`). None: not used.
+    median
+        Steps of the median-side edge (gores on the median side) and its offset from the
+        reference line per segment (metres towards the median): the innermost border of
+        the lanes. None: the median-side edge is the reference line everywhere.
 
     Returns
     -------
@@ -322,7 +308,12 @@ def fit_lanes(
     cfg = config or MainlineConfig()
     grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
     d_edge, breaks, used, covered = fit_outer_edge(s_outer, d_outer, grid, config=cfg)
-    keep = (s_lane >= 0) & (s_lane <= length) & (d_lane > -0.5)
+    # the median-side edge in this frame (d towards the carriageway): 0 where it is the
+    # reference line, negative where lanes were added on the median side
+    d_median = -median.at(grid) if median is not None else np.zeros(grid.size)
+    median_steps = median.stations if median is not None else np.zeros(0)
+    keep = (s_lane >= 0) & (s_lane <= length)
+    keep &= d_lane > np.interp(s_lane, grid, d_median) - 0.5
     if np.all(np.isfinite(d_edge)):
         keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
@@ -350,7 +341,7 @@ def fit_lanes(
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
     sections, events, out_tracks = _sections_from_tracks(
-        tracks, grid, d_edge, breaks, sign, cfg, car
+        tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
     )
     return sections, events, out_tracks, used
 
@@ -1055,8 +1046,18 @@ def _sections_from_tracks(
     sign: float,
     cfg: MainlineConfig,
     car: tuple[FloatArray, FloatArray] | None = None,
+    d_median: FloatArray | None = None,
+    median_steps: FloatArray | None = None,
 ) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...]]:
-    """Lane sections (constant set of tracks), lane links, road marks and lane events."""
+    """Lane sections (constant set of tracks), lane links, road marks and lane events.
+
+    ``d_median`` (on ``grid``) is the innermost border (the median-side edge); its steps
+    (``median_steps``) start sections like the outer edge's steps (``breaks``)."""
+    if d_median is None:
+        d_median = np.zeros(grid.size)
+    if median_steps is None:
+        median_steps = np.zeros(0)
+    breaks = np.sort(np.concatenate([breaks, median_steps]))
     length = float(grid[-1])
     side: Literal["right", "left"] = "right" if sign > 0 else "left"
     n_g = grid.size
@@ -1138,7 +1139,10 @@ def _sections_from_tracks(
         gs = grid[a:b_inc]
         s0 = s0_at.get(a, float(grid[a]))
         rel = gs - s0
-        rows = [np.zeros(gs.size)]
+        m = d_median[a:b_inc].copy()
+        if b_inc > b and b < n_g and abs(d_median[b] - d_median[b - 1]) > 0.5:
+            m[-1] = m[-2] if m.size >= 2 else m[-1]  # the next segment's level is not inside
+        rows = [m]
         labels: list[object] = ["ref"]
         for k in members:
             rows.append(_fill_nan(gs, dmat[k, a:b_inc]))
@@ -1175,7 +1179,7 @@ def _sections_from_tracks(
         bounds_per.append(bounds)
         members_per.append(members)
     sections = _link_sections(sections, bounds_per)
-    events = _events(raw_events, sections, members_per, dmat, grid, side, sign)
+    events = _events(raw_events, sections, members_per, dmat, grid, side, sign, median_steps)
     out_tracks = tuple(
         BoundaryTrack(
             tr.id,
@@ -1269,8 +1273,15 @@ def _events(
     grid: FloatArray,
     side: Literal["right", "left"],
     sign: float,
+    median_steps: FloatArray | None = None,
 ) -> tuple[LaneEvent, ...]:
-    """Lane events: the lane between a track that starts/ends and its nearest neighbour."""
+    """Lane events: the lane between a track that starts/ends and its nearest neighbour.
+
+    A track that starts/ends abruptly (a gore) bounds the lane that begins/ends on its
+    outer side, or, at a step of the median-side edge (a gore on the median side), on its
+    carriageway side."""
+    if median_steps is None:
+        median_steps = np.zeros(0)
     s0s = np.array([sec.s0 for sec in sections])
     events = []
     for k, end, s_zero, taper, jn in raw_events:
@@ -1285,8 +1296,11 @@ def _events(
         i_p = int(np.clip(np.searchsorted(grid, probe), 0, grid.size - 1))
         # neighbour: the adjacent member nearer in offset
         cand = [p for p in (pos - 1, pos + 1) if 0 <= p < len(members)]
+        at_median_step = bool(
+            median_steps.size and np.min(np.abs(median_steps - s_zero)) < _GORE_MATCH_M
+        )
         if taper == 0.0:  # abrupt (gore): the lane whose outer border is the track
-            outer_pos = pos
+            outer_pos = pos + 1 if at_median_step else pos
         elif jn is not None and jn in members:
             outer_pos = max(pos, members.index(jn))
         elif cand:
