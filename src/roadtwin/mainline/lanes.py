@@ -169,6 +169,7 @@ def fit_outer_edge(
     *,
     config: MainlineConfig | None = None,
     hidden_steps: FloatArray | None = None,
+    levels: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
     """Outer road edge ``d_E(s)`` on ``grid`` from the outer-side edge points.
 
@@ -179,6 +180,8 @@ def fit_outer_edge(
 
     ``hidden_steps`` (metres) are steps that an occlusion hid (gores placed from other
     evidence); the fit is split there too, so that it does not bend across them.
+    ``levels``: the level path of the same points on the same bins from an earlier call
+    (it does not depend on ``hidden_steps``).
 
     Returns
     -------
@@ -197,7 +200,7 @@ def fit_outer_edge(
     cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
     # the innermost continuous level of the points, not a quantile: ramp edges beside the
     # mainline's, guardrails and other roads seen through a gap must not pull it out
-    q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg)
+    q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg) if levels is None else levels
     q = q_raw
     have = np.isfinite(q)
     if not np.any(have):
@@ -307,7 +310,7 @@ def fit_lanes(
     """
     cfg = config or MainlineConfig()
     grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
-    d_edge, breaks, used, covered = fit_outer_edge(s_outer, d_outer, grid, config=cfg)
+    d_edge, breaks, used, covered, levels = _outer_edge_with_levels(s_outer, d_outer, grid, cfg)
     # the median-side edge in this frame (d towards the carriageway): 0 where it is the
     # reference line, negative where lanes were added on the median side
     d_median = -median.at(grid) if median is not None else np.zeros(grid.size)
@@ -336,7 +339,7 @@ def fit_lanes(
         hidden = [g for g in gores if all(abs(g - p) > 40.0 for p in placed)] + placed
         if hidden:
             d_edge, breaks, used, covered = fit_outer_edge(
-                s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden)
+                s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden), levels=levels
             )
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
@@ -344,6 +347,16 @@ def fit_lanes(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
     )
     return sections, events, out_tracks, used
+
+
+def _outer_edge_with_levels(s_outer, d_outer, grid, cfg):
+    """:func:`fit_outer_edge` and the level path it used (to reuse it in a refit)."""
+    bin_m = 2.0
+    cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
+    cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
+    ok = np.isfinite(s_outer) & np.isfinite(d_outer) & (d_outer > 0.5)
+    levels = edge_level_path(s_outer[ok], d_outer[ok], cedges, config=cfg)
+    return (*fit_outer_edge(s_outer, d_outer, grid, config=cfg, levels=levels), levels)
 
 
 @dataclass
