@@ -379,12 +379,15 @@ def _ramp_pairs(
     return pairs
 
 
-def _valid_sources(section: LaneSection, wanted: Sequence[int], side: TrafficSide) -> list[int]:
+def _valid_sources(
+    section: LaneSection, wanted: Sequence[int], side: TrafficSide, ramp_side: str = "outer"
+) -> list[int]:
     """The wanted mainline lanes that are driving lanes of ``section`` (a ramp is fed by
-    driving lanes only); else the outermost driving lane."""
+    driving lanes only); else the driving lane on the ramp's side (the outermost, or the
+    innermost for a ramp on the median side)."""
     driving = [lane.id for lane in _traffic_lanes(section, side) if lane.type == "driving"]
     got = [i for i in wanted if i in driving]
-    return got or driving[-1:]
+    return got or (driving[-1:] if ramp_side == "outer" else driving[:1])
 
 
 def _driving_pairs(
@@ -701,12 +704,12 @@ def build_topology(
         rtypes = _ramp_lane_types(road, traffic_side)
         shoulder = getattr(ramp, "shoulder_lane_id", None)
         if ramp.type == "exit":
-            sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side)
+            sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side, ramp.side)
             pairs = _ramp_pairs(
                 road, up_sec, sources, shoulder, traffic_side, main=up, s_main=up.length
             )
         else:
-            sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side)
+            sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side, ramp.side)
             pairs = _ramp_pairs(road, down_sec, sources, shoulder, traffic_side, main=down)
         # ramp driving lane k <-> mainline source lane k, hard shoulder <-> hard shoulder at
         # a gore (widths only, not linked); the other ramp lanes open from (entry: close to)

@@ -1,5 +1,5 @@
 """Algorithm 1 of the paper and ramp chains: directed OSM ``*_link`` edges near the
-trajectory, merged into chains, with the direction and side checks.
+trajectory, merged into chains, with the direction check and the side they lie on.
 
 All coordinates are in the mapping frame (metres, radians CCW from +x).
 """
@@ -250,8 +250,8 @@ def extract_ramp_chains(
     ``{u_m, v_m}``), else an exit. The chain is followed away from the carriageway along
     link edges up to ``max_ramp_length_m`` or the next junction. Chains are rejected when
     the ramp's heading at the attachment differs from the driven direction by more than
-    ``max_heading_diff_deg`` or when the ramp lies on the wrong side of the trajectory
-    (left for right-hand traffic).
+    ``max_heading_diff_deg``. A chain on the median side of the trajectory (left for
+    right-hand traffic) is an inner ramp (``side="inner"``): a left exit or entry.
 
     Returns
     -------
@@ -305,16 +305,16 @@ def extract_ramp_chains(
                 (what, f"heading at the attachment {math.degrees(dh):.0f} deg off the drive")
             )
             continue
-        # side check on the part away from the attachment
+        # which side of the drive the ramp lies on, away from the attachment
         s_pts, t_pts = track.project(xy)
         along = arc_length(xy)
         dist_from_attach = along if ramp_type == "exit" else along[-1] - along
         away = dist_from_attach > min(20.0, 0.5 * along[-1])
         t_away = t_pts[away] if np.any(away) else t_pts
-        if float(np.median(t_away)) * side_sign <= 0.0:
-            side = "left" if side_sign < 0 else "right"
-            rejected.append((what, f"lies {side} of the drive (opposite carriageway side)"))
-            continue
+        # a ramp on the traffic side is an outer ramp; one on the median side (a left exit
+        # on a right-hand road) an inner one -- the opposite carriageway's links never
+        # attach to a node of the driven carriageway with its heading
+        ramp_side = "outer" if float(np.median(t_away)) * side_sign > 0.0 else "inner"
         # geometry cross-check: which end lies nearer the trajectory
         d_start, d_end = abs(float(t_pts[0])), abs(float(t_pts[-1]))
         in_start = -5.0 <= s_pts[0] <= track.length + 5.0
@@ -335,6 +335,7 @@ def extract_ramp_chains(
             type_geometry=type_geometry,
             xy=xy,
             tags=tags,
+            side=ramp_side,  # type: ignore[arg-type]
         )
         chains.append((float(s_att[0]), chain))
     for cand in candidates:
