@@ -52,6 +52,7 @@ from .route import (
     TrafficSide,
     Traversal,
     continuations,
+    entries_into,
     passage_turn_rad,
 )
 
@@ -157,29 +158,6 @@ def _is_ramp(network: RoadNetwork, passage: Passage, route_roads: set[str]) -> b
     return _carries_traffic(network, passage)
 
 
-def _entries_into(
-    network: RoadNetwork, through: Passage, traffic_side: TrafficSide
-) -> list[Passage]:
-    """Passages of other roads into the through passage's target at its junction."""
-    junction = network.id_to_junction.get(through.junction_id)
-    if junction is None:
-        return []
-    out = []
-    incoming = sorted({c.incoming_road for c in junction.connections} - {through.source.road_id})
-    for rid in incoming:
-        road = network.id_to_road.get(rid)
-        if road is None or road.junction != "-1":
-            continue
-        for d in (1, -1):
-            link = road.successor if d > 0 else road.predecessor
-            if link is None or link.element_id != junction.id:
-                continue
-            for p in continuations(network, Traversal(rid, d), traffic_side):
-                if p.target == through.target and p.junction_id == junction.id:
-                    out.append(p)
-    return out
-
-
 def _previous(network: RoadNetwork, t: Traversal) -> Traversal | None:
     """The traversal that leads into ``t`` by a plain road link (None at a junction)."""
     road = network.road(t.road_id)
@@ -258,7 +236,7 @@ def find_branches(
                     0, junction_leg(network, p, up_leg, ramp_legs[0], traffic_side, rule)
                 )
             out.append(_Branch("exit", p, through, i, tuple(ramp_legs)))
-        for p in _entries_into(network, through, traffic_side):
+        for p in entries_into(network, through, traffic_side):
             if not _is_ramp(network, p, route_roads):
                 continue
             chain = _ramp_roads(
@@ -439,6 +417,15 @@ def build_route_truth(
             )  # fmt: skip
             continue
         branch_fits[b_idx] = bfit
+    # the lanes of the kept ramps on the median side end / start at full width where the
+    # ramp's road begins / ends (the median-side edge steps there): legs again with them
+    ramp_legs, _ = route_legs(
+        network, route, traffic_side, ramps=[branches[b].passage for b in branch_fits]
+    )
+    if ramp_legs != legs:
+        legs = ramp_legs
+        leg_pass = leg_passages(route, legs)
+        main_keys = lane_keys(network, legs, leg_pass, counter=counter)
     cut_legs: dict[int, list[tuple[_Branch, ChainFit]]] = {}
     for b_idx, bfit in branch_fits.items():
         b = branches[b_idx]
