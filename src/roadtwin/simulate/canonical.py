@@ -23,6 +23,7 @@ Frames: mapping-frame metres; ``u`` is the station along the canonical road (met
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -48,6 +49,10 @@ FloatArray = NDArray[np.float64]
 
 JOIN_TOLERANCE_M = 0.05
 """Consecutive legs whose median edges meet closer than this share their joint sample."""
+
+SMOOTH_KINK_RAD = 0.01
+"""A change of direction of the median edge at a leg joint below this is smoothed over by
+the reference-line fit (:func:`roadtwin.fitting.fit_parampoly3_chain` does the same)."""
 
 
 @dataclass(frozen=True)
@@ -255,11 +260,17 @@ def _join(samples: list[LegSamples], levels: FloatArray) -> tuple[FloatArray, li
         if (levels[i - 1] == 0.0 and levels[i] == 0.0) or a.shape[0] < 2 or b.shape[0] < 2:
             continue
         if np.hypot(*(b[0, :2] - a[-1, :2])) < 1.0:
-            x = _corner(a[:, :2], b[:, :2])
-            # points of either leg beyond the corner (micrometre-spaced samples next to a
-            # joint) collapse onto it: the line never runs backwards
             da = a[-1, :2] - a[::-1][_chord_index(a[::-1, :2], 0.25), :2]
             db = b[_chord_index(b[:, :2], 0.25), :2] - b[0, :2]
+            cos = float(da @ db) / max(float(np.hypot(*da) * np.hypot(*db)), 1e-12)
+            # a kink the fit keeps (SMOOTH_KINK_RAD): the lines meet at a corner; else the
+            # edge is smooth there and the ends meet halfway
+            if cos < math.cos(SMOOTH_KINK_RAD):
+                x = _corner(a[:, :2], b[:, :2])
+            else:
+                x = 0.5 * (a[-1, :2] + b[0, :2])
+            # points of either leg beyond the meeting point (micrometre-spaced samples
+            # next to a joint) collapse onto it: the line never runs backwards
             a[((a[:, :2] - x) @ da >= 0.0), :2] = x
             b[((b[:, :2] - x) @ db <= 0.0), :2] = x
     pts: list[FloatArray] = []

@@ -27,6 +27,7 @@ from ..frames import MappingFrame
 from ..mainline.cut import cut_road
 from ..model import (
     Connection,
+    CubicProfile,
     Header,
     Junction,
     LaneLink,
@@ -88,6 +89,9 @@ class RampTruth:
     aux_lane_ids: tuple[int, ...]
     source_roads: tuple[str, ...]
     name: str = ""
+    side: str = "outer"
+    """Side of the mainline's through lanes the ramp leaves or joins on: ``"outer"`` (the
+    traffic side: right with right-hand traffic) or ``"inner"`` (the median side)."""
 
 
 @dataclass(frozen=True)
@@ -492,6 +496,13 @@ def build_route_truth(
                 if end_u - cut_u[c_idx] <= MAX_AUX_LANE_M:
                     aux_keys.add(key)
         connections[c_idx].append(conn)
+        through = _links_between(network, main_fit, c - 1, main_fit, c, leg_pass[c - 1])
+        main_sec = main_fit.road.lane_sections[sec]
+        order = [ln.id for ln in (main_sec.right or main_sec.left)]
+        end = "from_lane" if b.kind == "exit" else "to_lane"
+        side = _away_gap(
+            order, {getattr(ll, end) for ll in links}, {getattr(ll, end) for ll in through}
+        )
         end_sec = road.lane_sections[0 if b.kind == "exit" else -1]
         n_lanes = sum(1 for ln in (end_sec.right or end_sec.left) if ln.type in TRAFFIC_LANE_TYPES)
         gore = _gore_station(main_fit.road, road, cut_u[c_idx], b.kind, sign)
@@ -511,6 +522,7 @@ def build_route_truth(
                 aux_lane_ids=aux_ids,
                 source_roads=src,
                 name=next((x for x in names if x), ""),
+                side=side,
             )
         )
         ramp_roads.append(road)
@@ -519,6 +531,8 @@ def build_route_truth(
     main_roads = []
     for k, (a, e) in enumerate(zip(starts, ends, strict=True)):
         part = cut_road(main_fit.road, a, e, road_id=main_ids[k])  # exact, re-based to 0
+        if all(p.a == p.b == p.c == p.d == 0.0 for p in part.lane_offset.pieces):
+            part = replace(part, lane_offset=CubicProfile())  # no step on this road
         main_roads.append(
             replace(
                 part,
