@@ -64,8 +64,9 @@ class FitSettings:
     geometry_tolerance_m: float = 0.0005
     """Reference-line fit tolerance against the sampled median edge."""
     min_piece_m: float = 0.25
-    """Shortest reference-line piece: short enough to hold the tolerance next to a slight
-    kink of the source edge at a leg joint (the fitted line keeps its heading there)."""
+    """Shortest reference-line and lane-width piece: short enough to hold the tolerances
+    next to a slight kink of the source edge at a leg joint (the fitted line keeps its
+    heading there) and where a source width changes quickly between close breakpoints."""
     width_tolerance_m: float = 0.0002
     """Lane-width and elevation fit tolerance."""
 
@@ -332,6 +333,7 @@ def fit_chain(
     name: str,
     breaks: tuple[int, ...] = (),
     settings: FitSettings | None = None,
+    median_steps: bool = True,
 ) -> ChainFit:
     """Fit one canonical road through a chain of legs.
 
@@ -342,6 +344,9 @@ def fit_chain(
     breaks
         Indices of legs that must start a geometry piece and a lane section (where the
         road will be cut, e.g. at a ramp's junction).
+    median_steps
+        Sideways steps of the median-side edge between legs become lane offset steps
+        (:func:`median_levels`); False: the reference line follows the edge through them.
 
     Raises
     ------
@@ -351,7 +356,7 @@ def fit_chain(
     cfg = settings or FitSettings()
     side_sign = -1.0 if traffic_side == "right" else 1.0
     samples = [sample_leg(network, leg, traffic_side, step_m=cfg.sample_step_m) for leg in legs]
-    levels = median_levels(samples)
+    levels = median_levels(samples) if median_steps else np.zeros(len(samples))
     median, first = _join(samples, levels)
     chord = arc_length(median[:, :2])
     # the median edge may kink or jump in curvature at every leg joint and source
@@ -432,6 +437,7 @@ def fit_chain(
                             u[a : b + 1] - u0,
                             w[a : b + 1],
                             tolerance=cfg.width_tolerance_m,
+                            min_piece_m=cfg.min_piece_m,
                             # no overshoot below zero where a lane opens or closes
                             shape_preserving=bool(np.min(w[a : b + 1]) < 0.5),
                         ).pieces

@@ -614,8 +614,13 @@ def next_lane(
     link = src.successor if span.direction > 0 else src.predecessor
     if nxt_span.road_id == road_id and link is None:
         same = _lane_or_none(road.lane_sections[nxt_span.section], lane_id)
-        if same is not None and (same.type in TRAFFIC_LANE_TYPES) == (
-            src.type in TRAFFIC_LANE_TYPES
+        back = (
+            None if same is None else (same.predecessor if span.direction > 0 else same.successor)
+        )
+        if (
+            same is not None
+            and back in (None, lane_id)  # (not when it names another lane as its own)
+            and (same.type in TRAFFIC_LANE_TYPES) == (src.type in TRAFFIC_LANE_TYPES)
         ):
             link = lane_id  # no lane link inside a road: the same id continues
     return (nxt_span.road_id, link) if link is not None else None

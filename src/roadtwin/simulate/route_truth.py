@@ -406,9 +406,12 @@ def build_route_truth(
         passages: list[Passage | None] = [None] * (len(b.legs) - 1)
         keys = lane_keys(network, list(b.legs), passages, counter=counter)
         try:
+            # (a branch whose median-side edge jumps, e.g. across a crossroads, folds and is
+            # left out below, as before: the lane offset steps are the mainline's)
             bfit = fit_chain(
-                network, list(b.legs), keys, traffic_side, road_id="", name=b.kind, settings=fit
-            )
+                network, list(b.legs), keys, traffic_side, road_id="", name=b.kind,
+                settings=fit, median_steps=False,
+            )  # fmt: skip
         except (FitError, InputError) as exc:
             log.warning("%s from %s left out: %s", b.kind, _roads_of(b), exc)
             continue
