@@ -17,6 +17,10 @@ from nowhere are *bridged*: matched in order from the carried lanes outwards (tr
 lanes with traffic lanes, the others with the others), their width blends smoothly from
 the incoming to the outgoing width, and unmatched ones taper from / to zero. So the
 carriageway's edges stay continuous through a junction whatever the map models there.
+The exception are the lanes a ramp of the truth takes away from the route or brings onto
+it on the median side (a left exit with right-hand traffic): they end or start at full
+width at the junction's ends, where the ramp's own road begins or ends, so the median-side
+edge steps there (the canonical truth turns the step into a lane offset step).
 
 Frames: stations ``s`` are metres along a source road; ``p`` in [0, 1] is the relative
 position along a leg in the direction of travel; positions are mapping-frame metres.

@@ -4,7 +4,10 @@
   0 = the outermost through lane) at constant station steps (``speed / rate``) along the
   mainline. A lane that ends within ``lookahead_m`` (a lane drop, an exit lane) or an
   auxiliary lane is not chosen; when the chosen lane changes the car moves over along a
-  smoothstep over ``lane_change_m``, starting where the decision is made, as a driver does.
+  smoothstep over ``lane_change_m`` per lane crossed, ending a lane change's length after
+  the decision (a change across several lanes starts early), as a driver does. The path
+  never falls back to the reference line and its lateral rate is limited (1:10), so the
+  car never runs backwards where lane centres jump (a lane ending at full width).
 * **Road edges**: points along both edges of every true road (the mainline and the
   ramps), minus those inside another road's paved area at the same height: so at a gore
   the edge follows the ramp's outer edge and the nose's inner edges, and where roads

@@ -3,7 +3,10 @@
 The driven carriageway becomes one-directional roads named ``"mainline"`` (ids ``"1"``,
 ``"2"``, ...; reference line = the median-side edge, lanes on the traffic side inner to
 outer), cut where a ramp leaves or joins it: an exit at the start of its junction (or at
-a direct junction), an entry at the junction's end. Each branch that leaves or joins the
+a direct junction), an entry at the junction's end. A ramp on the median side (``side``
+``"inner"``) takes its lanes away or brings them at full width there, and the mainline's
+reference line runs on smoothly: the median-side edge's step is the lane offset of the
+roads beyond it. Each branch that leaves or joins the
 route becomes a road named ``"exit"`` / ``"entry"`` (ids from ``"101"``), followed up to
 ``ramp_length_m`` or its next junction, and is linked to the mainline by a ``direct``
 junction (ids from ``"1001"``, one per cut) with lane links in both roles. All geometry
