@@ -64,9 +64,11 @@ class FitSettings:
     geometry_tolerance_m: float = 0.0005
     """Reference-line fit tolerance against the sampled median edge."""
     min_piece_m: float = 0.25
-    """Shortest reference-line and lane-width piece: short enough to hold the tolerances
-    next to a slight kink of the source edge at a leg joint (the fitted line keeps its
-    heading there) and where a source width changes quickly between close breakpoints."""
+    """Shortest reference-line piece: short enough to hold the tolerance next to a slight
+    kink of the source edge at a leg joint (the fitted line keeps its heading there)."""
+    width_min_piece_m: float = 0.25
+    """Shortest lane-width piece: short enough to hold the tolerance where a source width
+    changes quickly between close breakpoints."""
     width_tolerance_m: float = 0.0002
     """Lane-width and elevation fit tolerance."""
 
@@ -437,7 +439,7 @@ def fit_chain(
                             u[a : b + 1] - u0,
                             w[a : b + 1],
                             tolerance=cfg.width_tolerance_m,
-                            min_piece_m=cfg.min_piece_m,
+                            min_piece_m=cfg.width_min_piece_m,
                             # no overshoot below zero where a lane opens or closes
                             shape_preserving=bool(np.min(w[a : b + 1]) < 0.5),
                         ).pieces

@@ -70,6 +70,11 @@ lanes that happen to lead into (come from) the ramp."""
 MAX_RAMP_TURN_DEG = 120.0
 """A branch turning more than this at its junction (a U-turn) is not a ramp."""
 
+BRANCH_PIECES_M = {"min_piece_m": 1.0, "width_min_piece_m": 2.0}
+"""Shortest geometry and width pieces of a branch's fit. Coarser than the mainline's: a
+branch that these cannot hold within ``max_branch_error_m`` (lanes of a crossroads that
+fold or cross, which esmini cannot drive either) is left out of the truth."""
+
 
 @dataclass(frozen=True)
 class RampTruth:
@@ -405,6 +410,7 @@ def build_route_truth(
     # (lanes folding inside a tight turn, lanes of separate connectors crossing) is left
     # out of the truth altogether, so the run stays consistent with truth.xodr
     branch_fits: dict[int, ChainFit] = {}
+    branch_cfg = replace(fit or FitSettings(), **BRANCH_PIECES_M)
     for b_idx, b in enumerate(branches):
         passages: list[Passage | None] = [None] * (len(b.legs) - 1)
         keys = lane_keys(network, list(b.legs), passages, counter=counter)
@@ -413,7 +419,7 @@ def build_route_truth(
             # left out below, as before: the lane offset steps are the mainline's)
             bfit = fit_chain(
                 network, list(b.legs), keys, traffic_side, road_id="", name=b.kind,
-                settings=fit, median_steps=False,
+                settings=branch_cfg, median_steps=False,
             )  # fmt: skip
         except (FitError, InputError) as exc:
             log.warning("%s from %s left out: %s", b.kind, _roads_of(b), exc)
