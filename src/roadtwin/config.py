@@ -273,7 +273,7 @@ class RampConfig:
     max_heading_diff_deg: float = 40.0
     """Largest heading difference (degrees) between an OSM edge and the driven direction for
     a mainline edge, and between a ramp at its attachment and the driven direction."""
-    min_ramp_length_m: float = 30.0
+    min_ramp_length_m: float = 10.0
     """Ramp chains shorter than this (metres) after trimming are skipped with a warning."""
     gore_search_upstream_m: float = 150.0
     """A measured gore (a lane ending/starting at full width) is matched to an OSM attachment

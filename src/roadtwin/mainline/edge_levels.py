@@ -213,9 +213,9 @@ class EdgeSteps:
     Attributes
     ----------
     stations : ``(n,)`` refined step stations, metres, increasing.
-    offsets : ``(n + 1,)`` level of each segment between steps relative to the base level
-        (the level the longest stretch of the road has), metres, in the offsets' own
-        direction (positive: farther from the carriageway).
+    offsets : ``(n + 1,)`` offset of each segment's edge points from the line they were
+        measured from (their median), metres, in the offsets' own direction (positive:
+        farther from the carriageway).
     """
 
     stations: FloatArray
@@ -224,6 +224,17 @@ class EdgeSteps:
     def at(self, s: FloatArray) -> FloatArray:
         """Offset (metres) of the segment each station lies in."""
         return self.offsets[np.searchsorted(self.stations, np.asarray(s, dtype=float))]
+
+    def from_base(self, start_m: float, end_m: float) -> EdgeSteps:
+        """The same steps with offsets relative to the base level: the level the longest
+        stretch of ``[start_m, end_m]`` has (offsets within 0.5 m count as one level)."""
+        bounds = np.concatenate([[start_m], self.stations, [end_m]])
+        lengths = np.diff(bounds)
+        rounded = np.round(self.offsets / 0.5)
+        totals = {r: float(lengths[rounded == r].sum()) for r in np.unique(rounded)}
+        base_key = max(totals, key=lambda r: (totals[r], -abs(r)))
+        base = float(np.median(self.offsets[rounded == base_key]))
+        return EdgeSteps(self.stations, self.offsets - base)
 
 
 def edge_steps(
@@ -239,9 +250,9 @@ def edge_steps(
     ``s``, ``u``: the edge points (stations, offsets, metres, larger ``u`` farther from the
     carriageway); ``level`` the path on the bins ``edges_s``. A step is a change of more
     than ``edge_step_m`` between neighbouring seen bins with points right before and after
-    it (an occlusion gap has none); its size is the change of the median level over five
-    seen bins on either side, its station where the level nearer the carriageway starts
-    or ends (:func:`refine_step`).
+    it (an occlusion gap has none), its station where the level nearer the carriageway
+    starts or ends (:func:`refine_step`). Each segment's offset is the median ``u`` of its
+    points on the path, 10 m clear of its steps where it has enough of them.
     """
     cfg = config or MainlineConfig()
     centres = 0.5 * (edges_s[1:] + edges_s[:-1])
@@ -263,14 +274,20 @@ def edge_steps(
         sizes.append(after - before)
     if not stations:
         return EdgeSteps(np.zeros(0), np.zeros(1))
-    order = np.argsort(stations)
-    st = np.asarray(stations)[order]
-    values = np.concatenate([[0.0], np.cumsum(np.asarray(sizes)[order])])
+    st = np.sort(np.asarray(stations))
+    # each segment's offset is measured, not summed from level changes: the level path
+    # near a merge is biased by the converging ramp edge, and a sum carries that bias
+    # into every later segment (Town06: 1.3 m after an inner entry)
+    path = np.interp(s, centres[seen], level[seen])
+    on_level = np.abs(u - path) < 0.8
     bounds = np.concatenate([[float(edges_s[0])], st, [float(edges_s[-1])]])
-    lengths = np.diff(bounds)
-    # the base level is the one the longest stretch has (levels within 0.5 m are one)
-    rounded = np.round(values / 0.5)
-    totals = {r: float(lengths[rounded == r].sum()) for r in np.unique(rounded)}
-    base_key = max(totals, key=lambda r: (totals[r], -abs(r)))
-    base = float(np.median(values[rounded == base_key]))
-    return EdgeSteps(st, values - base)
+    seg = np.searchsorted(st, s)
+    values = np.empty(st.size + 1)
+    for k in range(st.size + 1):
+        mine = on_level & (seg == k)
+        away = mine & (s > bounds[k] + 10.0) & (s < bounds[k + 1] - 10.0)
+        pick = away if np.count_nonzero(away) >= 10 else mine
+        values[k] = float(np.median(u[pick])) if pick.any() else np.nan
+    middles = 0.5 * (bounds[1:] + bounds[:-1])
+    ok = np.isfinite(values)
+    return EdgeSteps(st, np.interp(middles, middles[ok], values[ok]) if ok.any() else values * 0)

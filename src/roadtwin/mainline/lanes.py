@@ -100,7 +100,7 @@ def fit_lanes(
                 s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden), levels=levels
             )
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
-    tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
+    tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
     )

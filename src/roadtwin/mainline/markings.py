@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import MainlineConfig
+from ..fitting import moving_median
 from ._common import (
     robust_offset_fit,
 )
@@ -336,34 +337,126 @@ def _merge_collinear(
     return [replace(tr, id=k) for k, tr in enumerate(tracks)]
 
 
-def _add_hidden_lanes(
-    tracks: list[_Track], grid: FloatArray, d_edge: FloatArray, cfg: MainlineConfig
-) -> list[_Track]:
-    """Infer an unobserved outer marking where the outer shoulder is a lane too wide.
+def _marking_matrix(tracks: list[_Track], grid: FloatArray) -> FloatArray:
+    """``(n_tracks, grid)`` offsets of every marking track, NaN outside its extent."""
+    out = np.full((len(tracks), grid.size), np.nan)
+    for i, tr in enumerate(tracks):
+        sel = (grid >= tr.lo) & (grid <= tr.hi)
+        out[i, sel] = np.interp(grid[sel], tr.s, tr.d)
+    return out
 
-    Markings far from the car may not be sampled (e.g. the outer line of a two-lane
-    deceleration lane). Where the outermost marking is more than
-    ``hidden_lane_min_m`` farther from the observed outer edge than the run's typical
-    hard-shoulder width, a marking is placed that typical width inside the edge.
+
+def typical_lane_width(tracks: list[_Track], grid: FloatArray, default_m: float = 3.5) -> float:
+    """Median width (metres) of the lanes between adjacent observed markings that are
+    2.5-4.5 m apart (the run's own lane width; ``default_m`` if none)."""
+    if len(tracks) < 2:
+        return default_m
+    d = np.sort(_marking_matrix(tracks, grid), axis=0)  # NaN sort last
+    w = np.diff(d, axis=0)
+    w = w[np.isfinite(w) & (w >= 2.5) & (w <= 4.5)]
+    return float(np.median(w)) if w.size else default_m
+
+
+def _runs_of(values: NDArray[np.int64]) -> list[tuple[int, int, int]]:
+    """``(start, stop, value)`` of the runs of equal values."""
+    cut = np.flatnonzero(np.diff(values)) + 1
+    starts = np.concatenate([[0], cut])
+    stops = np.concatenate([cut, [values.size]])
+    return [(int(a), int(b), int(values[a])) for a, b in zip(starts, stops, strict=True)]
+
+
+def _hidden_lane_count(
+    gap: FloatArray, lane_m: float, min_extra_m: float, grid_step_m: float
+) -> NDArray[np.int64]:
+    """Lanes hidden in a gap between the last observed marking and a road edge (minus its
+    shoulder): 0 below one lane plus ``min_extra_m``, else the whole lanes that fit
+    (at least one; a 0.4 m tolerance for narrower lanes), from the gap smoothed over 41 m."""
+    ok = np.isfinite(gap)
+    if not ok.any():
+        return np.zeros(gap.size, dtype=np.int64)
+    filled = np.interp(np.arange(gap.size), np.flatnonzero(ok), gap[ok])
+    smooth = moving_median(filled, window=max(3, round(41.0 / grid_step_m) | 1))
+    n = np.maximum(1, np.floor((smooth + 0.4) / lane_m)).astype(np.int64)
+    n[(smooth < lane_m + min_extra_m) | ~ok] = 0
+    return n
+
+
+def _add_hidden_lanes(
+    tracks: list[_Track],
+    grid: FloatArray,
+    d_edge: FloatArray,
+    d_median: FloatArray,
+    cfg: MainlineConfig,
+) -> list[_Track]:
+    """Infer unobserved markings where the road beyond the observed ones is lanes wide.
+
+    Markings far from the car are not sampled (the sensor sees about 12 m sideways): on a
+    wide road driven in an outer lane, the inner lanes; driven in an inner lane, the
+    outer line of a deceleration lane. Where the strip between the outermost marking and
+    the outer edge is wider than the run's typical hard shoulder by more than
+    ``hidden_lane_min_m``, or the strip between the median-side edge and the innermost
+    marking is wider than a lane by more than that margin less 1.4 m (inner shoulders are
+    narrow), the whole lanes of the run's typical width (:func:`typical_lane_width`) that
+    fit are added: evenly spaced up to the shoulder on the outer side; lane-wide from the
+    observed marking on the median side, the rest as the inner shoulder (its edge line
+    only where it is at least 0.3 m wide; a narrower rest widens the lanes).
+
+    ``d_edge`` and ``d_median`` are the outer and median-side edges (metres from the
+    reference edge towards the carriageway) at ``grid``.
     """
     if not tracks:
         return tracks
-    d_last = _last_marking(tracks, grid)
-    gap = np.where(np.isfinite(d_last), d_edge - d_last, np.nan)
-    if not np.any(np.isfinite(gap)):
-        return tracks
-    hw = float(np.nanmedian(gap))
-    wide = np.isfinite(gap) & (gap > hw + cfg.hidden_lane_min_m)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], wide.astype(np.int8), [0]])))
+    lane_m = typical_lane_width(tracks, grid)
+    marks = _marking_matrix(tracks, grid)
+    has = np.isfinite(marks).any(axis=0)
+    d_last = np.where(has, np.nanmax(np.where(has, marks, 0.0), axis=0), np.nan)
+    d_first = np.where(has, np.nanmin(np.where(has, marks, 0.0), axis=0), np.nan)
+    min_run = math.ceil(cfg.lane_min_track_m / cfg.grid_step_m)
     out = list(tracks)
-    for a, b in zip(edges[::2], edges[1::2], strict=True):
-        if (b - a) * cfg.grid_step_m < cfg.lane_min_track_m:
-            continue
+
+    def add(a: int, b: int, d: FloatArray, mark: str) -> None:
         g = grid[a:b]
-        out.append(
-            _Track(len(out), float(g[0]), float(g[-1]), g, d_edge[a:b] - hw, "solid", 0, g[:0])
+        out.append(_Track(len(out), float(g[0]), float(g[-1]), g, d, mark, 0, g[:0]))
+
+    # outer side: the run's typical hard shoulder stays, whole lanes fill the rest
+    outer_gap = d_edge - d_last
+    if np.any(np.isfinite(outer_gap)):
+        shoulder = float(np.nanmedian(outer_gap))
+        n_out = _hidden_lane_count(
+            outer_gap - shoulder, lane_m, cfg.hidden_lane_min_m - lane_m, cfg.grid_step_m
         )
-        log.info("mainline: unobserved marking inferred at s=%.0f..%.0f m", g[0], g[-1])
+        for a, b, n in _runs_of(n_out):
+            if n == 0 or b - a < min_run:
+                continue
+            inner, outer = d_last[a:b], d_edge[a:b] - shoulder
+            for k in range(1, n + 1):
+                add(a, b, inner + (outer - inner) * k / n, "solid" if k == n else "broken")
+            log.info(
+                "mainline: %d unobserved outer lane(s) inferred at s=%.0f..%.0f m",
+                n,
+                grid[a],
+                grid[b - 1],
+            )
+    # median side: lanes of the typical width from the innermost marking, the rest is
+    # the inner shoulder
+    inner_gap = d_first - d_median
+    n_in = _hidden_lane_count(inner_gap, lane_m, cfg.hidden_lane_min_m - 1.4, cfg.grid_step_m)
+    for a, b, n in _runs_of(n_in):
+        if n == 0 or b - a < min_run:
+            continue
+        first, median = d_first[a:b], d_median[a:b]
+        rest = float(np.median(first - median)) - n * lane_m
+        width = lane_m if rest >= 0.3 else (first - median) / n
+        for k in range(1, n):
+            add(a, b, first - k * width, "broken")
+        if rest >= 0.3:
+            add(a, b, first - n * width, "solid")
+        log.info(
+            "mainline: %d unobserved median-side lane(s) inferred at s=%.0f..%.0f m",
+            n,
+            grid[a],
+            grid[b - 1],
+        )
     return out
 
 

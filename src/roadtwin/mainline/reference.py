@@ -195,7 +195,8 @@ def fit_median_edge(
             centres = 0.5 * (edges[1:] + edges[:-1])
             path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
             near = np.abs(u - path) < 0.8
-            s, t = s[near], t[near] - side * steps.at(s[near])
+            shift = steps.from_base(lo, hi)
+            s, t = s[near], t[near] - side * shift.at(s[near])
         grid = _grid(lo, hi, step)
         grid = grid[grid <= hi + 1e-9] if grid[-1] > hi + 0.5 * step else grid
         cutoff = cfg.edge_smoothing_m if it > 0 else max(cfg.edge_smoothing_m, 60.0)

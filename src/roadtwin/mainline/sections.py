@@ -189,13 +189,18 @@ def _lane_types(
     (``car``: stations and offsets of the poses) or when they are at least
     ``edge_lane_min_m`` wide (a road without shoulders, whose edge lines run along its
     edges); in between (2.2-3.3 m: a hard shoulder or a narrow lane) a shoulder where the
-    section has three lanes or more. Lanes between two markings are driving lanes.
+    section has three lanes or more. Lanes between two markings are driving lanes unless
+    they are nowhere ``shoulder_max_m`` wide (a strip between an edge line and a second
+    line beside it).
     """
     n_l = borders.shape[0] - 1
-    types = ["driving"] * n_l
     if n_l < 2:
-        return types
-    widths = np.median(np.diff(borders, axis=0), axis=1)
+        return ["driving"] * n_l
+    all_widths = np.diff(borders, axis=0)
+    widths = np.median(all_widths, axis=1)
+    types = [
+        "shoulder" if w < cfg.shoulder_max_m else "driving" for w in np.max(all_widths, axis=1)
+    ]
     share = np.zeros(n_l)
     if car is not None and car[0].size:
         s_car, d_car = car
