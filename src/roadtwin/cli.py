@@ -166,6 +166,22 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="run folder to write")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument(
+        "--pass",
+        dest="pass_index",
+        type=int,
+        default=1,
+        metavar="N",
+        help="drive N of the same road: the same truth and OSM, new pose errors, points, "
+        "occlusions and lane samples (default 1)",
+    )
+    p.add_argument(
+        "--direction",
+        choices=["forward", "opposite"],
+        default="forward",
+        help="the carriageway to drive: the scenario's / chain's own (forward) or the one "
+        "running the other way beside it (opposite), in the same frame",
+    )
     g = p.add_argument_group("runs along a route through an OpenDRIVE map (the map is the truth)")
     g.add_argument("--xodr", type=Path, default=None, help="OpenDRIVE map to drive through")
     g.add_argument(
@@ -215,7 +231,6 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_simulate_network(args: argparse.Namespace) -> int:
     """``simulate --xodr MAP`` or ``simulate --from-osm EXTRACT``: a run along a route."""
-    import json
     import time
 
     from .simulate import NetworkRunSettings, simulate_osm_run, simulate_xodr_run
@@ -235,15 +250,19 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             args.output,
             chain=chain,
             seed=args.seed or 0,
-            settings=NetworkRunSettings(car=Car(lane=args.lane)),
+            settings=NetworkRunSettings(car=Car(lane=args.lane), pass_index=args.pass_index),
+            direction=args.direction,
         )
     else:
         if args.osm is not None and not args.osm.is_file():
             raise InputError(f"{args.osm}: OSM file not found")
+        if args.direction != "forward":
+            raise InputError("simulate --xodr: choose the other direction with --route")
         settings = NetworkRunSettings(
             car=Car(lane=args.lane),
             style=marking_style(args.style),
             osm_file=str(args.osm) if args.osm is not None else "",
+            pass_index=args.pass_index,
         )
         route = [r for r in args.route.split(",") if r.strip()] if args.route else None
         source = str(args.xodr)
@@ -255,6 +274,29 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             seed=args.seed or 0,
             traffic_side=args.traffic,
         )
+    _print_network_run(out, source, args, started)
+    return 0
+
+
+def _cmd_simulate_opposite(args: argparse.Namespace) -> int:
+    """``simulate SCENARIO --direction opposite``: the scenario's other carriageway."""
+    import time
+
+    from .simulate.opposite import simulate_opposite_run
+
+    started = time.perf_counter()
+    out = simulate_opposite_run(
+        args.scenario, args.output, seed=args.seed, pass_index=args.pass_index
+    )
+    _print_network_run(out, f"{args.scenario} (opposite carriageway)", args, started)
+    return 0
+
+
+def _print_network_run(out: Path, source: str, args: argparse.Namespace, started: float) -> None:
+    """The summary of a run along a route (``truth.json`` of a network run)."""
+    import json
+    import time
+
     truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
     counts = truth["counts"]
     ramps = ", ".join(
@@ -267,11 +309,12 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
     fit = truth["source"]["fit_max_error_mm"]
     files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
     style = truth["noise"].get("markings", {}).get("name", args.style)
+    drive_no = f", pass {truth['pass']}" if truth.get("pass", 1) > 1 else ""
     print(
         "\n".join(
             [
-                f"map        {source} (seed {truth['seed']}, {truth['traffic_side']}-hand "
-                f"traffic, {style} markings)",
+                f"map        {source} (seed {truth['seed']}{drive_no}, "
+                f"{truth['traffic_side']}-hand traffic, {style} markings)",
                 f"route      roads {route_txt}",
                 f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
                 f"{len(truth['mainline_roads'])} roads, car in lane {truth['car_lane']}",
@@ -285,7 +328,6 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             ]
         )
     )
-    return 0
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -297,11 +339,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     given = [x for x in (args.scenario, args.xodr, args.from_osm) if x is not None]
     if len(given) != 1:
         raise InputError("simulate: give one of SCENARIO, --xodr MAP or --from-osm EXTRACT")
+    if args.pass_index < 1:
+        raise InputError(f"simulate --pass {args.pass_index}: expected 1, 2, ...")
     if args.xodr is not None or args.from_osm is not None:
         return _cmd_simulate_network(args)
+    if args.direction == "opposite":
+        return _cmd_simulate_opposite(args)
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
-    out = simulate_run(scenario, args.output, seed=args.seed)
+    out = simulate_run(scenario, args.output, seed=args.seed, pass_index=args.pass_index)
     truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
     counts = truth["counts"]
     ramps = ", ".join(
@@ -311,7 +357,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     print(
         "\n".join(
             [
-                f"scenario   {scenario.name} (seed {truth['seed']}, "
+                f"scenario   {scenario.name} (seed {truth['seed']}"
+                f"{f', pass {args.pass_index}' if args.pass_index > 1 else ''}, "
                 f"{scenario.traffic_side}-hand traffic)",
                 f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
                 f"{scenario.lanes.count} lanes, car in lane {truth['car_lane']}",
