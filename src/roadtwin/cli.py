@@ -379,10 +379,50 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _add_build(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("build", help="build map.xodr (+ kml, geojson, png) from a mapping run")
-    p.add_argument("run_dir", type=Path, help="mapping-run folder with run.toml")
+    p = sub.add_parser(
+        "build", help="build map.xodr (+ kml, geojson, png) from mapping runs and/or OSM"
+    )
     p.add_argument(
-        "-o", "--output", type=Path, default=None, help="output folder (default: RUN_DIR/out)"
+        "run_dirs",
+        type=Path,
+        nargs="*",
+        metavar="RUN_DIR",
+        help="mapping-run folder(s) with run.toml (several: fused per carriageway; a folder "
+        "whose run.toml names only an OSM file: the OSM-only mode)",
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output folder (default: the first RUN_DIR/out)",
+    )
+    h = p.add_argument_group("the whole highway (issue on several runs and OSM roads)")
+    h.add_argument(
+        "--carriageway-only",
+        action="store_true",
+        help="only what one run drove (and its ramps): no other carriageway and no roads "
+        "beyond the ramps from OSM",
+    )
+    h.add_argument(
+        "--osm",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="OSM extract: with RUN_DIRs instead of their run.toml's; alone (with --bbox) the "
+        "OSM-only mode, every motorway/trunk carriageway of the box from OSM",
+    )
+    h.add_argument(
+        "--bbox",
+        default=None,
+        metavar="MINLON,MINLAT,MAXLON,MAXLAT",
+        help="area of the OSM-only mode (WGS84 degrees)",
+    )
+    h.add_argument(
+        "--traffic",
+        choices=["right", "left"],
+        default="right",
+        help="traffic side of the OSM-only mode with --osm (default right)",
     )
     p.add_argument(
         "--method",
@@ -411,7 +451,49 @@ def _add_build(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
+    if args.osm is not None or len(args.run_dirs) != 1 or not args.carriageway_only:
+        from .highway.command import cmd_build_highway
+
+        return cmd_build_highway(args)
+    args.run_dir = args.run_dirs[0]
+    return _cmd_build_run(args)
+
+
+def _build_config(args: argparse.Namespace):
+    """The stage settings of ``build``: ``--config`` with ``--method``, ``--junctions``."""
     import dataclasses
+
+    cfg = _load_config(args.config)
+    if args.method is not None:
+        cfg = cfg.with_method(args.method)
+    if args.junctions is not None:
+        cfg = dataclasses.replace(
+            cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
+        )
+    return cfg
+
+
+def _ramp_info(road_id: str, r) -> dict:
+    """``build.json`` record of one ramp (its decisions)."""
+    return {
+        "road_id": road_id,
+        "type": r.type,
+        "station_m": round(r.station_m, 3),
+        "station_source": r.station_source,
+        "lanes": r.lanes,
+        "lane_rule": r.lane_rule,
+        "osm_lanes": r.osm_lanes,
+        "osm_lane_rule": r.osm_lane_rule,
+        "type_geometry": r.type_geometry,
+        "osm_way_ids": [str(w) for w in r.osm_way_ids],
+        "attach_gap_m": r.attach_gap_m,
+        "attach_heading_deg": r.attach_heading_deg,
+        "warnings": list(r.warnings),
+    }
+
+
+def _cmd_build_run(args: argparse.Namespace) -> int:
+    """``build RUN_DIR --carriageway-only``: one run, the carriageway it drove."""
     import json
     import time
 
@@ -423,13 +505,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from .xodr import write_xodr
 
     started = time.perf_counter()
-    cfg = _load_config(args.config)
-    if args.method is not None:
-        cfg = cfg.with_method(args.method)
-    if args.junctions is not None:
-        cfg = dataclasses.replace(
-            cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
-        )
+    cfg = _build_config(args)
     names = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
     tools = None
     if not args.no_drive:
@@ -480,21 +556,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         write_geojson(result.network, run.frame, tmp / "map.geojson")
         plot_network(result.network, run, tmp / "map.png")
         ramps_info = [
-            {
-                "road_id": rid,
-                "type": r.type,
-                "station_m": round(r.station_m, 3),
-                "station_source": r.station_source,
-                "lanes": r.lanes,
-                "lane_rule": r.lane_rule,
-                "osm_lanes": r.osm_lanes,
-                "osm_lane_rule": r.osm_lane_rule,
-                "type_geometry": r.type_geometry,
-                "osm_way_ids": [str(w) for w in r.osm_way_ids],
-                "attach_gap_m": r.attach_gap_m,
-                "attach_heading_deg": r.attach_heading_deg,
-                "warnings": list(r.warnings),
-            }
+            _ramp_info(rid, r)
             for rid, r in zip(result.topology.ramp_road_ids, result.ramps, strict=True)
         ]
         info = {
@@ -510,24 +572,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     times["write files"] = time.perf_counter() - t0
     bar.update()
 
-    report = None
-    if not args.no_check:
-        from .check import check_file
-
-        t0 = time.perf_counter()
-        step("check")
-        report = check_file(out / "map.xodr", external=True)
-        times["check"] = time.perf_counter() - t0
-        bar.update()
-    drive_report = None
-    if tools is not None:
-        t0 = time.perf_counter()
-        step("drive")
-        drive_report = _drive(out / "map.xodr", out / "drive", args, cfg.drive, tools=tools)
-        _add_drive_to_build_json(out / "build.json", drive_report)
-        times["drive"] = time.perf_counter() - t0
-        bar.update()
-    bar.close()
+    report, drive_report = _check_and_drive(out, args, cfg, tools, bar, times)
 
     s = result.summary()
     lines = [
@@ -560,6 +605,33 @@ def _cmd_build(args: argparse.Namespace) -> int:
         print(report.format_text())
         failed = failed or report.errors > 0
     return 1 if failed else 0
+
+
+def _check_and_drive(out: Path, args: argparse.Namespace, cfg, tools, bar, times: dict):
+    """``roadtwin check`` of ``out/map.xodr`` (unless ``--no-check``) and, with esmini
+    (``tools``), ``roadtwin drive`` into ``out/drive`` (recorded in ``build.json``);
+    returns both reports (None where skipped) and closes the progress bar."""
+    import time
+
+    report = None
+    if not args.no_check:
+        from .check import check_file
+
+        t0 = time.perf_counter()
+        bar.set_description("check")
+        report = check_file(out / "map.xodr", external=True)
+        times["check"] = time.perf_counter() - t0
+        bar.update()
+    drive_report = None
+    if tools is not None:
+        t0 = time.perf_counter()
+        bar.set_description("drive")
+        drive_report = _drive(out / "map.xodr", out / "drive", args, cfg.drive, tools=tools)
+        _add_drive_to_build_json(out / "build.json", drive_report)
+        times["drive"] = time.perf_counter() - t0
+        bar.update()
+    bar.close()
+    return report, drive_report
 
 
 def _drive_lines(drive_report, *, skipped: bool, out: Path | None = None) -> list[str]:

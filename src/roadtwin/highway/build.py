@@ -156,13 +156,14 @@ def _osm_part(
     cfg: PipelineConfig,
     partner: int | None,
 ) -> _Part:
-    """Ramps and topology of a carriageway built from OSM (OSM decides every station)."""
+    """Ramps and topology of a carriageway built from OSM: a ramp attaches at the gore of
+    its lanes where OSM's lane count changes next to it (found in the road's lane
+    sections), else at its OSM node."""
     ramp_set = build_ramps(
         osm_graph,
         osm_road.road,
         trajectory_xy=osm_road.path_xy,
         traffic_side=traffic_side,  # type: ignore[arg-type]
-        gores=(),
         config=cfg.ramps,
     )
     topology = build_topology(
@@ -212,7 +213,7 @@ def _add_beyond(
         by_id[ramp.id] = ramp
         part.beyond.append(replace(b, road=road))
     part.roads = [by_id[r.id] for r in part.roads] + [b.road for b in part.beyond]
-    return notes
+    return [f"carriageway {part.carriageway.number}: {n}" for n in notes]
 
 
 def _header(name: str, frame: MappingFrame, user_data: list[tuple[str, str]]) -> Header:
@@ -443,11 +444,13 @@ def build_osm_only(
     *,
     traffic_side: str = "right",
     name: str = "osm",
+    box_xy: tuple[float, float, float, float] | None = None,
     config: PipelineConfig | None = None,
 ) -> HighwayResult:
     """Every one-way motorway/trunk carriageway of an OSM graph from OSM alone, with its
     ramps and the roads beyond them (OSM accuracy; lanes from the tags, widths from
-    ``config.highway``).
+    ``config.highway``). ``box_xy = (xmin, ymin, xmax, ymax)`` (mapping frame, metres)
+    keeps the carriageways' longest parts inside that box.
 
     Raises
     ------
@@ -456,7 +459,7 @@ def build_osm_only(
     """
     cfg = config or PipelineConfig()
     with threadpool_limits(limits=1, user_api="blas"):
-        return _build_osm_only(osm_graph, frame, traffic_side, name, cfg)
+        return _build_osm_only(osm_graph, frame, traffic_side, name, box_xy, cfg)
 
 
 def _build_osm_only(
@@ -464,6 +467,7 @@ def _build_osm_only(
     frame: MappingFrame,
     traffic_side: str,
     name: str,
+    box_xy: tuple[float, float, float, float] | None,
     cfg: PipelineConfig,
 ) -> HighwayResult:
     hw = cfg.highway
@@ -471,6 +475,9 @@ def _build_osm_only(
     warnings: list[str] = []
     t0 = time.perf_counter()
     chains = carriageway_chains(osm_graph, min_length_m=hw.min_carriageway_m)
+    if box_xy is not None:
+        chains = [c for c in (c.inside(box_xy) for c in chains) if c is not None]
+        chains = [c for c in chains if c.length >= hw.min_carriageway_m]
     if not chains:
         msg = (
             f"OSM-only build: no one-way motorway/trunk carriageway of at least "
@@ -482,7 +489,7 @@ def _build_osm_only(
     t0 = time.perf_counter()
     for chain in chains:
         try:
-            osm_road = carriageway_from_osm(chain, traffic_side=traffic_side, config=hw)
+            osm_road = carriageway_from_osm(chain, osm_graph, traffic_side=traffic_side, config=hw)
         except FitError as exc:
             warnings.append(f"carriageway {chain.way_ids[0]} not built: {exc}")
             continue

@@ -349,7 +349,10 @@ def check_consistency(
             enough = n >= cfg.min_bin_points
             med[j, enough] = m[enough]
             se[j, enough] = 1.4826 * mad[enough] / np.sqrt(n[enough])
-        centre = np.nanmedian(np.where(np.isfinite(med), med, np.nan), axis=0)
+        seen = np.isfinite(med)
+        centre = np.full(nb, np.nan)
+        some = seen.any(axis=0)
+        centre[some] = np.nanmedian(med[:, some], axis=0)
         for a in range(len(runs)):
             for b in range(a + 1, len(runs)):
                 both = np.isfinite(med[a]) & np.isfinite(med[b])

@@ -40,7 +40,13 @@ from ..fitting import (
 )
 from ..model import CubicProfile, Road
 from ..ramps import fit_ramp_shape
-from .chains import OsmCarriageway, carriageway_chains, maxspeed_mps, shared_length_m
+from .chains import (
+    OsmCarriageway,
+    carriageway_chains,
+    link_attachments,
+    maxspeed_mps,
+    shared_length_m,
+)
 from .lanes import CrossSection, lane_sections
 
 FloatArray = NDArray[np.float64]
@@ -49,6 +55,7 @@ __all__ = ["OsmRoad", "carriageway_from_osm", "opposite_carriageway", "osm_road_
 
 _STEP_M = 2.0  # sampling of the measured road and of the median width
 _OWN_CHAIN_M = 30.0  # the OSM way of the measured carriageway lies this close to the run
+_GORE_MATCH_M = 60.0  # a lane-count change this close to a ramp's node is its gore
 
 
 @dataclass(frozen=True)
@@ -83,13 +90,31 @@ def osm_road_tags(chain: OsmCarriageway) -> tuple[tuple[str, str], ...]:
     return tuple(out)
 
 
-def _lane_counts(chain: OsmCarriageway, chain_s: FloatArray, road_s: FloatArray) -> list:
-    """``(road station, lanes)`` change points, from the chain stations ``chain_s`` seen
-    at the road stations ``road_s`` (both increasing together)."""
+def _lane_counts(
+    chain: OsmCarriageway,
+    chain_s: FloatArray,
+    road_s: FloatArray,
+    attachments: list[tuple[float, str, int]],
+) -> list[tuple[float, int, bool]]:
+    """``(road station, lanes, gore)`` change points, from the chain stations ``chain_s``
+    seen at the road stations ``road_s`` (both increasing together). A gain next to an
+    entry (a drop next to an exit) within ``_GORE_MATCH_M`` is a gore: the entry's lanes
+    join (the exit's leave) at full width, at the ramp's station."""
     n = chain.lanes_at(chain_s)
-    out = [(0.0, int(n[0]))]
+    out = [(0.0, int(n[0]), False)]
+    order = np.argsort(chain_s)
     for k in np.flatnonzero(np.diff(n)) + 1:
-        out.append((float(road_s[k]), int(n[k])))
+        s_road = float(road_s[k])
+        kind = "entry" if n[k] > n[k - 1] else "exit"
+        near = [
+            float(np.interp(s_att, chain_s[order], road_s[order]))
+            for s_att, what, _ in attachments
+            if what == kind
+        ]
+        near = [x for x in near if abs(x - s_road) <= _GORE_MATCH_M]
+        if near:
+            s_road = min(near, key=lambda x: abs(x - s_road))
+        out.append((s_road, int(n[k]), bool(near)))
     return out
 
 
@@ -275,7 +300,7 @@ def opposite_carriageway(
     edge = measured.to_xy(s_k, side * median)
     ref = resample_polyline(edge[::-1], 1.0)
     u = s_k[-1] - s_k[::-1]  # stations of the new road at the reversed grid
-    counts = _lane_counts(other, c_bk[::-1], u)
+    counts = _lane_counts(other, c_bk[::-1], u, link_attachments(osm_graph, other))
     z = measured.height(s_k[::-1])
     elevation = fit_cubic_profile(u, z, tolerance=0.02)
     road, path = _road(
@@ -291,7 +316,7 @@ def opposite_carriageway(
         f"other carriageway from OSM way(s) {', '.join(str(w) for w in other.way_ids[:4])}: "
         f"{road.length:.0f} m, median {np.median(median):.1f} m "
         f"({median.min():.1f}-{median.max():.1f} m), lanes "
-        f"{'/'.join(str(n) for _, n in counts)}"
+        f"{'/'.join(str(c[1]) for c in counts)}"
     )
     return OsmRoad(road, path, other, np.column_stack([s_k, median]), tuple(notes))
 
@@ -299,14 +324,18 @@ def opposite_carriageway(
 def _fit_windows(
     target: FloatArray, *, lanes: int, cross: CrossSection, traffic_side: str, cfg: HighwayConfig
 ) -> FloatArray:
-    """A curvature-bounded clothoid spline through a dense target line (driving order),
-    fitted window by window (:func:`roadtwin.ramps.fit_ramp_shape`), each window anchored
-    at the pose and curvature where the last kept part ended."""
-    rcfg = RampConfig(shape_knot_m=30.0)
-    a = arc_length(target)
+    """A curvature-bounded clothoid spline through a dense target line (driving order, 1 m
+    spacing), fitted window by window (:func:`roadtwin.ramps.fit_ramp_shape`); each window
+    starts at the pose and curvature where the last kept part ended, and its targets start
+    at the target point nearest to that pose (the fitted and the target lines differ in
+    length by metres)."""
+    # a motorway's curvature changes over hundreds of metres: coarse knots and grid keep
+    # the windows' solves small
+    rcfg = RampConfig(shape_knot_m=50.0, shape_step_m=2.0)
+    smooth = savgol_smooth(target, window=min(41, target.shape[0] // 2 * 2 - 1), polyorder=2)
+    a = arc_length(smooth)
     window = cfg.osm_fit_window_m
     keep_m = 0.6 * window
-    smooth = savgol_smooth(target, window=min(41, target.shape[0] // 2 * 2 - 1), polyorder=2)
     d = np.gradient(smooth, axis=0)
     heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
     anchor = (float(smooth[0, 0]), float(smooth[0, 1]), float(heading[0]))
@@ -314,12 +343,10 @@ def _fit_windows(
     lane_side = -1.0 if traffic_side == "right" else 1.0
     widths = (cross.inner_shoulder_m, cross.lane_width_m, max(cross.hard_shoulder_m, 0.3))
     parts: list[FloatArray] = []
-    start = 0.0
+    i0 = 0
     while True:
-        sel = (a >= start) & (a <= start + window)
-        piece = target[sel]
-        # the window starts at the anchor: the first target is the anchor's foot point
-        piece = np.vstack([anchor[:2], piece[1:]]) if piece.shape[0] > 1 else piece
+        stop = int(np.searchsorted(a, a[i0] + window, side="right"))
+        piece = np.vstack([anchor[:2], smooth[i0 + 1 : stop]])
         if piece.shape[0] < 4:
             break
         shape = fit_ramp_shape(
@@ -333,8 +360,7 @@ def _fit_windows(
             config=rcfg,
         )
         xy = shape.xy
-        last = start + window >= a[-1] - 1.0
-        if last:
+        if stop >= a.size:
             parts.append(xy)
             break
         ax = arc_length(xy)
@@ -345,21 +371,24 @@ def _fit_windows(
         kk = np.gradient(hh, ax)
         anchor = (float(xy[n_keep, 0]), float(xy[n_keep, 1]), float(hh[n_keep]))
         k0 = float(np.mean(kk[max(0, n_keep - 5) : n_keep + 5]))
-        start += keep_m
+        near = np.hypot(*(smooth[i0:stop] - xy[n_keep]).T)
+        i0 = i0 + max(1, int(np.argmin(near)))
     return np.vstack(parts)
 
 
 def carriageway_from_osm(
     chain: OsmCarriageway,
+    osm_graph: nx.MultiDiGraph,
     *,
     traffic_side: str = "right",
     cross: CrossSection | None = None,
     config: HighwayConfig | None = None,
 ) -> OsmRoad:
-    """A carriageway from its OSM way alone (OSM accuracy): the way offset by the half
-    width (inner shoulder and half the driving lanes, lane counts smoothed over 400 m)
-    towards the median, fitted as a curvature-bounded clothoid spline; lanes from the OSM
-    lane counts; elevation 0 (OSM has no heights)."""
+    """A carriageway from its OSM way alone (OSM accuracy; ``osm_graph`` holds its ramps):
+    the way offset by the half width (inner shoulder and half the driving lanes, lane
+    counts smoothed over 400 m) towards the median, fitted as a curvature-bounded clothoid
+    spline; lanes from the OSM lane counts (gores where they change at a ramp); elevation
+    0 (OSM has no heights)."""
     cfg = config or HighwayConfig()
     xs = cross or CrossSection(cfg.lane_width_m, cfg.inner_shoulder_m, cfg.hard_shoulder_m)
     pts, cs = _sample_chain(chain)
@@ -380,7 +409,12 @@ def carriageway_from_osm(
     )
     ref = resample_polyline(ref, 1.0)
     u = arc_length(ref)
-    counts = _lane_counts(chain, np.interp(u, [0.0, u[-1]], [0.0, chain.length]), u)
+    counts = _lane_counts(
+        chain,
+        np.interp(u, [0.0, u[-1]], [0.0, chain.length]),
+        u,
+        link_attachments(osm_graph, chain),
+    )
     road, path = _road(
         ref,
         counts=counts,
@@ -393,6 +427,6 @@ def carriageway_from_osm(
     road = replace(road, id="osm")
     note = (
         f"carriageway from OSM way(s) {', '.join(str(w) for w in chain.way_ids[:4])}: "
-        f"{road.length:.0f} m, lanes {'/'.join(str(c) for _, c in counts)}"
+        f"{road.length:.0f} m, lanes {'/'.join(str(c[1]) for c in counts)}"
     )
     return OsmRoad(road, path, chain, np.zeros((0, 2)), (note,))

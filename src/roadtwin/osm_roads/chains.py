@@ -153,6 +153,43 @@ class OsmCarriageway:
                 lengths[str(v)] = lengths.get(str(v), 0.0) + float(b - a)
         return max(sorted(lengths), key=lambda k: lengths[k]) if lengths else None
 
+    def crop(self, s0: float, s1: float) -> OsmCarriageway:
+        """The part between stations ``s0`` and ``s1`` (metres), stations from 0 again."""
+        s0, s1 = max(0.0, s0), min(self.length, s1)
+        inside = (self.s > s0) & (self.s < s1)
+        ends = [np.interp(v, self.s, self.xy[:, k]) for v in (s0, s1) for k in range(2)]
+        xy = np.vstack([ends[:2], self.xy[inside], ends[2:]])
+        s = np.concatenate([[s0], self.s[inside], [s1]]) - s0
+        keep = [
+            i for i in range(len(self.edges)) if self.edge_s[i + 1] > s0 and self.edge_s[i] < s1
+        ]
+        edge_s = (
+            np.clip(np.concatenate([self.edge_s[keep], [self.edge_s[keep[-1] + 1]]]), s0, s1) - s0
+        )
+        return OsmCarriageway(
+            tuple(self.edges[i] for i in keep), xy, s, edge_s, tuple(self.tags[i] for i in keep)
+        )
+
+    def inside(self, box: tuple[float, float, float, float]) -> OsmCarriageway | None:
+        """The longest part inside ``box = (xmin, ymin, xmax, ymax)`` (mapping frame,
+        metres), or None."""
+        grid = np.arange(0.0, self.length, 2.0)
+        pts = np.column_stack([np.interp(grid, self.s, self.xy[:, k]) for k in range(2)])
+        ok = (
+            (pts[:, 0] >= box[0]) & (pts[:, 0] <= box[2]) & (pts[:, 1] >= box[1])
+            & (pts[:, 1] <= box[3])
+        )  # fmt: skip
+        idx = np.flatnonzero(ok)
+        if idx.size < 2:
+            return None
+        breaks = np.flatnonzero(np.diff(idx) > 1)
+        starts = np.concatenate([[idx[0]], idx[breaks + 1]])
+        stops = np.concatenate([idx[breaks], [idx[-1]]])
+        k = int(np.argmax(stops - starts))
+        if ok.all():
+            return self
+        return self.crop(float(grid[starts[k]]), float(grid[stops[k]]))
+
     def heading_at(self, s: ArrayLike) -> FloatArray:
         """Heading (radians) of the polyline segment at stations ``s``."""
         d = np.diff(self.xy, axis=0)
@@ -243,6 +280,29 @@ def carriageway_chains(
         )
         out.append(OsmCarriageway(tuple(chain), pts, s, edge_s, tags))
     out.sort(key=lambda c: (-c.length, str(c.edges[0])))
+    return out
+
+
+def _is_link(data: dict[str, Any]) -> bool:
+    hw = data.get("highway")
+    if isinstance(hw, (list, tuple)):
+        hw = hw[0]
+    return isinstance(hw, str) and hw.endswith("_link")
+
+
+def link_attachments(graph: nx.MultiDiGraph, chain: OsmCarriageway) -> list[tuple[float, str, int]]:
+    """Where OSM ramps meet a carriageway: ``(chain station, "exit" | "entry", lanes)``
+    for every ``*_link`` edge leaving (exit) or arriving at (entry) one of its nodes."""
+    nodes = [e[0] for e in chain.edges] + [chain.edges[-1][1]]
+    out = []
+    for k, node in enumerate(nodes):
+        s = float(chain.edge_s[k])
+        for _, _, d in graph.out_edges(node, data=True):
+            if _is_link(d):
+                out.append((s, "exit", infer_lane_count(d)[0]))
+        for _, _, d in graph.in_edges(node, data=True):
+            if _is_link(d):
+                out.append((s, "entry", infer_lane_count(d)[0]))
     return out
 
 

@@ -103,7 +103,7 @@ def _opening(width: float, length: float, span: float) -> CubicProfile:
 
 def lane_sections(
     length_m: float,
-    counts: list[tuple[float, int]],
+    counts: list[tuple[float, int]] | list[tuple[float, int, bool]],
     cross: CrossSection,
     *,
     traffic_side: str = "right",
@@ -116,7 +116,10 @@ def lane_sections(
     length_m
         Road length (metres).
     counts
-        ``(station, lanes)`` where each lane count starts (metres, sorted; the first at 0).
+        ``(station, lanes[, gore])`` where each lane count starts (metres, sorted; the
+        first at 0). ``gore`` True: the lanes gained or dropped there start or end at full
+        width (an entry's lanes joining, an exit's lanes leaving: a gore, which the ramp
+        stage finds in the sections); else they open or close over ``taper_m``.
     cross
         Widths; a zero shoulder width leaves that shoulder out.
     traffic_side
@@ -129,20 +132,23 @@ def lane_sections(
     Sections with lane links between them (lanes of the same role continue; an opening
     lane has no predecessor, a closing one no successor).
     """
-    changes: list[tuple[float, int]] = []
-    for s, n in counts:
-        n = max(1, int(n))
+    changes: list[tuple[float, int, bool]] = []
+    for item in counts:
+        s, n = float(item[0]), max(1, int(item[1]))
+        gore = bool(item[2]) if len(item) > 2 else False  # type: ignore[misc]
         if not changes or n != changes[-1][1]:
-            changes.append((min(max(float(s), 0.0), length_m), n))
-    changes[0] = (0.0, changes[0][1])
+            changes.append((min(max(s, 0.0), length_m), n, gore))
+    changes[0] = (0.0, changes[0][1], False)
     changes = [c for i, c in enumerate(changes) if i == 0 or c[0] > changes[i - 1][0] + 1.0]
     # per section: (start, end, lanes, {driving lane index: width profile})
     plan: list[tuple[float, float, int, dict[int, CubicProfile]]] = []
     w = cross.lane_width_m
-    for i, (start, n) in enumerate(changes):
+    for i, (start, n, gore) in enumerate(changes):
         end = changes[i + 1][0] if i + 1 < len(changes) else length_m
-        gained = n - changes[i - 1][1] if i > 0 and changes[i - 1][1] < n else 0
-        dropped = n - changes[i + 1][1] if i + 1 < len(changes) and changes[i + 1][1] < n else 0
+        gained = n - changes[i - 1][1] if i > 0 and changes[i - 1][1] < n and not gore else 0
+        dropped = 0
+        if i + 1 < len(changes) and changes[i + 1][1] < n and not changes[i + 1][2]:
+            dropped = n - changes[i + 1][1]
         close_at = max(start + 0.5 * (end - start), end - taper_m) if dropped else end
         opening = {j: _opening(w, taper_m, close_at - start) for j in range(n - gained + 1, n + 1)}
         plan.append((start, close_at, n, opening))
