@@ -194,6 +194,9 @@ class MainlineConfig:
     hidden_gore_slope: float = 0.004
     """Where the outer edge is occluded, a marking that starts (ends) converging (diverging)
     faster than this (m/m) is a ramp line up to the gore."""
+    edge_line_m: float = 0.35
+    """A marking closer than this to a road edge (metres) is the edge line along it, not
+    the border of a lane."""
     shoulder_max_m: float = 2.2
     """A lane between a road edge and the nearest marking narrower than this is a shoulder
     (metres)."""

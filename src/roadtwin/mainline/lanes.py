@@ -42,6 +42,7 @@ from .gores import (
 log = logging.getLogger(__name__)
 
 _GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that gore
+_LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across sections
 
 FloatArray = NDArray[np.float64]
 
@@ -169,6 +170,7 @@ def fit_outer_edge(
     *,
     config: MainlineConfig | None = None,
     hidden_steps: FloatArray | None = None,
+    levels: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
     """Outer road edge ``d_E(s)`` on ``grid`` from the outer-side edge points.
 
@@ -179,6 +181,8 @@ def fit_outer_edge(
 
     ``hidden_steps`` (metres) are steps that an occlusion hid (gores placed from other
     evidence); the fit is split there too, so that it does not bend across them.
+    ``levels``: the level path of the same points on the same bins from an earlier call
+    (it does not depend on ``hidden_steps``).
 
     Returns
     -------
@@ -197,7 +201,7 @@ def fit_outer_edge(
     cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
     # the innermost continuous level of the points, not a quantile: ramp edges beside the
     # mainline's, guardrails and other roads seen through a gap must not pull it out
-    q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg)
+    q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg) if levels is None else levels
     q = q_raw
     have = np.isfinite(q)
     if not np.any(have):
@@ -307,7 +311,7 @@ def fit_lanes(
     """
     cfg = config or MainlineConfig()
     grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
-    d_edge, breaks, used, covered = fit_outer_edge(s_outer, d_outer, grid, config=cfg)
+    d_edge, breaks, used, covered, levels = _outer_edge_with_levels(s_outer, d_outer, grid, cfg)
     # the median-side edge in this frame (d towards the carriageway): 0 where it is the
     # reference line, negative where lanes were added on the median side
     d_median = -median.at(grid) if median is not None else np.zeros(grid.size)
@@ -336,7 +340,7 @@ def fit_lanes(
         hidden = [g for g in gores if all(abs(g - p) > 40.0 for p in placed)] + placed
         if hidden:
             d_edge, breaks, used, covered = fit_outer_edge(
-                s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden)
+                s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden), levels=levels
             )
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, cfg)
@@ -344,6 +348,16 @@ def fit_lanes(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
     )
     return sections, events, out_tracks, used
+
+
+def _outer_edge_with_levels(s_outer, d_outer, grid, cfg):
+    """:func:`fit_outer_edge` and the level path it used (to reuse it in a refit)."""
+    bin_m = 2.0
+    cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
+    cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
+    ok = np.isfinite(s_outer) & np.isfinite(d_outer) & (d_outer > 0.5)
+    levels = edge_level_path(s_outer[ok], d_outer[ok], cedges, config=cfg)
+    return (*fit_outer_edge(s_outer, d_outer, grid, config=cfg, levels=levels), levels)
 
 
 @dataclass
@@ -1094,10 +1108,13 @@ def _sections_from_tracks(
             raw = (tracks[k].s_samples, tracks[k].d_samples)
             info = _taper(dmat, k, grid, end, cfg, fixed, raw)
             if info is None:
+                # a lane that begins/ends at full width does so at a gore, where an edge
+                # steps; a marking that merely starts/ends (paint beginning at a road
+                # edge, a worn stretch) without one is no lane event
                 s_ev = float(grid[i_edge])
-                if breaks.size and np.min(np.abs(breaks - s_ev)) < 20.0:
+                if breaks.size and np.min(np.abs(breaks - s_ev)) < _GORE_MATCH_M:
                     s_ev = float(breaks[np.argmin(np.abs(breaks - s_ev))])
-                raw_events.append((k, end, s_ev, 0.0, None))
+                    raw_events.append((k, end, s_ev, 0.0, None))
             else:
                 raw_events.append((k, end, info[0], info[1], info[2]))
     # sections: runs of a constant set of tracks
@@ -1130,12 +1147,26 @@ def _sections_from_tracks(
     starts = [*merged_starts, n_g]
     sections: list[LaneSection] = []
     bounds_per: list[list[tuple[object, object]]] = []
+    medians: list[tuple[float, float]] = []  # the median-side edge at section start, end
+    # an edge line painted along a road edge all its length (no shoulder there) is that
+    # edge, not the border of a lane a few centimetres wide (a shoulder opening from zero
+    # beside a gore separates from the edge: its line stays)
+    edge_lines = set()
+    for k in range(len(tracks)):
+        on = np.isfinite(dmat[k])
+        if np.count_nonzero(on) < 10:
+            continue
+        to_edge = float(np.median(d_edge[on] - dmat[k, on]))
+        to_median = float(np.median(dmat[k, on] - d_median[on]))
+        if min(to_edge, to_median) < cfg.edge_line_m:
+            edge_lines.add(k)
     members_per: list[list[int]] = []
     for a, b in itertools.pairwise(starts):
         b_inc = min(b + 1, n_g)
         votes = present[:, a:b].mean(axis=1)
         members = [k for k in range(len(tracks)) if votes[k] > 0.5]
         members.sort(key=lambda k: float(np.nanmedian(dmat[k, a:b])))
+        members = [k for k in members if k not in edge_lines]
         gs = grid[a:b_inc]
         s0 = s0_at.get(a, float(grid[a]))
         rel = gs - s0
@@ -1177,8 +1208,9 @@ def _sections_from_tracks(
             bounds.append((labels[i], labels[i + 1]))
         sections.append(_make_section(s0, lanes, sign))
         bounds_per.append(bounds)
+        medians.append((float(m[0]), float(m[min(b - a, m.size - 1)])))
         members_per.append(members)
-    sections = _link_sections(sections, bounds_per)
+    sections = _link_sections(sections, bounds_per, medians)
     events = _events(raw_events, sections, members_per, dmat, grid, side, sign, median_steps)
     out_tracks = tuple(
         BoundaryTrack(
@@ -1202,45 +1234,47 @@ def _side_lanes(sec: LaneSection) -> tuple[Lane, ...]:
 
 
 def _link_sections(
-    sections: list[LaneSection], bounds_per: list[list[tuple[object, object]]]
+    sections: list[LaneSection],
+    bounds_per: list[list[tuple[object, object]]],
+    medians: list[tuple[float, float]] | None = None,
 ) -> list[LaneSection]:
     """Lane predecessor/successor ids between consecutive sections of the road.
 
-    Lanes with the same pair of borders continue; the shoulders always continue; a lane
-    that shares one border with an unmatched lane continues unless it opens from zero
-    width (a lane birth) / closes to zero width (a lane end).
+    Chosen by geometry: a lane continues into the lane of the next section whose inner
+    and outer borders lie where its own end (within ``_LINK_TOLERANCE_M``, offsets from
+    the reference line: the median-side edge ``medians`` (section start, end) plus the
+    widths), both wider than 0.3 m there; counting lanes or matching border labels fails
+    where a lane begins or ends beside the others, on either side. A lane whose width
+    jumps at the boundary (the hard shoulder at a gore: the old one leaves with the ramp,
+    the new one starts narrow) ends there.
     """
+    if medians is None:
+        medians = [(0.0, 0.0)] * len(sections)
     preds: list[dict[int, int]] = [{} for _ in sections]
     succs: list[dict[int, int]] = [{} for _ in sections]
     for n in range(1, len(sections)):
-        prev, cur = bounds_per[n - 1], bounds_per[n]
         prev_lanes, cur_lanes = _side_lanes(sections[n - 1]), _side_lanes(sections[n])
         prev_len = sections[n].s0 - sections[n - 1].s0
-        mapping: dict[int, int] = {}
-        for i, bd in enumerate(cur):
-            for j, pb in enumerate(prev):
-                if bd == pb:
-                    mapping[i] = j
-        mapping.setdefault(0, 0)
-        if len(cur) - 1 not in mapping and len(prev) - 1 not in mapping.values():
-            mapping[len(cur) - 1] = len(prev) - 1
-        used = set(mapping.values())
-        for i, bd in enumerate(cur):
-            if i in mapping or float(cur_lanes[i].width.value(0.0)) < 0.3:
-                continue
-            for j, pb in enumerate(prev):
-                if j in used or float(prev_lanes[j].width.value(prev_len)) < 0.3:
+        w_prev = np.array([float(ln.width.value(prev_len)) for ln in prev_lanes])
+        w_cur = np.array([float(ln.width.value(0.0)) for ln in cur_lanes])
+        b_prev = medians[n - 1][1] + np.concatenate([[0.0], np.cumsum(w_prev)])
+        b_cur = medians[n][0] + np.concatenate([[0.0], np.cumsum(w_cur)])
+        pairs = []
+        for i in range(len(cur_lanes)):
+            for j in range(len(prev_lanes)):
+                if min(w_cur[i], w_prev[j]) < 0.3:
                     continue
-                if bd[0] == pb[0] or bd[1] == pb[1]:
-                    mapping[i] = j
-                    used.add(j)
-                    break
+                d = max(abs(b_cur[i] - b_prev[j]), abs(b_cur[i + 1] - b_prev[j + 1]))
+                if d <= _LINK_TOLERANCE_M:
+                    pairs.append((d, i, j))
+        mapping: dict[int, int] = {}
+        used: set[int] = set()
+        for _, i, j in sorted(pairs):
+            if i not in mapping and j not in used:
+                mapping[i] = j
+                used.add(j)
         for i, j in mapping.items():
-            # a lane whose width jumps at the boundary (the hard shoulder at a gore: the
-            # old one leaves with the ramp, the new one starts narrow) ends there
-            w_prev = float(prev_lanes[j].width.value(prev_len))
-            w_cur = float(cur_lanes[i].width.value(0.0))
-            if abs(w_prev - w_cur) > 0.05:
+            if abs(w_prev[j] - w_cur[i]) > 0.05:
                 continue
             preds[n][i] = prev_lanes[j].id
             succs[n - 1][j] = cur_lanes[i].id

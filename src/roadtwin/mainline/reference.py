@@ -167,6 +167,7 @@ def fit_median_edge(
     cfg = config or MainlineConfig()
     step = cfg.grid_step_m
     frame = traj
+    side, has_steps = 1.0, False
     for it in range(3):
         s_all, t_all = frame.project(ref_pts)
         inside = (s_all >= -5.0) & (s_all <= frame.length + 5.0)
@@ -186,8 +187,10 @@ def fit_median_edge(
             # the median lies on the side of the trajectory the points are on; later frames
             # are the edge itself, with points on both sides of it
             side = 1.0 if np.median(t) >= 0.0 else -1.0
-        side, u, edges, level, steps = _median_levels(s, t, side, lo, hi, cfg)
-        if steps.stations.size:
+        if it == 0 or has_steps:
+            side, u, edges, level, steps = _median_levels(s, t, side, lo, hi, cfg)
+            has_steps = bool(steps.stations.size)
+        if has_steps:
             # points on the edge's own level, each segment moved onto the base level
             centres = 0.5 * (edges[1:] + edges[:-1])
             path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
@@ -210,6 +213,8 @@ def fit_median_edge(
         nrm = np.stack([-tg[:, 1], tg[:, 0]], axis=1)
         pts = xy + off[:, None] * nrm
         frame = PolylineFrame.from_points(resample_polyline(pts, step))
+    if not has_steps:
+        return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)))
     # the steps in the final line's own stations
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
