@@ -44,7 +44,8 @@ def _link(link: RoadLink | None, roads: dict[str, str], junctions: dict[str, str
 def merge_parts(
     parts: Sequence[NetworkPart], *, first_id: int = 1
 ) -> tuple[tuple[Road, ...], tuple[Junction, ...], list[dict[str, str]]]:
-    """Merge parts into one set of roads and junctions with unique numeric ids.
+    """Merge parts into one set of roads and junctions with unique numeric ids (the first
+    part keeps its own numeric ids; the others are numbered on after them, in order).
 
     Returns
     -------
@@ -55,15 +56,22 @@ def merge_parts(
     roads_out: list[Road] = []
     junctions_out: list[Junction] = []
     maps: list[dict[str, str]] = []
-    for part in parts:
+    for k, part in enumerate(parts):
         road_map: dict[str, str] = {}
         junction_map: dict[str, str] = {}
-        for road in part.roads:
-            road_map[road.id] = str(next_id)
-            next_id += 1
-        for junction in part.junctions:
-            junction_map[junction.id] = str(next_id)
-            next_id += 1
+        ids = [r.id for r in part.roads] + [j.id for j in part.junctions]
+        if k == 0 and all(i.isdigit() for i in ids) and len(set(ids)) == len(ids):
+            # the first part keeps its ids: a map of one carriageway is the single-run map
+            road_map = {r.id: r.id for r in part.roads}
+            junction_map = {j.id: j.id for j in part.junctions}
+            next_id = max([first_id - 1, *(int(i) for i in ids)]) + 1
+        else:
+            for road in part.roads:
+                road_map[road.id] = str(next_id)
+                next_id += 1
+            for junction in part.junctions:
+                junction_map[junction.id] = str(next_id)
+                next_id += 1
         tags = ((CARRIAGEWAY_CODE, str(part.carriageway)), (SOURCE_CODE, part.source))
         for road in part.roads:
             own = tuple((c, v) for c, v in road.user_data if c not in dict(tags))

@@ -324,7 +324,7 @@ def check_consistency(
     where their medians differ by more than ``disagree_sigmas`` standard errors (points'
     spread over their count, plus ``pose_sigma_m`` per run) and by more than
     ``min_disagreement_m``; consecutive stretches merge. The run kept there is the one
-    nearest to the median of all runs present (ties: the earlier run).
+    nearest to the median of all runs present there; of two runs alone, the earlier one.
     """
     cfg = config or HighwayConfig()
     out: list[Disagreement] = []
@@ -362,9 +362,12 @@ def check_consistency(
                 bad = both & (diff > limit)
                 for lo, hi in _stretches(bad):
                     sel = slice(lo, hi)
+                    present = int(np.count_nonzero(np.isfinite(med[:, sel]).any(axis=1)))
                     da = np.nanmedian(np.abs(med[a, sel] - centre[sel]))
                     db = np.nanmedian(np.abs(med[b, sel] - centre[sel]))
-                    kept = names[a] if da <= db else names[b]
+                    # two runs alone cannot say which is right: the earlier one (the
+                    # reference frame's run) is kept; with more, the one nearer the rest
+                    kept = names[a] if present <= 2 or da <= db else names[b]
                     out.append(
                         Disagreement(
                             (names[a], names[b]),
