@@ -154,7 +154,7 @@ def test_osm_chain_opposite_direction(tmp_path):
 
 def test_run_in_frame_round_trip(runs):
     run = runs["pass1"]
-    utm = MappingFrame(run.frame.origin, "EPSG:32632")
+    utm = MappingFrame(run.frame.origin, "+proj=utm +zone=32 +datum=WGS84 +units=m")
     there = run_in_frame(run, utm)
     assert abs(there.trajectory.xy[0, 0] - run.trajectory.xy[0, 0]) > 1e4  # really moved
     # heights keep their altitude: local z is above the origin's altitude
