@@ -172,6 +172,19 @@ def _osm_part(
         traffic_side=traffic_side,  # type: ignore[arg-type]
         config=cfg.topology,
     )
+    # the gores of an OSM-built road come from OSM's lane counts, not from a run
+    osm_words = {"lidar gore": "osm lane change", "mainline lane change": "osm lane change"}
+    topology = replace(
+        topology,
+        ramps=tuple(
+            replace(
+                r,
+                station_source=osm_words.get(r.station_source, r.station_source),
+                lane_rule=osm_words.get(r.lane_rule, r.lane_rule),
+            )
+            for r in topology.ramps
+        ),
+    )
     ways = {
         rid: tuple(int(w) for w in ramp.osm_way_ids)
         for rid, ramp in zip(topology.ramp_road_ids, topology.ramps, strict=True)

@@ -302,7 +302,7 @@ def beyond_road(
     near_ramp = a <= cfg.beyond_length_m if exit_ else a >= a[-1] - cfg.beyond_length_m
     dense = dense[near_ramp]
     if dense.shape[0] < 4 or arc_length(dense)[-1] < _MIN_LENGTH_M:
-        msg = f"the OSM road beyond ramp {ramp_road.id} is shorter than {_MIN_LENGTH_M:.0f} m"
+        msg = f"the OSM road beyond it is shorter than {_MIN_LENGTH_M:.0f} m"
         raise FitError(msg)
     # the reference line (left edge of the lanes for right-hand traffic): a two-way way
     # is drawn on the centre line, a one-way way in the middle of its lanes
@@ -435,6 +435,7 @@ def beyond_roads(
         chain = next((c for c in chains if tuple(c.osm_way_ids) == tuple(ramp.osm_way_ids)), None)
         if chain is None:
             continue
+        what = f"{ramp.type} ways {', '.join(str(w) for w in ramp.osm_way_ids)}"
         try:
             b = beyond_road(
                 graph,
@@ -447,10 +448,10 @@ def beyond_roads(
                 ramp_config=ramp_config,
             )
         except FitError as exc:
-            notes.append(f"no road beyond {ramp.type} road {road_id}: {exc}")
+            notes.append(f"no road beyond {what}: {exc}")
             continue
         if b is None:
-            notes.append(f"{ramp.type} road {road_id}: OSM has no road beyond its far end")
+            notes.append(f"{what}: OSM has no road beyond its far end")
             continue
         out.append(b)
     return out, notes
