@@ -599,6 +599,12 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
     for w in result.warnings:
         lines.append(f"note       {w}")
     lines += _drive_lines(drive_report, skipped=args.no_drive, out=out)
+    return _print_build(lines, report, drive_report)
+
+
+def _print_build(lines: list[str], report, drive_report) -> int:
+    """Print a build's summary lines and its check report; exit code 1 when the check
+    found errors or a route failed its drive."""
     print("\n".join(lines))
     failed = drive_report is not None and not drive_report.ok
     if report is not None:

@@ -152,7 +152,13 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from .._files import check_output_dir, staged_output
-    from ..cli import _build_config, _check_and_drive, _drive_lines, progress
+    from ..cli import (
+        _build_config,
+        _check_and_drive,
+        _drive_lines,
+        _print_build,
+        progress,
+    )
     from ..export import plot_network, write_geojson, write_kml
     from ..xodr import write_xodr
     from .area import load_area_graph
@@ -229,15 +235,9 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
     bar.update()
 
     report, drive_report = _check_and_drive(out, args, cfg, tools, bar, times)
-    print("\n".join(summary_lines(result, out, times, started)))
-    lines = _drive_lines(drive_report, skipped=args.no_drive, out=out)
-    if lines:
-        print("\n".join(lines))
-    failed = drive_report is not None and not drive_report.ok
-    if report is not None:
-        print(report.format_text())
-        failed = failed or report.errors > 0
-    return 1 if failed else 0
+    lines = summary_lines(result, out, times, started)
+    lines += _drive_lines(drive_report, skipped=args.no_drive, out=out)
+    return _print_build(lines, report, drive_report)
 
 
 def summary_lines(

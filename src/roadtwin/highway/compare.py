@@ -17,7 +17,7 @@ Mapping-frame metres. Maps in other frames are moved into the truth's first with
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -25,7 +25,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
-from ..model import RoadNetwork
+from ..drive.routes import traffic_side
+from ..model import LaneSection, Road, RoadNetwork
 
 FloatArray = NDArray[np.float64]
 
@@ -38,6 +39,7 @@ __all__ = [
 ]
 
 DRIVING = frozenset({"driving", "entry", "exit", "onRamp", "offRamp"})
+"""Lane types of driving lanes (the drive's ``DRIVABLE`` without ``bidirectional``)."""
 
 
 @dataclass(frozen=True)
@@ -62,15 +64,31 @@ class LaneCentres:
     station: FloatArray
 
 
-def _side(network: RoadNetwork) -> str:
-    ids = [
-        ln.id
-        for r in network.roads
-        for sec in r.lane_sections
-        for ln in (*sec.left, *sec.right)
-        if ln.type in DRIVING
-    ]
-    return "left" if ids and all(i > 0 for i in ids) else "right"
+def _section_grid(
+    network: RoadNetwork, keep: Callable[[Any], bool] | None, step_m: float
+) -> Iterator[tuple[int, Road, LaneSection, FloatArray, FloatArray]]:
+    """``(road index, road, lane section, stations, headings)`` every ``step_m`` (half a
+    step off the section's ends) of every lane section of the roads ``keep`` accepts."""
+    for ri, road in enumerate(network.roads):
+        if keep is not None and not keep(road):
+            continue
+        bounds = [sec.s0 for sec in road.lane_sections] + [road.length]
+        for k, sec in enumerate(road.lane_sections):
+            s = np.arange(bounds[k] + 0.5 * step_m, bounds[k + 1], step_m)
+            if s.size:
+                yield ri, road, sec, s, road.heading(s)
+
+
+def _moved(
+    xy: FloatArray, heading: FloatArray, transform: Callable[[FloatArray], FloatArray] | None
+) -> tuple[FloatArray, FloatArray]:
+    """Points and headings in another frame (headings through a point 1 m ahead)."""
+    if transform is None:
+        return xy, heading
+    ahead = transform(xy + np.column_stack([np.cos(heading), np.sin(heading)]))
+    xy = transform(xy)
+    d = ahead - xy
+    return xy, np.arctan2(d[:, 1], d[:, 0])
 
 
 def lane_centres(
@@ -84,46 +102,32 @@ def lane_centres(
     """Centre points of every driving lane (at least ``min_width_m`` wide) of the roads
     ``keep`` accepts (default all), every ``step_m``; ``transform`` maps ``(N, 2)`` points
     into another frame (headings follow)."""
-    side = _side(network)
+    side = traffic_side(network)
     xy_l, h_l, lane_l, w_l, road_l, s_l = [], [], [], [], [], []
     n_lane = 0
-    for ri, road in enumerate(network.roads):
-        if keep is not None and not keep(road):
-            continue
-        bounds = [sec.s0 for sec in road.lane_sections] + [road.length]
-        for k, sec in enumerate(road.lane_sections):
-            s = np.arange(bounds[k] + 0.5 * step_m, bounds[k + 1], step_m)
-            if s.size == 0:
+    for ri, road, sec, s, h in _section_grid(network, keep, step_m):
+        for lane in (*sec.left, *sec.right):
+            if lane.type not in DRIVING:
                 continue
-            h = road.heading(s)
-            for lane in (*sec.left, *sec.right):
-                if lane.type not in DRIVING:
-                    continue
-                outer = road.lane_border_t(s, lane.id)
-                inner = road.lane_border_t(s, lane.id + (1 if lane.id < 0 else -1))
-                width = np.abs(outer - inner)
-                ok = np.isfinite(width) & (width >= min_width_m)
-                if not ok.any():
-                    continue
-                pts = road.to_xy(s[ok], 0.5 * (outer + inner)[ok])
-                fwd = (lane.id < 0) == (side == "right")
-                xy_l.append(pts)
-                h_l.append(h[ok] if fwd else h[ok] + math.pi)
-                lane_l.append(np.full(pts.shape[0], n_lane))
-                w_l.append(0.5 * width[ok])
-                road_l.append(np.full(pts.shape[0], ri))
-                s_l.append(s[ok])
-                n_lane += 1
+            outer = road.lane_border_t(s, lane.id)
+            inner = road.lane_border_t(s, lane.id + (1 if lane.id < 0 else -1))
+            width = np.abs(outer - inner)
+            ok = np.isfinite(width) & (width >= min_width_m)
+            if not ok.any():
+                continue
+            pts = road.to_xy(s[ok], 0.5 * (outer + inner)[ok])
+            fwd = (lane.id < 0) == (side == "right")
+            xy_l.append(pts)
+            h_l.append(h[ok] if fwd else h[ok] + math.pi)
+            lane_l.append(np.full(pts.shape[0], n_lane))
+            w_l.append(0.5 * width[ok])
+            road_l.append(np.full(pts.shape[0], ri))
+            s_l.append(s[ok])
+            n_lane += 1
     if not xy_l:
         z = np.zeros(0)
         return LaneCentres(np.zeros((0, 2)), z, z.astype(np.int64), z, z.astype(np.int64), z)
-    xy = np.vstack(xy_l)
-    heading = np.concatenate(h_l)
-    if transform is not None:
-        ahead = transform(xy + np.column_stack([np.cos(heading), np.sin(heading)]))
-        xy = transform(xy)
-        d = ahead - xy
-        heading = np.arctan2(d[:, 1], d[:, 0])
+    xy, heading = _moved(np.vstack(xy_l), np.concatenate(h_l), transform)
     return LaneCentres(
         xy,
         heading,
@@ -145,7 +149,7 @@ def compare_lane_centres(
     search_m: float = 6.0,
     max_heading_deg: float = 30.0,
     step_m: float = 2.0,
-    traffic_side: str = "right",
+    side: str = "right",
 ) -> dict[str, float | int | None]:
     """The candidate's driving lanes against the true ones, cross-section by cross-section.
 
@@ -178,7 +182,7 @@ def compare_lane_centres(
     groups: dict[tuple[int, int], list[int]] = {}
     for i in np.flatnonzero(pick):
         groups.setdefault((int(truth.road[i]), int(key_s[i])), []).append(int(i))
-    median_first = 1.0 if traffic_side == "right" else -1.0  # sort by -lat: left first
+    median_first = 1.0 if side == "right" else -1.0  # sort by -lat: left first
     errors: list[float] = []
     paired = total = right = 0
     for members in groups.values():
@@ -241,39 +245,26 @@ def carriageway_edges(
     median-side edge (kind 0: the inner border of the lane nearest the road's centre) and
     the outer edge (kind 1: the outer border of the outermost paved lane). Returns
     ``(N, 2)`` points, headings of travel (radians) and kinds."""
-    side = _side(network)
+    side = traffic_side(network)
     xy_l, h_l, k_l = [], [], []
-    for road in network.roads:
-        if keep is not None and not keep(road):
-            continue
-        bounds = [sec.s0 for sec in road.lane_sections] + [road.length]
-        for k, sec in enumerate(road.lane_sections):
-            s = np.arange(bounds[k] + 0.5 * step_m, bounds[k + 1], step_m)
-            if s.size == 0:
+    for _, road, sec, s, h in _section_grid(network, keep, step_m):
+        for lanes in (sec.left, sec.right):
+            paved = [ln for ln in lanes if ln.type in PAVED]
+            if not any(ln.type in DRIVING for ln in paved):
                 continue
-            h = road.heading(s)
-            for lanes in (sec.left, sec.right):
-                paved = [ln for ln in lanes if ln.type in PAVED]
-                if not any(ln.type in DRIVING for ln in paved):
-                    continue
-                inner_id = min(paved, key=lambda ln: abs(ln.id)).id
-                outer_id = max(paved, key=lambda ln: abs(ln.id)).id
-                fwd = (inner_id < 0) == (side == "right")
-                t_in = road.lane_border_t(s, inner_id + (1 if inner_id < 0 else -1))
-                t_out = road.lane_border_t(s, outer_id)
-                for kind, t in ((0, t_in), (1, t_out)):
-                    ok = np.isfinite(t)
-                    xy_l.append(road.to_xy(s[ok], t[ok]))
-                    h_l.append(h[ok] if fwd else h[ok] + math.pi)
-                    k_l.append(np.full(int(ok.sum()), kind))
+            inner_id = min(paved, key=lambda ln: abs(ln.id)).id
+            outer_id = max(paved, key=lambda ln: abs(ln.id)).id
+            fwd = (inner_id < 0) == (side == "right")
+            t_in = road.lane_border_t(s, inner_id + (1 if inner_id < 0 else -1))
+            t_out = road.lane_border_t(s, outer_id)
+            for kind, t in ((0, t_in), (1, t_out)):
+                ok = np.isfinite(t)
+                xy_l.append(road.to_xy(s[ok], t[ok]))
+                h_l.append(h[ok] if fwd else h[ok] + math.pi)
+                k_l.append(np.full(int(ok.sum()), kind))
     if not xy_l:
         return np.zeros((0, 2)), np.zeros(0), np.zeros(0, dtype=np.int64)
-    xy, heading = np.vstack(xy_l), np.concatenate(h_l)
-    if transform is not None:
-        ahead = transform(xy + np.column_stack([np.cos(heading), np.sin(heading)]))
-        xy = transform(xy)
-        d = ahead - xy
-        heading = np.arctan2(d[:, 1], d[:, 0])
+    xy, heading = _moved(np.vstack(xy_l), np.concatenate(h_l), transform)
     return xy, heading, np.concatenate(k_l)
 
 
