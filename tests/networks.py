@@ -327,3 +327,118 @@ def straight_road(road_id: str = "1", length_m: float = 100.0) -> Road:
         ),
         name="mainline",
     )
+
+
+# ---------------------------------------------------------------------------
+# ramps on the median side
+# ---------------------------------------------------------------------------
+
+MEDIAN_RADIUS_M = 1000.0
+"""Radius of the mainline's median-side edge where it runs at its base level."""
+
+
+def _on_circle(radius_m: float, theta: float) -> tuple[float, float]:
+    """A point of the circle centred at (0, MEDIAN_RADIUS_M) (a left curve starting at the
+    origin heading +x) at angle ``theta`` and radius ``radius_m``."""
+    return radius_m * math.sin(theta), MEDIAN_RADIUS_M - radius_m * math.cos(theta)
+
+
+def _arc_road(road_id: str, radius_m: float, theta0: float, length_m: float, lanes, **kw) -> Road:
+    x0, y0 = _on_circle(radius_m, theta0)
+    geo = (Arc(0.0, x0, y0, theta0, length_m, curvature_per_m=1.0 / radius_m),)
+    return Road(road_id, geo, (LaneSection(0.0, center=_center(), right=tuple(lanes)),), **kw)
+
+
+def _hermite_to(x1: float, y1: float, hdg1: float, back_m: float, side_m: float, turn: float):
+    """A ParamPoly3 ending at (x1, y1) with heading ``hdg1``, starting ``back_m`` before and
+    ``side_m`` left of it with heading ``hdg1 - turn``."""
+    c, s = math.cos(hdg1), math.sin(hdg1)
+    x0, y0 = x1 - back_m * c - side_m * s, y1 - back_m * s + side_m * c
+    hdg0 = hdg1 - turn
+    dx, dy = x1 - x0, y1 - y0
+    u = dx * math.cos(hdg0) + dy * math.sin(hdg0)
+    v = -dx * math.sin(hdg0) + dy * math.cos(hdg0)
+    return hermite_parampoly3(x0, y0, hdg0, u, v, turn)
+
+
+def median_ramps_network() -> RoadNetwork:
+    """A left entry and a left exit on a right-hand motorway curving left (R ~ 1 km), both
+    at full width on the median side, joined by ``direct`` junctions.
+
+    * road ``"1"`` (300 m along the edge): inner shoulder -1, driving -2 -3, hard shoulder
+      -4; its median edge is the circle of radius ``MEDIAN_RADIUS_M``.
+    * junction ``"100"``: the entry ``"3"`` (shoulder -1, driving -2) joins at the median
+      side: road ``"2"`` has the entry's two lanes inside the through lanes -3 -4 (road 1's
+      inner shoulder ends there), so its median edge steps 3.5 m towards the median.
+    * road ``"2"`` (250 m) ends at junction ``"200"``: the exit ``"5"`` takes its lanes -1
+      -2 away at full width, road ``"4"`` (400 m) goes on with the through lanes and the
+      hard shoulder, its median edge 4.5 m farther out than road 2's.
+
+    Every road is exact: the through lanes' borders are concentric circles throughout.
+    """
+    r1, r2, r4 = MEDIAN_RADIUS_M, MEDIAN_RADIUS_M - 3.5, MEDIAN_RADIUS_M + 1.0
+    th1 = 300.0 / r1
+    th2 = th1 + 250.0 / r2
+    j100, j200 = RoadLink("junction", "100"), RoadLink("junction", "200")
+    road1 = _arc_road(
+        "1", r1, 0.0, 300.0,
+        (
+            _lane(-1, SHOULDER_IN_M, "shoulder", "solid"),
+            _lane(-2, LANE_M),
+            _lane(-3, LANE_M, mark="solid"),
+            _lane(-4, SHOULDER_OUT_M, "shoulder", "none"),
+        ),
+        name="mainline", successor=j100,
+    )  # fmt: skip
+    road2 = _arc_road(
+        "2", r2, th1, 250.0,
+        (
+            _lane(-1, SHOULDER_IN_M, "shoulder", "solid"),
+            _lane(-2, LANE_M),
+            _lane(-3, LANE_M),
+            _lane(-4, LANE_M, mark="solid"),
+            _lane(-5, SHOULDER_OUT_M, "shoulder", "none"),
+        ),
+        name="mainline", predecessor=j100, successor=j200,
+    )  # fmt: skip
+    road4 = _arc_road(
+        "4", r4, th2, 400.0,
+        (
+            _lane(-1, LANE_M),
+            _lane(-2, LANE_M, mark="solid"),
+            _lane(-3, SHOULDER_OUT_M, "shoulder", "none"),
+        ),
+        name="mainline", predecessor=j200,
+    )  # fmt: skip
+    ramp_lanes = (_lane(-1, SHOULDER_IN_M, "shoulder", "solid"), _lane(-2, LANE_M, mark="solid"))
+    x2, y2 = _on_circle(r2, th1)
+    entry_geo = _hermite_to(x2, y2, th1, 120.0, 25.0, 0.25)
+    entry = Road(
+        "3", (entry_geo,), (LaneSection(0.0, center=_center(), right=ramp_lanes),),
+        name="entry", successor=j100,
+    )  # fmt: skip
+    x5, y5 = _on_circle(r2, th2)
+    exit_geo = hermite_parampoly3(x5, y5, th2, 120.0, 25.0, 0.3)
+    exit_ = Road(
+        "5", (exit_geo,), (LaneSection(0.0, center=_center(), right=ramp_lanes),),
+        name="exit", predecessor=j200,
+    )  # fmt: skip
+    junctions = (
+        Junction(
+            "100",
+            (
+                Connection("1", "1", "2", "start", tuple(LaneLink(a, a - 1) for a in (-2, -3, -4))),
+                Connection("2", "3", "2", "start", (LaneLink(-1, -1), LaneLink(-2, -2))),
+            ),
+            type="direct",
+        ),
+        Junction(
+            "200",
+            (
+                Connection("1", "2", "4", "start", tuple(LaneLink(a, a + 2) for a in (-3, -4, -5))),
+                Connection("2", "2", "5", "start", (LaneLink(-1, -1), LaneLink(-2, -2))),
+            ),
+            type="direct",
+        ),
+    )
+    return RoadNetwork(_header(), (road1, road2, road4, entry, exit_), junctions)

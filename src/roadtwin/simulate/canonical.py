@@ -3,7 +3,14 @@
 The reference line is the median-side edge of the carriageway, FITTED as ParamPoly3 pieces
 (:func:`roadtwin.fitting.fit_parampoly3_chain`) through dense samples of that edge,
 whatever geometry types the source map used and whichever way its roads are driven.
-Every lane border is projected into the fitted road's Frenet frame and each lane width is
+Where that edge steps sideways between two legs (lanes ending or starting at full width
+on the median side: a gore of a left exit or entry with right-hand traffic), the samples
+beyond the step are shifted back by the step's size along their own normals before the
+fit, so the reference line stays smooth (it runs parallel to the edge, at the level of the
+longest stretch), and the step becomes the road's lane offset: piecewise constant,
+changing exactly where a lane section starts. Tapering changes of the edge stay in the
+reference line. Every lane border is projected into the fitted road's Frenet frame and
+each lane width, measured from the median-side edge (reference line + lane offset), is
 fitted as a cubic profile (:func:`roadtwin.fitting.fit_cubic_profile`), leg by leg, so the
 canonical borders are the source borders to within the fit tolerance. Lanes keep their
 source types and road marks; lanes sit on the traffic side (right lanes, ids -1, -2, ...
@@ -16,6 +23,7 @@ Frames: mapping-frame metres; ``u`` is the station along the canonical road (met
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -42,6 +50,10 @@ FloatArray = NDArray[np.float64]
 JOIN_TOLERANCE_M = 0.05
 """Consecutive legs whose median edges meet closer than this share their joint sample."""
 
+SMOOTH_KINK_RAD = 0.01
+"""A change of direction of the median edge at a leg joint below this is smoothed over by
+the reference-line fit (:func:`roadtwin.fitting.fit_parampoly3_chain` does the same)."""
+
 
 @dataclass(frozen=True)
 class FitSettings:
@@ -51,6 +63,12 @@ class FitSettings:
     """Spacing of the cross-sections sampled along each leg."""
     geometry_tolerance_m: float = 0.0005
     """Reference-line fit tolerance against the sampled median edge."""
+    min_piece_m: float = 0.25
+    """Shortest reference-line piece: short enough to hold the tolerance next to a slight
+    kink of the source edge at a leg joint (the fitted line keeps its heading there)."""
+    width_min_piece_m: float = 0.25
+    """Shortest lane-width piece: short enough to hold the tolerance where a source width
+    changes quickly between close breakpoints."""
     width_tolerance_m: float = 0.0002
     """Lane-width and elevation fit tolerance."""
 
@@ -159,14 +177,109 @@ def _intervals(sm: LegSamples) -> list[tuple[int, int]]:
     return [(a, b) for a, b in itertools.pairwise(bounds) if b > a]
 
 
-def _join(samples: list[LegSamples]) -> tuple[FloatArray, list[int]]:
-    """Concatenated median-edge points (M, 3) and the index of each leg's first point in
-    it (a leg that starts where the previous ended shares that point)."""
+def _left_normals(xy: FloatArray, *, half_window_m: float = 0.25) -> FloatArray:
+    """Unit normals (N, 2) to the left of a polyline's direction (N >= 2 points), from the
+    chord between the points about ``half_window_m`` behind and ahead: points only
+    micrometres apart (samples at nearly coinciding breakpoints) get the same normal, so
+    shifting along the normals keeps their order."""
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    n = xy.shape[0]
+    ahead = np.clip(np.searchsorted(arc, arc + half_window_m), 1, n - 1)
+    behind = np.clip(np.searchsorted(arc, arc - half_window_m, side="right") - 1, 0, n - 2)
+    d = xy[ahead] - xy[behind]
+    d = d / np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+    return np.column_stack([-d[:, 1], d[:, 0]])
+
+
+def median_levels(samples: list[LegSamples]) -> FloatArray:
+    """Level of each leg's median-side edge (metres, left of the direction of travel): the
+    sum of the sideways steps of the edge at the leg joints before it, relative to the
+    level the longest stretch of the chain has (so that stretch gets no lane offset).
+
+    A step is where consecutive legs' edges do not meet (farther apart than
+    :data:`JOIN_TOLERANCE_M`) and the gap has a sideways part of at least that much,
+    measured in the normal at the end of the earlier leg.
+    """
+    levels = [0.0]
+    for prev, sm in itertools.pairwise(samples):
+        gap = sm.median[0, :2] - prev.median[-1, :2]
+        step = 0.0
+        if np.hypot(*gap) >= JOIN_TOLERANCE_M:
+            sideways = float(_left_normals(prev.median[-2:, :2])[-1] @ gap)
+            step = sideways if abs(sideways) >= JOIN_TOLERANCE_M else 0.0
+        levels.append(levels[-1] + step)
+    level = np.asarray(levels)
+    lengths = np.array(
+        [float(np.hypot(*np.diff(sm.median[:, :2], axis=0).T).sum()) for sm in samples]
+    )
+    key = np.round(level, 3)
+    totals = {k: float(lengths[key == k].sum()) for k in np.unique(key)}
+    base = max(totals, key=lambda k: (totals[k], -abs(k)))
+    return np.where(key == base, 0.0, level - level[key == base][0])
+
+
+def _corner(a: FloatArray, b: FloatArray, *, chord_m: float = 0.25) -> FloatArray:
+    """Where the line along the end of polyline ``a`` meets the line along the start of
+    ``b`` (directions over about ``chord_m``, not over micrometre-short end segments;
+    (2,) metres; the midpoint of their ends when the lines are parallel or meet more than
+    a metre away)."""
+    da = a[-1] - a[::-1][_chord_index(a[::-1], chord_m)]
+    db = b[_chord_index(b, chord_m)] - b[0]
+    cross = da[0] * db[1] - da[1] * db[0]
+    mid = 0.5 * (a[-1] + b[0])
+    if abs(cross) < 1e-12:
+        return mid
+    w = b[0] - a[-1]
+    x = a[-1] + da * (w[0] * db[1] - w[1] * db[0]) / cross
+    return x if max(np.hypot(*(x - a[-1])), np.hypot(*(x - b[0]))) <= 1.0 else mid
+
+
+def _chord_index(xy: FloatArray, chord_m: float) -> int:
+    """Index of the first point of ``xy`` at least ``chord_m`` from its first point (the
+    last point if none is)."""
+    far = np.flatnonzero(np.hypot(*(xy - xy[0]).T) >= chord_m)
+    return int(far[0]) if far.size else len(xy) - 1
+
+
+def _join(samples: list[LegSamples], levels: FloatArray) -> tuple[FloatArray, list[int]]:
+    """Concatenated median-edge points (M, 3), each leg's shifted back by its level along
+    its own normals (:func:`median_levels`), and the index of each leg's first point in it
+    (a leg that starts where the previous ended shares that point).
+
+    Where a shifted leg meets its neighbour, the edge's slight kink at the joint (the
+    source roads' headings differ a little) makes the two parallel lines overlap or part
+    by the shift times the kink angle: both end points move to where the lines meet, as an
+    offset of a kinked line does (the fit keeps a piece boundary at every joint).
+    """
+    meds = []
+    for sm, level in zip(samples, levels, strict=True):
+        med = sm.median
+        if level != 0.0:
+            med = med.copy()
+            med[:, :2] -= level * _left_normals(med[:, :2])
+        meds.append(med)
+    for i in range(1, len(meds)):
+        a, b = meds[i - 1], meds[i]
+        if (levels[i - 1] == 0.0 and levels[i] == 0.0) or a.shape[0] < 2 or b.shape[0] < 2:
+            continue
+        if np.hypot(*(b[0, :2] - a[-1, :2])) < 1.0:
+            da = a[-1, :2] - a[::-1][_chord_index(a[::-1, :2], 0.25), :2]
+            db = b[_chord_index(b[:, :2], 0.25), :2] - b[0, :2]
+            cos = float(da @ db) / max(float(np.hypot(*da) * np.hypot(*db)), 1e-12)
+            # a kink the fit keeps (SMOOTH_KINK_RAD): the lines meet at a corner; else the
+            # edge is smooth there and the ends meet halfway
+            if cos < math.cos(SMOOTH_KINK_RAD):
+                x = _corner(a[:, :2], b[:, :2])
+            else:
+                x = 0.5 * (a[-1, :2] + b[0, :2])
+            # points of either leg beyond the meeting point (micrometre-spaced samples
+            # next to a joint) collapse onto it: the line never runs backwards
+            a[((a[:, :2] - x) @ da >= 0.0), :2] = x
+            b[((b[:, :2] - x) @ db <= 0.0), :2] = x
     pts: list[FloatArray] = []
     first: list[int] = []
     count = 0
-    for sm in samples:
-        med = sm.median
+    for med in meds:
         if pts and np.hypot(*(med[0, :2] - pts[-1][-1, :2])) < JOIN_TOLERANCE_M:
             first.append(count - 1)
             med = med[1:]
@@ -222,6 +335,7 @@ def fit_chain(
     name: str,
     breaks: tuple[int, ...] = (),
     settings: FitSettings | None = None,
+    median_steps: bool = True,
 ) -> ChainFit:
     """Fit one canonical road through a chain of legs.
 
@@ -232,6 +346,9 @@ def fit_chain(
     breaks
         Indices of legs that must start a geometry piece and a lane section (where the
         road will be cut, e.g. at a ramp's junction).
+    median_steps
+        Sideways steps of the median-side edge between legs become lane offset steps
+        (:func:`median_levels`); False: the reference line follows the edge through them.
 
     Raises
     ------
@@ -241,7 +358,8 @@ def fit_chain(
     cfg = settings or FitSettings()
     side_sign = -1.0 if traffic_side == "right" else 1.0
     samples = [sample_leg(network, leg, traffic_side, step_m=cfg.sample_step_m) for leg in legs]
-    median, first = _join(samples)
+    levels = median_levels(samples) if median_steps else np.zeros(len(samples))
+    median, first = _join(samples, levels)
     chord = arc_length(median[:, :2])
     # the median edge may kink or jump in curvature at every leg joint and source
     # breakpoint: the fit keeps a piece boundary there (and the cuts must be ones)
@@ -250,6 +368,7 @@ def fit_chain(
     pieces = fit_parampoly3_chain(
         median[:, :2],
         tolerance_m=cfg.geometry_tolerance_m,
+        min_piece_m=cfg.min_piece_m,
         breaks_m=chord[np.unique(np.asarray(joints, dtype=int))] if joints else (),
     )
     ref = Road(road_id, chain_geometry(pieces), (LaneSection(0.0),), name=name)
@@ -280,8 +399,10 @@ def fit_chain(
 
     # lane sections: a new one wherever the keys change or a break is forced
     groups: list[list[int]] = []
+    # (the median-side edge steps only where a lane section starts)
     for i in range(len(legs)):
-        if groups and keys[i] == keys[groups[-1][-1]] and i not in breaks:
+        same = groups and keys[i] == keys[groups[-1][-1]] and levels[i] == levels[i - 1]
+        if same and i not in breaks:
             groups[-1].append(i)
         else:
             groups.append([i])
@@ -299,7 +420,7 @@ def fit_chain(
             lo, hi = leg_u[i]
             if hi - lo < 1e-6:
                 continue
-            t_prev = np.zeros_like(u)
+            t_prev = np.full(u.size, levels[i])  # lanes are measured from the median edge
             n_k = len(gkeys)
             u_all, t_all = ref.project(
                 sm.borders[:, :, :2].reshape(-1, 2), s_init=np.tile(u, n_k), iterations=8
@@ -318,6 +439,7 @@ def fit_chain(
                             u[a : b + 1] - u0,
                             w[a : b + 1],
                             tolerance=cfg.width_tolerance_m,
+                            min_piece_m=cfg.width_min_piece_m,
                             # no overshoot below zero where a lane opens or closes
                             shape_preserving=bool(np.min(w[a : b + 1]) < 0.5),
                         ).pieces
@@ -352,7 +474,13 @@ def fit_chain(
             )
         )
         section_keys.append(gkeys)
-    road = replace(ref, lane_sections=tuple(sections), elevation=elevation)
+    offset = [
+        CubicPiece(sec.s0, float(levels[g[0]]))
+        for k, (sec, g) in enumerate(zip(sections, groups, strict=True))
+        if k == 0 or levels[g[0]] != levels[groups[k - 1][0]]
+    ]
+    lane_offset = CubicProfile(tuple(offset)) if np.any(levels != 0.0) else CubicProfile()
+    road = replace(ref, lane_sections=tuple(sections), elevation=elevation, lane_offset=lane_offset)
     return ChainFit(
         road,
         tuple(legs),
@@ -368,8 +496,8 @@ def max_border_error_m(
     fit: ChainFit, *, network: RoadNetwork | None = None, step_m: float | None = None
 ) -> dict[str, float]:
     """Largest lateral deviation (metres) of the canonical road from the source borders:
-    ``median_edge`` and ``lane_borders`` (source borders only, not bridged ones), measured
-    in the canonical road's Frenet frame.
+    ``median_edge`` (against the reference line plus the lane offset) and ``lane_borders``
+    (source borders only, not bridged ones), measured in the canonical road's Frenet frame.
 
     By default at the samples the fit used; with ``network`` and ``step_m`` the source
     map is sampled afresh every ``step_m`` metres (an independent check).
@@ -392,7 +520,8 @@ def max_border_error_m(
         if leg.lanes[0].source is not None:
             um, t = road.project(sm.median[:, :2], s_init=u, iterations=10)
             on = (um > 1e-7) & (um < road.length - 1e-7)
-            worst_med = max(worst_med, float(np.max(np.abs(t[on]), initial=0.0)))
+            edge = road.lane_border_t(np.clip(um, lo + 1e-7, hi - 1e-7), 0)
+            worst_med = max(worst_med, float(np.max(np.abs(t - edge)[on], initial=0.0)))
         sec = road.lane_sections[sec_idx]
         side = sec.right or sec.left
         exact = [k for k, ex in enumerate(sm.exact) if ex]

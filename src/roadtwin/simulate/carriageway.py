@@ -17,6 +17,10 @@ from nowhere are *bridged*: matched in order from the carried lanes outwards (tr
 lanes with traffic lanes, the others with the others), their width blends smoothly from
 the incoming to the outgoing width, and unmatched ones taper from / to zero. So the
 carriageway's edges stay continuous through a junction whatever the map models there.
+The exception are the lanes a ramp of the truth takes away from the route or brings onto
+it on the median side (a left exit with right-hand traffic): they end or start at full
+width at the junction's ends, where the ramp's own road begins or ends, so the median-side
+edge steps there (the canonical truth turns the step into a lane offset step).
 
 Frames: stations ``s`` are metres along a source road; ``p`` in [0, 1] is the relative
 position along a leg in the direction of travel; positions are mapping-frame metres.
@@ -26,14 +30,15 @@ Sampling legs into dense cross-sections is :mod:`roadtwin.simulate.leg_samples`.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .._errors import InputError
-from ..model import LaneSection, Road, RoadMark, RoadNetwork
+from ..model import Lane, LaneSection, Road, RoadMark, RoadNetwork
 from .route import (
     PAVED_LANE_TYPES,
     TRAFFIC_LANE_TYPES,
@@ -283,6 +288,14 @@ class GapRule:
     down_ids: frozenset[int]
     up_gaps: frozenset[str] = frozenset({"inner", "outer", "middle"})
     down_gaps: frozenset[str] = frozenset({"inner", "outer", "middle"})
+    leaving: frozenset[int] = frozenset()
+    """Lanes of the incoming road that another passage of the junction carries away (a
+    ramp's lanes). On the median side they are not bridged: they end at full width where
+    the junction starts (the ramp's own road begins there), so the carriageway's
+    median-side edge steps there instead of sweeping across the junction."""
+    arriving: frozenset[int] = frozenset()
+    """Lanes of the outgoing road that another passage feeds (a ramp's lanes); on the
+    median side they start at full width where the junction ends."""
 
 
 def passage_carried(passage: Passage) -> list[tuple[int, str, int]]:
@@ -361,9 +374,7 @@ def junction_leg(
         conn = network.road(cid)
         c = connector_by_id[cid]
         section_ids = follow_lane(conn, t, c.direction)
-        k_far = len(conn.lane_sections) - 1 if c.direction > 0 else 0
-        far_id = section_ids[k_far]
-        lane = None if far_id is None else _lane_or_none(conn.lane_sections[k_far], far_id)
+        lane = _far_lane(conn, section_ids, c.direction)
         if lane is None:
             continue
         nxt = lane.successor if c.direction > 0 else lane.predecessor
@@ -402,11 +413,10 @@ def junction_leg(
     up_gaps = _gaps(up_order, kept_up)
     down_gaps = _gaps(down_order, kept_down)
     # a lane carried with a jump is bridged between its own two ends, wherever it lies
-    rule = GapRule(
-        rule.up_ids | {f for f, _ in jumpy},
-        rule.down_ids | {d for _, d in jumpy if d is not None},
-        rule.up_gaps,
-        rule.down_gaps,
+    rule = replace(
+        rule,
+        up_ids=rule.up_ids | {f for f, _ in jumpy},
+        down_ids=rule.down_ids | {d for _, d in jumpy if d is not None},
     )
     k_up, k_down = up_span.section, down_span.section
     up_sign = traffic_lane_sign(up_span.direction, traffic_side)
@@ -444,11 +454,11 @@ def junction_leg(
         return out
 
     def side(gap: str) -> list[LegLane]:
-        a = [(i, up_types[i]) for i in eligible(up_gaps[gap], rule.up_ids, gap in rule.up_gaps)]
-        b = [
-            (i, down_types[i])
-            for i in eligible(down_gaps[gap], rule.down_ids, gap in rule.down_gaps)
-        ]
+        up_ids, down_ids = rule.up_ids, rule.down_ids
+        if gap == "inner":  # a ramp's lanes on the median side end / start at full width
+            up_ids, down_ids = up_ids - rule.leaving, down_ids - rule.arriving
+        a = [(i, up_types[i]) for i in eligible(up_gaps[gap], up_ids, gap in rule.up_gaps)]
+        b = [(i, down_types[i]) for i in eligible(down_gaps[gap], down_ids, gap in rule.down_gaps)]
         return [bridged(x, y) for x, y in _match(a, b)]
 
     inner = side("inner")
@@ -474,6 +484,31 @@ def junction_leg(
         for cid in dict.fromkeys(ln.source[0] for ln in carried if ln.source is not None)
     )
     return Leg("junction", spans, lanes, passage.junction_id)
+
+
+def _far_lane(conn: Road, section_ids: tuple[int | None, ...], direction: int) -> Lane | None:
+    """The lane of a connecting road (its id per lane section, :func:`follow_lane`) in the
+    lane section where a car driving along ``direction`` leaves the road (None: absent)."""
+    k_far = len(conn.lane_sections) - 1 if direction > 0 else 0
+    far_id = section_ids[k_far]
+    return None if far_id is None else _lane_or_none(conn.lane_sections[k_far], far_id)
+
+
+def passage_landing(network: RoadNetwork, passage: Passage) -> frozenset[int]:
+    """Lanes of the target road that a junction passage leads into."""
+    if passage.kind == "direct":
+        return frozenset(t for _, t in passage.lane_links)
+    out = set()
+    for c in passage.connectors:
+        conn = network.road(c.road_id)
+        for _, t in c.lane_links:
+            lane = _far_lane(conn, follow_lane(conn, t, c.direction), c.direction)
+            nxt = (
+                None if lane is None else (lane.successor if c.direction > 0 else lane.predecessor)
+            )
+            if nxt is not None:
+                out.add(nxt)
+    return frozenset(out)
 
 
 def _lane_marks_at(
@@ -583,8 +618,13 @@ def next_lane(
     link = src.successor if span.direction > 0 else src.predecessor
     if nxt_span.road_id == road_id and link is None:
         same = _lane_or_none(road.lane_sections[nxt_span.section], lane_id)
-        if same is not None and (same.type in TRAFFIC_LANE_TYPES) == (
-            src.type in TRAFFIC_LANE_TYPES
+        back = (
+            None if same is None else (same.predecessor if span.direction > 0 else same.successor)
+        )
+        if (
+            same is not None
+            and back in (None, lane_id)  # (not when it names another lane as its own)
+            and (same.type in TRAFFIC_LANE_TYPES) == (src.type in TRAFFIC_LANE_TYPES)
         ):
             link = lane_id  # no lane link inside a road: the same id continues
     return (nxt_span.road_id, link) if link is not None else None
@@ -621,11 +661,20 @@ def mark_at(road: Road, section: int, border: int, s: float) -> RoadMark:
 
 
 def route_legs(
-    network: RoadNetwork, route: Route, traffic_side: TrafficSide
+    network: RoadNetwork,
+    route: Route,
+    traffic_side: TrafficSide,
+    *,
+    ramps: Sequence[Passage] = (),
 ) -> tuple[list[Leg], list[int]]:
-    """All legs of a route's mainline in driving order (junction legs bridge every lane the
-    passage does not carry, so the carriageway stays whole), and for each passage the
-    index of its first leg (its junction leg, or the next road's first leg)."""
+    """All legs of a route's mainline in driving order, and for each passage the index of
+    its first leg (its junction leg, or the next road's first leg).
+
+    Junction legs bridge every lane the passage does not carry, so the carriageway stays
+    whole, except the lanes that ``ramps`` (passages of the same junctions that the truth
+    keeps as ramps) carry away from the route or onto it on the median side: those end or
+    start at full width at the junction's ends (:class:`GapRule`).
+    """
     per_road = [road_legs(network, t, traffic_side) for t in route.traversals]
     legs: list[Leg] = list(per_road[0])
     joints: list[int] = []
@@ -635,11 +684,21 @@ def route_legs(
         if passage.kind == "junction":
             up_ids = frozenset(ln.source[1] for ln in legs[-1].lanes if ln.source is not None)
             down_ids = frozenset(ln.source[1] for ln in nxt[0].lanes if ln.source is not None)
-            legs.append(
-                junction_leg(
-                    network, passage, legs[-1], nxt[0], traffic_side, GapRule(up_ids, down_ids)
-                )
+            here = [p for p in ramps if p.junction_id == passage.junction_id]
+            leaving = frozenset(
+                f
+                for p in here
+                if p.source == passage.source and p.target != passage.target
+                for f, _, _ in passage_carried(p)
             )
+            arriving = frozenset(
+                d
+                for p in here
+                if p.target == passage.target and p.source != passage.source
+                for d in passage_landing(network, p)
+            )
+            rule = GapRule(up_ids, down_ids, leaving=leaving, arriving=arriving)
+            legs.append(junction_leg(network, passage, legs[-1], nxt[0], traffic_side, rule))
         legs.extend(nxt)
     return legs, joints
 

@@ -221,6 +221,7 @@ def route_truth_json(
                 "name": r.name,
                 "junction_station_m": round(r.cut_station_m, 6),
                 "source_roads": list(r.source_roads),
+                "side": r.side,
             }
         )
     widths = [

@@ -202,6 +202,30 @@ def continuations(
     return out
 
 
+def entries_into(
+    network: RoadNetwork, through: Passage, traffic_side: TrafficSide
+) -> list[Passage]:
+    """Passages of other roads into the target of ``through`` at its (default or direct)
+    junction: the entries that join there."""
+    junction = network.id_to_junction.get(through.junction_id)
+    if junction is None:
+        return []
+    out = []
+    incoming = sorted({c.incoming_road for c in junction.connections} - {through.source.road_id})
+    for rid in incoming:
+        road = network.id_to_road.get(rid)
+        if road is None or road.junction != "-1":
+            continue
+        for d in (1, -1):
+            link = road.successor if d > 0 else road.predecessor
+            if link is None or link.element_id != junction.id:
+                continue
+            for p in continuations(network, Traversal(rid, d), traffic_side):
+                if p.target == through.target and p.junction_id == junction.id:
+                    out.append(p)
+    return out
+
+
 def passage_turn_rad(network: RoadNetwork, passage: Passage) -> float:
     """Absolute heading change (radians) from leaving one road to entering the next."""
     a = network.road(passage.source.road_id)

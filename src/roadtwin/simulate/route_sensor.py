@@ -4,7 +4,10 @@
   0 = the outermost through lane) at constant station steps (``speed / rate``) along the
   mainline. A lane that ends within ``lookahead_m`` (a lane drop, an exit lane) or an
   auxiliary lane is not chosen; when the chosen lane changes the car moves over along a
-  smoothstep over ``lane_change_m``, starting where the decision is made, as a driver does.
+  smoothstep over ``lane_change_m`` per lane crossed, ending a lane change's length after
+  the decision (a change across several lanes starts early), as a driver does. The path
+  never falls back to the reference line and its lateral rate is limited (1:10), so the
+  car never runs backwards where lane centres jump (a lane ending at full width).
 * **Road edges**: points along both edges of every true road (the mainline and the
   ramps), minus those inside another road's paved area at the same height: so at a gore
   the edge follows the ramp's outer edge and the nose's inner edges, and where roads
@@ -173,14 +176,23 @@ def drive(
         t[sel] = _key_centre(truth, u[sel], int(key))
     n_w = max(1, round(lane_change_m / PATH_STEP_M))
     changes = np.nonzero(keys[1:] != keys[:-1])[0] + 1
+    done = 0  # where the previous lane change ended (path index)
     for j, i in enumerate(changes):
-        stop = min(i + n_w, u.size, changes[j + 1] if j + 1 < changes.size else u.size)
-        seg = np.arange(i, stop)
-        w = (seg - i + 1) / n_w
+        # a change across n lanes takes n lane changes' length and ends where a single one
+        # would: the driver starts early enough (not before the previous change ended)
+        n = _lanes_crossed(truth, float(u[i - 1]), int(keys[i - 1]), int(keys[i]))
+        start = max(i - (n - 1) * n_w, done, 1)
+        end = i + n_w
+        stop = min(end, u.size, changes[j + 1] if j + 1 < changes.size else u.size)
+        seg = np.arange(start, stop)
+        w = (seg - start + 1) / (end - start)
         w = w * w * (3.0 - 2.0 * w)
         old = _key_centre(truth, u[seg], int(keys[i - 1]))
+        new = _key_centre(truth, u[seg], int(keys[i]))
         old = np.where(np.isfinite(old), old, t[seg])
-        t[seg] = (1.0 - w) * old + w * t[seg]
+        new = np.where(np.isfinite(new), new, t[seg])
+        t[seg] = (1.0 - w) * old + w * new
+        done = stop
     # where the chosen lane has no centre (a section without it) the car holds its line:
     # interpolate, never fall back to the reference line (a jump of several metres made
     # the arc-length resampling run the car backwards)
@@ -201,6 +213,15 @@ def drive(
     z = road.elevation.value(u_pose)
     frame = np.arange(u_pose.size, dtype=np.int64)
     return Poses(frame, car.t0_s + frame / car.rate_hz, np.column_stack([xy, z]), yaw, u_pose)
+
+
+def _lanes_crossed(truth: RouteTruth, u: float, key_from: int, key_to: int) -> int:
+    """How many lanes apart lanes ``key_from`` and ``key_to`` lie at station ``u`` (1 when
+    one of them does not run there)."""
+    keys = truth.mainline_fit.section_keys[int(truth.mainline.section_index(np.array([u]))[0])]
+    if key_from not in keys or key_to not in keys:
+        return 1
+    return max(1, abs(keys.index(key_to) - keys.index(key_from)))
 
 
 def _limit_lateral_rate(t: FloatArray, step_m: float, *, max_slope: float) -> FloatArray:

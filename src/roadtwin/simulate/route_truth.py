@@ -3,7 +3,10 @@
 The driven carriageway becomes one-directional roads named ``"mainline"`` (ids ``"1"``,
 ``"2"``, ...; reference line = the median-side edge, lanes on the traffic side inner to
 outer), cut where a ramp leaves or joins it: an exit at the start of its junction (or at
-a direct junction), an entry at the junction's end. Each branch that leaves or joins the
+a direct junction), an entry at the junction's end. A ramp on the median side (``side``
+``"inner"``) takes its lanes away or brings them at full width there, and the mainline's
+reference line runs on smoothly: the median-side edge's step is the lane offset of the
+roads beyond it. Each branch that leaves or joins the
 route becomes a road named ``"exit"`` / ``"entry"`` (ids from ``"101"``), followed up to
 ``ramp_length_m`` or its next junction, and is linked to the mainline by a ``direct``
 junction (ids from ``"1001"``, one per cut) with lane links in both roles. All geometry
@@ -27,6 +30,7 @@ from ..frames import MappingFrame
 from ..mainline.cut import cut_road
 from ..model import (
     Connection,
+    CubicProfile,
     Header,
     Junction,
     LaneLink,
@@ -52,6 +56,7 @@ from .route import (
     TrafficSide,
     Traversal,
     continuations,
+    entries_into,
     passage_turn_rad,
 )
 
@@ -64,6 +69,11 @@ lanes that happen to lead into (come from) the ramp."""
 
 MAX_RAMP_TURN_DEG = 120.0
 """A branch turning more than this at its junction (a U-turn) is not a ramp."""
+
+BRANCH_PIECES_M = {"min_piece_m": 1.0, "width_min_piece_m": 2.0}
+"""Shortest geometry and width pieces of a branch's fit. Coarser than the mainline's: a
+branch that these cannot hold within ``max_branch_error_m`` (lanes of a crossroads that
+fold or cross, which esmini cannot drive either) is left out of the truth."""
 
 
 @dataclass(frozen=True)
@@ -87,6 +97,9 @@ class RampTruth:
     aux_lane_ids: tuple[int, ...]
     source_roads: tuple[str, ...]
     name: str = ""
+    side: str = "outer"
+    """Side of the mainline's through lanes the ramp leaves or joins on: ``"outer"`` (the
+    traffic side: right with right-hand traffic) or ``"inner"`` (the median side)."""
 
 
 @dataclass(frozen=True)
@@ -155,29 +168,6 @@ def _is_ramp(network: RoadNetwork, passage: Passage, route_roads: set[str]) -> b
     if np.degrees(passage_turn_rad(network, passage)) > MAX_RAMP_TURN_DEG:
         return False
     return _carries_traffic(network, passage)
-
-
-def _entries_into(
-    network: RoadNetwork, through: Passage, traffic_side: TrafficSide
-) -> list[Passage]:
-    """Passages of other roads into the through passage's target at its junction."""
-    junction = network.id_to_junction.get(through.junction_id)
-    if junction is None:
-        return []
-    out = []
-    incoming = sorted({c.incoming_road for c in junction.connections} - {through.source.road_id})
-    for rid in incoming:
-        road = network.id_to_road.get(rid)
-        if road is None or road.junction != "-1":
-            continue
-        for d in (1, -1):
-            link = road.successor if d > 0 else road.predecessor
-            if link is None or link.element_id != junction.id:
-                continue
-            for p in continuations(network, Traversal(rid, d), traffic_side):
-                if p.target == through.target and p.junction_id == junction.id:
-                    out.append(p)
-    return out
 
 
 def _previous(network: RoadNetwork, t: Traversal) -> Traversal | None:
@@ -258,7 +248,7 @@ def find_branches(
                     0, junction_leg(network, p, up_leg, ramp_legs[0], traffic_side, rule)
                 )
             out.append(_Branch("exit", p, through, i, tuple(ramp_legs)))
-        for p in _entries_into(network, through, traffic_side):
+        for p in entries_into(network, through, traffic_side):
             if not _is_ramp(network, p, route_roads):
                 continue
             chain = _ramp_roads(
@@ -420,13 +410,17 @@ def build_route_truth(
     # (lanes folding inside a tight turn, lanes of separate connectors crossing) is left
     # out of the truth altogether, so the run stays consistent with truth.xodr
     branch_fits: dict[int, ChainFit] = {}
+    branch_cfg = replace(fit or FitSettings(), **BRANCH_PIECES_M)
     for b_idx, b in enumerate(branches):
         passages: list[Passage | None] = [None] * (len(b.legs) - 1)
         keys = lane_keys(network, list(b.legs), passages, counter=counter)
         try:
+            # (a branch whose median-side edge jumps, e.g. across a crossroads, folds and is
+            # left out below, as before: the lane offset steps are the mainline's)
             bfit = fit_chain(
-                network, list(b.legs), keys, traffic_side, road_id="", name=b.kind, settings=fit
-            )
+                network, list(b.legs), keys, traffic_side, road_id="", name=b.kind,
+                settings=branch_cfg, median_steps=False,
+            )  # fmt: skip
         except (FitError, InputError) as exc:
             log.warning("%s from %s left out: %s", b.kind, _roads_of(b), exc)
             continue
@@ -439,6 +433,15 @@ def build_route_truth(
             )  # fmt: skip
             continue
         branch_fits[b_idx] = bfit
+    # the lanes of the kept ramps on the median side end / start at full width where the
+    # ramp's road begins / ends (the median-side edge steps there): legs again with them
+    ramp_legs, _ = route_legs(
+        network, route, traffic_side, ramps=[branches[b].passage for b in branch_fits]
+    )
+    if ramp_legs != legs:
+        legs = ramp_legs
+        leg_pass = leg_passages(route, legs)
+        main_keys = lane_keys(network, legs, leg_pass, counter=counter)
     cut_legs: dict[int, list[tuple[_Branch, ChainFit]]] = {}
     for b_idx, bfit in branch_fits.items():
         b = branches[b_idx]
@@ -505,6 +508,13 @@ def build_route_truth(
                 if end_u - cut_u[c_idx] <= MAX_AUX_LANE_M:
                     aux_keys.add(key)
         connections[c_idx].append(conn)
+        through = _links_between(network, main_fit, c - 1, main_fit, c, leg_pass[c - 1])
+        main_sec = main_fit.road.lane_sections[sec]
+        order = [ln.id for ln in (main_sec.right or main_sec.left)]
+        end = "from_lane" if b.kind == "exit" else "to_lane"
+        side = _away_gap(
+            order, {getattr(ll, end) for ll in links}, {getattr(ll, end) for ll in through}
+        )
         end_sec = road.lane_sections[0 if b.kind == "exit" else -1]
         n_lanes = sum(1 for ln in (end_sec.right or end_sec.left) if ln.type in TRAFFIC_LANE_TYPES)
         gore = _gore_station(main_fit.road, road, cut_u[c_idx], b.kind, sign)
@@ -524,6 +534,7 @@ def build_route_truth(
                 aux_lane_ids=aux_ids,
                 source_roads=src,
                 name=next((x for x in names if x), ""),
+                side=side,
             )
         )
         ramp_roads.append(road)
@@ -532,6 +543,8 @@ def build_route_truth(
     main_roads = []
     for k, (a, e) in enumerate(zip(starts, ends, strict=True)):
         part = cut_road(main_fit.road, a, e, road_id=main_ids[k])  # exact, re-based to 0
+        if all(p.a == p.b == p.c == p.d == 0.0 for p in part.lane_offset.pieces):
+            part = replace(part, lane_offset=CubicProfile())  # no step on this road
         main_roads.append(
             replace(
                 part,
