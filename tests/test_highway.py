@@ -542,3 +542,53 @@ def test_osm_only_run_folder(tmp_path):
     net = read_xodr(run / "out" / "map.xodr")
     assert {carriageway_of(r) for r in net.roads} == {1, 2}
     assert "+lat_0=50.0385" in net.header.geo_reference
+
+
+def test_runs_in_other_frames_fuse_in_the_first_runs_frame(runs, tmp_path):
+    """Pass 2 written in UTM (another CRS and origin) fuses with pass 1 (local frame) as
+    if it were in pass 1's frame: everything goes to the first run's frame."""
+    src = runs["dirs"]["pass2"]
+    b = runs["pass2"]
+    utm = MappingFrame(b.frame.origin, "+proj=utm +zone=32 +datum=WGS84 +units=m")
+    moved = run_in_frame(b, utm)
+    out = tmp_path / "pass2-utm"
+    out.mkdir()
+    traj = moved.trajectory
+    np.savetxt(
+        out / "trajectory.csv",
+        np.column_stack([traj.frame, traj.t, traj.xyz, np.angle(np.exp(1j * traj.yaw))]),
+        delimiter=",",
+        header="frame,t,x,y,z,yaw",
+        comments="",
+        fmt=["%d", "%.3f", "%.4f", "%.4f", "%.4f", "%.8f"],
+    )
+    side = np.where(moved.edge_side > 0, 1, 2)
+    np.savetxt(
+        out / "road_edges.csv",
+        np.column_stack([moved.edges, side]),
+        delimiter=",",
+        header="x,y,z,side",
+        comments="",
+        fmt=["%.4f", "%.4f", "%.4f", "%d"],
+    )
+    (out / "lane_samples.csv").write_bytes((src / "lane_samples.csv").read_bytes())
+    (out / "map.osm").write_bytes((src / "map.osm").read_bytes())
+    o = utm.origin
+    (out / "run.toml").write_text(
+        f"[origin]\nlat = {o.lat_deg}\nlon = {o.lon_deg}\nalt = 0.0\n"
+        '[frame]\ncrs = "+proj=utm +zone=32 +datum=WGS84 +units=m"\n'
+        '[files]\ntrajectory = "trajectory.csv"\nroad_edges = "road_edges.csv"\n'
+        'lane_samples = "lane_samples.csv"\nosm = "map.osm"\n',
+        encoding="utf-8",
+    )
+    there = load_run(out)
+    assert abs(there.trajectory.xy[0, 0] - b.trajectory.xy[0, 0]) > 1e4
+    groups = group_runs([runs["pass1"], run_in_frame(there, runs["pass1"].frame)])
+    assert groups.carriageways == ((0, 1),)
+    a = fuse_runs([runs["pass1"], b]).run
+    c = fuse_runs([runs["pass1"], run_in_frame(there, runs["pass1"].frame)]).run
+    assert c.frame is runs["pass1"].frame
+    assert np.abs(a.edges - c.edges).max() < 2e-3  # rounding of the written CSV
+    assert np.abs(a.lane_samples[:, :2] - c.lane_samples[:, :2]).max() < 2e-3
+    # heights: the UTM run's z is absolute, the local frame's relative to its altitude
+    assert np.abs(a.edges[:, 2] - c.edges[:, 2]).max() < 2e-3
