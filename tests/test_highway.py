@@ -340,6 +340,16 @@ def test_one_run_gets_the_other_carriageway_from_osm(runs, osm_graph, tmp_path):
     conn = ramp_connectivity(part)
     assert conn
     assert all(c["connected"] for c in conn)
+    # evaluated against the run's truth, the map is measured on the carriageway the truth
+    # holds: the other carriageway's ramps are not spurious ones
+    rep = evaluate(
+        res.network,
+        runs["pass1"],
+        truth=read_xodr(runs["dirs"]["pass1"] / "truth.xodr"),
+        truth_info=json.loads((runs["dirs"]["pass1"] / "truth.json").read_text()),
+    ).runs[0]
+    assert rep.topology["spurious"] == []
+    assert rep.topology["matched"] == 2
     # the file keeps the tags
     path = write_xodr(res.network, tmp_path / "map.xodr")
     back = read_xodr(path)

@@ -17,7 +17,12 @@ from ..evaluation import evaluate
 from ..model import RoadNetwork
 from .merge import carriageway_of
 
-__all__ = ["carriageway_network", "carriageway_numbers", "evaluate_carriageway"]
+__all__ = [
+    "carriageway_network",
+    "carriageway_numbers",
+    "carriageways_of_truth",
+    "evaluate_carriageway",
+]
 
 
 def carriageway_numbers(network: RoadNetwork) -> list[int]:
@@ -97,3 +102,42 @@ def evaluate_carriageway(
         "topology": report.topology,
         "self_consistency": report.self_consistency,
     }
+
+
+def carriageways_of_truth(network: RoadNetwork, truth: RoadNetwork) -> RoadNetwork:
+    """The part of a highway map whose carriageways the truth holds: those whose mainline
+    runs along the truth's mainline (at least 30 % of it within 10 m of a true lane centre,
+    heading the same way). A map without carriageway tags, or of one carriageway, is
+    returned as it is; so is a map none of whose carriageways the truth holds."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    from .compare import lane_centres
+
+    numbers = carriageway_numbers(network)
+    if len(numbers) < 2:
+        return network
+    true = lane_centres(truth, keep=lambda r: r.name == "mainline", step_m=5.0)
+    if true.xy.shape[0] == 0:
+        return network
+    tree = cKDTree(true.xy)
+    keep = []
+    for n in numbers:
+        built = lane_centres(
+            network,
+            keep=lambda r, n=n: r.name == "mainline" and carriageway_of(r) == n,
+            step_m=10.0,
+        )
+        if built.xy.shape[0] == 0:
+            continue
+        d, i = tree.query(built.xy, distance_upper_bound=10.0)
+        ok = np.isfinite(d)
+        turn = np.abs((built.heading[ok] - true.heading[i[ok]] + np.pi) % (2 * np.pi) - np.pi)
+        if np.count_nonzero(turn < np.pi / 4) >= 0.3 * built.xy.shape[0]:
+            keep.append(n)
+    if not keep:
+        return network
+    parts = [carriageway_network(network, n, with_beyond=True) for n in keep]
+    roads = tuple(r for part in parts for r in part.roads)
+    junctions = tuple(j for part in parts for j in part.junctions)
+    return RoadNetwork(network.header, roads, junctions)
