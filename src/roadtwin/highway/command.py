@@ -223,7 +223,15 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     bar.set_description("write files")
     frame = result.frame
-    plot_run = result.carriageways[0].fused.run if result.carriageways[0].fused else None
+    fused = [c.fused.run for c in result.carriageways if c.fused is not None]
+    plot_run = None
+    if fused:  # every carriageway's points under the map (the first run's path)
+        plot_run = replace(
+            fused[0],
+            edges=np.vstack([r.edges for r in fused]),
+            edge_side=np.concatenate([r.edge_side for r in fused]),
+            lane_samples=np.vstack([r.lane_samples for r in fused]),
+        )
     with staged_output(out) as tmp:
         write_xodr(result.network, tmp / "map.xodr")
         write_kml(result.network, frame, tmp / "map.kml")
