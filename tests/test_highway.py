@@ -504,6 +504,9 @@ def test_build_cli_several_runs_and_osm_only(runs, tmp_path, capsys):
     assert [c["source"] for c in info["carriageways"]] == ["lidar", "lidar"]
     assert info["carriageways"][0]["runs"] == ["pass1", "pass2"]
     assert info["carriageways"][0]["disagreements"] == []
+    per_run = info["carriageways"][0]["run_self_consistency_rmse_m"]
+    assert set(per_run) == {"pass1", "pass2"}
+    assert all(v["road_edge_rmse_m"] < 0.3 for v in per_run.values())
     assert len(info["ramps"]) == 4
     text = capsys.readouterr().out
     assert "carriageway 1: lidar (runs pass1, pass2, other direction of 2)" in text

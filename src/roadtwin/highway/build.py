@@ -32,6 +32,7 @@ from threadpoolctl import threadpool_limits
 from .. import __version__
 from .._errors import FitError, InputError
 from ..config import PipelineConfig
+from ..evaluation import self_consistency
 from ..frames import MappingFrame
 from ..io import MappingRun
 from ..model import Header, Junction, Road, RoadNetwork
@@ -90,6 +91,10 @@ class Carriageway:
     road_ids: tuple[str, ...] = ()
     ramp_road_ids: tuple[str, ...] = ()
     partner: int | None = None
+    run_self_consistency: tuple[tuple[str, dict[str, float]], ...] = ()
+    """Per fused run, the self-consistency RMSE (metres) of its own points against the
+    carriageway built from all runs (``road_edge_rmse_m``, ``lane_boundary_rmse_m``, ...):
+    every run, not only their union, should be explained by the map."""
 
 
 @dataclass(frozen=True)
@@ -364,6 +369,12 @@ def _build_highway(
         warnings.extend(result.warnings)
         builds.append(result)
         partner = groups.partner(k)
+        per_run: tuple[tuple[str, dict[str, float]], ...] = ()
+        if len(members) > 1:
+            per_run = tuple(
+                (run_name(r, i), self_consistency(result.network, r, config=cfg.evaluation))
+                for i, r in zip(members, fused.runs, strict=True)
+            )
         cw = Carriageway(
             k + 1,
             "lidar",
@@ -373,6 +384,7 @@ def _build_highway(
             fused=fused,
             build=result,
             partner=None if partner is None else partner + 1,
+            run_self_consistency=per_run,
         )
         parts.append(_Part(cw, list(result.network.roads), result.network.junctions))
 

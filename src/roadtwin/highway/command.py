@@ -69,6 +69,14 @@ def build_info(result: HighwayResult) -> dict[str, Any]:
             ]
             entry["path_pieces"] = [list(p) for p in cw.fused.path_pieces]
             entry["dropped_points"] = cw.fused.dropped_points
+            entry["run_self_consistency_rmse_m"] = {
+                name: {
+                    k: None if v is None else _round(v, 4)
+                    for k, v in sc.items()
+                    if k.endswith("_rmse_m")
+                }
+                for name, sc in cw.run_self_consistency
+            }
         if cw.osm_road is not None:
             entry["osm_way_ids"] = [str(w) for w in cw.osm_road.chain.way_ids]
             med = cw.osm_road.median_m
