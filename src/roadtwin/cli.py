@@ -166,6 +166,22 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="run folder to write")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument(
+        "--pass",
+        dest="pass_index",
+        type=int,
+        default=1,
+        metavar="N",
+        help="drive N of the same road: the same truth and OSM, new pose errors, points, "
+        "occlusions and lane samples (default 1)",
+    )
+    p.add_argument(
+        "--direction",
+        choices=["forward", "opposite"],
+        default="forward",
+        help="the carriageway to drive: the scenario's / chain's own (forward) or the one "
+        "running the other way beside it (opposite), in the same frame",
+    )
     g = p.add_argument_group("runs along a route through an OpenDRIVE map (the map is the truth)")
     g.add_argument("--xodr", type=Path, default=None, help="OpenDRIVE map to drive through")
     g.add_argument(
@@ -215,7 +231,6 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_simulate_network(args: argparse.Namespace) -> int:
     """``simulate --xodr MAP`` or ``simulate --from-osm EXTRACT``: a run along a route."""
-    import json
     import time
 
     from .simulate import NetworkRunSettings, simulate_osm_run, simulate_xodr_run
@@ -235,15 +250,19 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             args.output,
             chain=chain,
             seed=args.seed or 0,
-            settings=NetworkRunSettings(car=Car(lane=args.lane)),
+            settings=NetworkRunSettings(car=Car(lane=args.lane), pass_index=args.pass_index),
+            direction=args.direction,
         )
     else:
         if args.osm is not None and not args.osm.is_file():
             raise InputError(f"{args.osm}: OSM file not found")
+        if args.direction != "forward":
+            raise InputError("simulate --xodr: choose the other direction with --route")
         settings = NetworkRunSettings(
             car=Car(lane=args.lane),
             style=marking_style(args.style),
             osm_file=str(args.osm) if args.osm is not None else "",
+            pass_index=args.pass_index,
         )
         route = [r for r in args.route.split(",") if r.strip()] if args.route else None
         source = str(args.xodr)
@@ -255,6 +274,29 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             seed=args.seed or 0,
             traffic_side=args.traffic,
         )
+    _print_network_run(out, source, args, started)
+    return 0
+
+
+def _cmd_simulate_opposite(args: argparse.Namespace) -> int:
+    """``simulate SCENARIO --direction opposite``: the scenario's other carriageway."""
+    import time
+
+    from .simulate.opposite import simulate_opposite_run
+
+    started = time.perf_counter()
+    out = simulate_opposite_run(
+        args.scenario, args.output, seed=args.seed, pass_index=args.pass_index
+    )
+    _print_network_run(out, f"{args.scenario} (opposite carriageway)", args, started)
+    return 0
+
+
+def _print_network_run(out: Path, source: str, args: argparse.Namespace, started: float) -> None:
+    """The summary of a run along a route (``truth.json`` of a network run)."""
+    import json
+    import time
+
     truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
     counts = truth["counts"]
     ramps = ", ".join(
@@ -267,11 +309,12 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
     fit = truth["source"]["fit_max_error_mm"]
     files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
     style = truth["noise"].get("markings", {}).get("name", args.style)
+    drive_no = f", pass {truth['pass']}" if truth.get("pass", 1) > 1 else ""
     print(
         "\n".join(
             [
-                f"map        {source} (seed {truth['seed']}, {truth['traffic_side']}-hand "
-                f"traffic, {style} markings)",
+                f"map        {source} (seed {truth['seed']}{drive_no}, "
+                f"{truth['traffic_side']}-hand traffic, {style} markings)",
                 f"route      roads {route_txt}",
                 f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
                 f"{len(truth['mainline_roads'])} roads, car in lane {truth['car_lane']}",
@@ -285,7 +328,6 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             ]
         )
     )
-    return 0
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -297,11 +339,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     given = [x for x in (args.scenario, args.xodr, args.from_osm) if x is not None]
     if len(given) != 1:
         raise InputError("simulate: give one of SCENARIO, --xodr MAP or --from-osm EXTRACT")
+    if args.pass_index < 1:
+        raise InputError(f"simulate --pass {args.pass_index}: expected 1, 2, ...")
     if args.xodr is not None or args.from_osm is not None:
         return _cmd_simulate_network(args)
+    if args.direction == "opposite":
+        return _cmd_simulate_opposite(args)
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
-    out = simulate_run(scenario, args.output, seed=args.seed)
+    out = simulate_run(scenario, args.output, seed=args.seed, pass_index=args.pass_index)
     truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
     counts = truth["counts"]
     ramps = ", ".join(
@@ -311,7 +357,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     print(
         "\n".join(
             [
-                f"scenario   {scenario.name} (seed {truth['seed']}, "
+                f"scenario   {scenario.name} (seed {truth['seed']}"
+                f"{f', pass {args.pass_index}' if args.pass_index > 1 else ''}, "
                 f"{scenario.traffic_side}-hand traffic)",
                 f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
                 f"{scenario.lanes.count} lanes, car in lane {truth['car_lane']}",
@@ -332,10 +379,50 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _add_build(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("build", help="build map.xodr (+ kml, geojson, png) from a mapping run")
-    p.add_argument("run_dir", type=Path, help="mapping-run folder with run.toml")
+    p = sub.add_parser(
+        "build", help="build map.xodr (+ kml, geojson, png) from mapping runs and/or OSM"
+    )
     p.add_argument(
-        "-o", "--output", type=Path, default=None, help="output folder (default: RUN_DIR/out)"
+        "run_dirs",
+        type=Path,
+        nargs="*",
+        metavar="RUN_DIR",
+        help="mapping-run folder(s) with run.toml (several: fused per carriageway; a folder "
+        "whose run.toml names only an OSM file: the OSM-only mode)",
+    )
+    p.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output folder (default: the first RUN_DIR/out)",
+    )
+    h = p.add_argument_group("the whole highway (issue on several runs and OSM roads)")
+    h.add_argument(
+        "--carriageway-only",
+        action="store_true",
+        help="only what one run drove (and its ramps): no other carriageway and no roads "
+        "beyond the ramps from OSM",
+    )
+    h.add_argument(
+        "--osm",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="OSM extract: with RUN_DIRs instead of their run.toml's; alone (with --bbox) the "
+        "OSM-only mode, every motorway/trunk carriageway of the box from OSM",
+    )
+    h.add_argument(
+        "--bbox",
+        default=None,
+        metavar="MINLON,MINLAT,MAXLON,MAXLAT",
+        help="area of the OSM-only mode (WGS84 degrees)",
+    )
+    h.add_argument(
+        "--traffic",
+        choices=["right", "left"],
+        default="right",
+        help="traffic side of the OSM-only mode with --osm (default right)",
     )
     p.add_argument(
         "--method",
@@ -364,7 +451,49 @@ def _add_build(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_build(args: argparse.Namespace) -> int:
+    if args.osm is not None or len(args.run_dirs) != 1 or not args.carriageway_only:
+        from .highway.command import cmd_build_highway
+
+        return cmd_build_highway(args)
+    args.run_dir = args.run_dirs[0]
+    return _cmd_build_run(args)
+
+
+def _build_config(args: argparse.Namespace):
+    """The stage settings of ``build``: ``--config`` with ``--method``, ``--junctions``."""
     import dataclasses
+
+    cfg = _load_config(args.config)
+    if args.method is not None:
+        cfg = cfg.with_method(args.method)
+    if args.junctions is not None:
+        cfg = dataclasses.replace(
+            cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
+        )
+    return cfg
+
+
+def _ramp_info(road_id: str, r) -> dict:
+    """``build.json`` record of one ramp (its decisions)."""
+    return {
+        "road_id": road_id,
+        "type": r.type,
+        "station_m": round(r.station_m, 3),
+        "station_source": r.station_source,
+        "lanes": r.lanes,
+        "lane_rule": r.lane_rule,
+        "osm_lanes": r.osm_lanes,
+        "osm_lane_rule": r.osm_lane_rule,
+        "type_geometry": r.type_geometry,
+        "osm_way_ids": [str(w) for w in r.osm_way_ids],
+        "attach_gap_m": r.attach_gap_m,
+        "attach_heading_deg": r.attach_heading_deg,
+        "warnings": list(r.warnings),
+    }
+
+
+def _cmd_build_run(args: argparse.Namespace) -> int:
+    """``build RUN_DIR --carriageway-only``: one run, the carriageway it drove."""
     import json
     import time
 
@@ -376,13 +505,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     from .xodr import write_xodr
 
     started = time.perf_counter()
-    cfg = _load_config(args.config)
-    if args.method is not None:
-        cfg = cfg.with_method(args.method)
-    if args.junctions is not None:
-        cfg = dataclasses.replace(
-            cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
-        )
+    cfg = _build_config(args)
     names = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
     tools = None
     if not args.no_drive:
@@ -433,21 +556,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         write_geojson(result.network, run.frame, tmp / "map.geojson")
         plot_network(result.network, run, tmp / "map.png")
         ramps_info = [
-            {
-                "road_id": rid,
-                "type": r.type,
-                "station_m": round(r.station_m, 3),
-                "station_source": r.station_source,
-                "lanes": r.lanes,
-                "lane_rule": r.lane_rule,
-                "osm_lanes": r.osm_lanes,
-                "osm_lane_rule": r.osm_lane_rule,
-                "type_geometry": r.type_geometry,
-                "osm_way_ids": [str(w) for w in r.osm_way_ids],
-                "attach_gap_m": r.attach_gap_m,
-                "attach_heading_deg": r.attach_heading_deg,
-                "warnings": list(r.warnings),
-            }
+            _ramp_info(rid, r)
             for rid, r in zip(result.topology.ramp_road_ids, result.ramps, strict=True)
         ]
         info = {
@@ -463,24 +572,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
     times["write files"] = time.perf_counter() - t0
     bar.update()
 
-    report = None
-    if not args.no_check:
-        from .check import check_file
-
-        t0 = time.perf_counter()
-        step("check")
-        report = check_file(out / "map.xodr", external=True)
-        times["check"] = time.perf_counter() - t0
-        bar.update()
-    drive_report = None
-    if tools is not None:
-        t0 = time.perf_counter()
-        step("drive")
-        drive_report = _drive(out / "map.xodr", out / "drive", args, cfg.drive, tools=tools)
-        _add_drive_to_build_json(out / "build.json", drive_report)
-        times["drive"] = time.perf_counter() - t0
-        bar.update()
-    bar.close()
+    report, drive_report = _check_and_drive(out, args, cfg, tools, bar, times)
 
     s = result.summary()
     lines = [
@@ -507,12 +599,45 @@ def _cmd_build(args: argparse.Namespace) -> int:
     for w in result.warnings:
         lines.append(f"note       {w}")
     lines += _drive_lines(drive_report, skipped=args.no_drive, out=out)
+    return _print_build(lines, report, drive_report)
+
+
+def _print_build(lines: list[str], report, drive_report) -> int:
+    """Print a build's summary lines and its check report; exit code 1 when the check
+    found errors or a route failed its drive."""
     print("\n".join(lines))
     failed = drive_report is not None and not drive_report.ok
     if report is not None:
         print(report.format_text())
         failed = failed or report.errors > 0
     return 1 if failed else 0
+
+
+def _check_and_drive(out: Path, args: argparse.Namespace, cfg, tools, bar, times: dict):
+    """``roadtwin check`` of ``out/map.xodr`` (unless ``--no-check``) and, with esmini
+    (``tools``), ``roadtwin drive`` into ``out/drive`` (recorded in ``build.json``);
+    returns both reports (None where skipped) and closes the progress bar."""
+    import time
+
+    report = None
+    if not args.no_check:
+        from .check import check_file
+
+        t0 = time.perf_counter()
+        bar.set_description("check")
+        report = check_file(out / "map.xodr", external=True)
+        times["check"] = time.perf_counter() - t0
+        bar.update()
+    drive_report = None
+    if tools is not None:
+        t0 = time.perf_counter()
+        bar.set_description("drive")
+        drive_report = _drive(out / "map.xodr", out / "drive", args, cfg.drive, tools=tools)
+        _add_drive_to_build_json(out / "build.json", drive_report)
+        times["drive"] = time.perf_counter() - t0
+        bar.update()
+    bar.close()
+    return report, drive_report
 
 
 def _drive_lines(drive_report, *, skipped: bool, out: Path | None = None) -> list[str]:

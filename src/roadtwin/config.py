@@ -440,6 +440,67 @@ class DriveConfig:
 
 
 @dataclass(frozen=True)
+class HighwayConfig:
+    """The whole highway (``roadtwin.highway``, ``roadtwin.osm_roads``): several runs fused,
+    both carriageways, the roads beyond the ramps, the OSM-only mode."""
+
+    same_carriageway_m: float = 25.0
+    """Two runs drive the same carriageway where their paths come this close (metres)
+    with headings within 45 deg."""
+    opposite_carriageway_m: float = 100.0
+    """A run (or an OSM carriageway) this close (metres) with the opposite heading drives
+    the other carriageway of the same highway."""
+    min_overlap_m: float = 50.0
+    """Shortest shared stretch (metres) that makes two paths the same / opposite
+    carriageway."""
+    join_gap_m: float = 60.0
+    """A run starting within this distance (metres) of another's end continues it."""
+    consistency_bin_m: float = 50.0
+    """Length (metres) of the stretches in which overlapping runs are compared."""
+    pose_sigma_m: float = 0.03
+    """Lateral pose error of one run (metres, GNSS/INS drift): two runs may differ by
+    about sqrt(2) times this without any fault."""
+    disagree_sigmas: float = 4.0
+    """Runs disagree where their offsets differ by more than this many standard errors."""
+    min_disagreement_m: float = 0.10
+    """... and by more than this (metres)."""
+    min_bin_points: int = 20
+    """Edge points a run needs in a stretch to be compared there."""
+    opposite: bool = True
+    """Build, from OSM, the carriageway that no run drove (at OSM accuracy)."""
+    beyond: bool = True
+    """Build, from OSM, the road beyond each ramp's far end and link the ramp to it."""
+    beyond_length_m: float = 300.0
+    """The road beyond a ramp is followed up to its next junction or this far (metres)."""
+    beyond_min_radius_m: float = 20.0
+    """Smallest radius (metres) of the reference line of a road beyond a ramp (its lanes
+    turn a little tighter)."""
+    median_smooth_m: float = 250.0
+    """Smoothing length (metres) of the OSM median width along the road."""
+    min_median_m: float = 0.5
+    """Narrowest median (metres) between a measured and an OSM-built carriageway."""
+    lane_taper_m: float = 80.0
+    """Length (metres) over which an OSM-built lane opens or closes where the OSM lane
+    count changes."""
+    lane_width_m: float = 3.5
+    """Lane width (metres) of OSM-built roads where no run measured one."""
+    inner_shoulder_m: float = 0.75
+    """Inner (median-side) shoulder (metres) of OSM-built carriageways without a run."""
+    hard_shoulder_m: float = 2.5
+    """Hard shoulder (metres) of OSM-built motorways without a run."""
+    osm_fit_window_m: float = 800.0
+    """An OSM-only carriageway is fitted (curvature-bounded clothoid spline) in windows of
+    this length (metres), each anchored on the previous one."""
+    min_carriageway_m: float = 200.0
+    """OSM carriageways shorter than this (metres) are not built in the OSM-only mode."""
+
+    _RANGES: ClassVar[dict[str, tuple[float, float]]] = {"min_bin_points": (1, 100000)}
+
+    def __post_init__(self) -> None:
+        check_fields(self, "highway")
+
+
+@dataclass(frozen=True)
 class PipelineConfig:
     """All stage configurations together."""
 
@@ -449,6 +510,7 @@ class PipelineConfig:
     topology: TopologyConfig = field(default_factory=TopologyConfig)
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     drive: DriveConfig = field(default_factory=DriveConfig)
+    highway: HighwayConfig = field(default_factory=HighwayConfig)
 
     def with_method(self, method: Literal["default", "paper"]) -> PipelineConfig:
         """The same settings built with ``method``: the mainline method and the ramps' lane

@@ -426,6 +426,9 @@ class Road:
     osm_way_ids: tuple[int, ...] = ()
     """OSM ways the road was built from (ramps; empty for roads from the LiDAR run).
     Written to the map as ``<userData code="roadtwin:osm_way_ids">``."""
+    user_data: tuple[tuple[str, str], ...] = ()
+    """``(code, value)`` pairs written as the road's ``<userData>`` (e.g.
+    ``roadtwin:carriageway``, ``roadtwin:source``, the OSM ``name`` and ``ref``)."""
 
     def __repr__(self) -> str:
         links = [

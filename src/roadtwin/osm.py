@@ -9,7 +9,7 @@ area through OSMnx (Overpass). Both return the same projected graph:
 
 * nodes: ``x, y`` (mapping frame, metres), ``lon, lat`` (WGS84 degrees), OSM node tags;
 * edges: ``highway, lanes, lanes:forward, lanes:backward, turn:lanes, oneway (bool),
-  reversed (bool), ref, name, osmid, length`` (metres, in the mapping frame) and
+  reversed (bool), ref, name, maxspeed, osmid, length`` (metres, in the mapping frame) and
   ``geometry`` (shapely LineString in the mapping frame from ``u`` to ``v``) on every edge;
 * ``graph.graph["crs"]``: the mapping frame's CRS (a PROJ string for ``local``).
 
@@ -57,6 +57,7 @@ WAY_TAGS = (
     "oneway",
     "ref",
     "name",
+    "maxspeed",
 )
 """OSM way tags kept as edge attributes (plus ``junction``, which OSMnx needs for oneway)."""
 

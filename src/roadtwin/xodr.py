@@ -14,8 +14,9 @@ superelevation, road links, road type/speed, and junctions (``default`` with
 scenariogeneration cannot express some things exactly, so the element tree it returns is
 post-processed with lxml (:func:`_postprocess`):
 
-* ``<userData>``: the header's ``user_data`` pairs (generator, method, self-consistency)
-  and, on every road built from OpenStreetMap, ``roadtwin:osm_way_ids`` with its source
+* ``<userData>``: the header's ``user_data`` pairs (generator, method, self-consistency),
+  every road's ``user_data`` pairs and, on every road built from OpenStreetMap,
+  ``roadtwin:osm_way_ids`` with its source
   way ids; read back by :func:`read_xodr`.
 
 * ``<header>``: scenariogeneration always writes ``date=datetime.now()`` (not
@@ -304,6 +305,8 @@ def _postprocess(root: etree._Element, network: RoadNetwork) -> None:
                 code=OSM_WAY_IDS_CODE,
                 value=" ".join(str(w) for w in road.osm_way_ids),
             )
+        for code, value in road.user_data:
+            etree.SubElement(el, "userData", code=code, value=value)
         geoms = el.find("planView").findall("geometry")
         for g, gel in zip(road.geometry, geoms, strict=False):
             _set_attrs(
@@ -742,6 +745,12 @@ def _read_road(rel: etree._Element, *, where: str) -> Road:
         road_type=road_type,
         speed_limit_mps=speed,
         osm_way_ids=_osm_way_ids(rel, where=where),
+        user_data=tuple(
+            (u.get("code", ""), u.get("value", ""))
+            for u in rel.findall("userData")
+            # only roadtwin's own pairs: other tools' userData may hold nested content
+            if (u.get("code") or "").startswith("roadtwin:") and u.get("code") != OSM_WAY_IDS_CODE
+        ),
     )
 
 

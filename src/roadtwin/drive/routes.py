@@ -460,24 +460,54 @@ def _natural_end(ctx: _Ctx, node: LaneNode) -> bool:
     return at_road_end and link is None
 
 
+def _mainline_chains(network: RoadNetwork, order: list[Road]) -> list[list[Road]]:
+    """``order`` (mainline roads and their junctions' through roads, chain by chain)
+    split into its chains: a map of a whole highway has one per carriageway."""
+    joined = {
+        frozenset((c.incoming_road, c.connecting_road))
+        for j in network.junctions
+        for c in j.connections
+    }
+
+    def linked(a: str, b: str) -> bool:
+        return (
+            b in _linked_ids(network, a)
+            or a in _linked_ids(network, b)
+            or frozenset((a, b)) in joined
+        )
+
+    chains: list[list[Road]] = []
+    for road in order:
+        if chains and linked(chains[-1][-1].id, road.id):
+            chains[-1].append(road)
+        else:
+            chains.append([road])
+    return chains
+
+
 def _mainline_routes(ctx: _Ctx) -> list[Route]:
-    """From every driving lane at the start of the mainline to its end, or as far as the
-    lane goes where it ends in a taper (a lane drop) or leaves the mainline."""
+    """From every driving lane at the start of each mainline (one per carriageway) to its
+    end, or as far as the lane goes where it ends in a taper (a lane drop) or leaves the
+    mainline."""
     order = mainline_roads(ctx.network)
-    named = [r for r in order if r.name == "mainline"]
-    if not named:
-        return []
-    first, last = named[0].id, named[-1].id
-    targets = _driving_nodes(ctx, {last}, section="exit")
+    chains = _mainline_chains(ctx.network, order)
     routes = []
-    for src in _driving_nodes(ctx, {first}, section="entry"):
-        name = f"mainline lane {src[2]}"
-        path = _shortest(ctx, [src], targets) or _follow(ctx, src, {r.id for r in order})
-        if path[-1] not in targets and not _natural_end(ctx, path[-1]):
-            problem = _break_out_of(ctx, src, f"the end of the mainline (road {last})")
-            routes.append(Route(name, "mainline", problem=problem))
+    for chain in chains:
+        named = [r for r in chain if r.name == "mainline"]
+        if not named:
             continue
-        routes.append(_make_route(ctx, name, "mainline", path))
+        first, last = named[0].id, named[-1].id
+        targets = _driving_nodes(ctx, {last}, section="exit")
+        for src in _driving_nodes(ctx, {first}, section="entry"):
+            name = f"mainline lane {src[2]}"
+            if len(chains) > 1:
+                name = f"mainline road {first} lane {src[2]}"
+            path = _shortest(ctx, [src], targets) or _follow(ctx, src, {r.id for r in chain})
+            if path[-1] not in targets and not _natural_end(ctx, path[-1]):
+                problem = _break_out_of(ctx, src, f"the end of the mainline (road {last})")
+                routes.append(Route(name, "mainline", problem=problem))
+                continue
+            routes.append(_make_route(ctx, name, "mainline", path))
     return routes
 
 

@@ -142,13 +142,17 @@ def evaluate(
     details = {edge.name: edge, lane.name: lane}
     truth_result = None
     if truth is not None:
-        truth_result, d1 = _truth_mainline(network, truth, cfg)
-        ramps, d2 = _truth_ramps(network, truth, cfg)
+        from ..highway.evaluate import carriageways_of_truth
+
+        # a map of the whole highway is measured on the carriageways the truth holds
+        measured = carriageways_of_truth(network, truth)
+        truth_result, d1 = _truth_mainline(measured, truth, cfg)
+        ramps, d2 = _truth_ramps(measured, truth, cfg)
         truth_result.update(ramps)
         details.update(d1)
         details.update(d2)
         topology = topology_against_truth(
-            network, truth, truth_info=truth_info, traffic_side=traffic_side, config=cfg
+            measured, truth, truth_info=truth_info, traffic_side=traffic_side, config=cfg
         )
     else:
         topology = {"ramps": ramp_connectivity(network, traffic_side=traffic_side)}

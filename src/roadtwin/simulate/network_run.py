@@ -92,6 +92,9 @@ class NetworkRunSettings:
     opposite_markings: bool = False
     """Also sample the paint of the opposite carriageway (lanes of the source map whose
     traffic runs against the route) within the sensor's lateral range."""
+    pass_index: int = 1
+    """Which drive of the same route this is: pass N > 1 keeps the truth and the OSM of
+    pass 1 and draws new pose errors, edge points, occlusions and lane samples."""
 
     def __post_init__(self) -> None:
         if self.traffic_side not in ("right", "left"):
@@ -102,6 +105,10 @@ class NetworkRunSettings:
             raise InputError("car: speed_kmh must be 10..200 and rate_hz 1..100")
         if self.car.lane < 0:
             raise InputError(f"car lane {self.car.lane}: expected 0 (outermost) or 1, 2, ...")
+        if isinstance(self.pass_index, bool) or not (
+            isinstance(self.pass_index, int) and self.pass_index >= 1
+        ):
+            raise InputError(f"pass {self.pass_index!r}: expected 1, 2, ...")
 
 
 def network_frame(network: RoadNetwork, origin: Origin, start_xy) -> MappingFrame:
@@ -318,9 +325,9 @@ def simulate_network_run(
     poses = drive(truth, cfg.car, lookahead_m=cfg.lookahead_m, lane_change_m=cfg.lane_change_m)
     if poses.frame.size < 2:
         raise InputError(f"route {','.join(rt.road_ids)}: too short to drive")
-    meas = noisy_poses(poses, cfg.noise, cfg.car.rate_hz, _rng(seed, "poses"))
+    meas = noisy_poses(poses, cfg.noise, cfg.car.rate_hz, _rng(seed, "poses", cfg.pass_index))
     step = cfg.car.speed_kmh / 3.6 / cfg.car.rate_hz
-    edge_rng = _rng(seed, "edges")
+    edge_rng = _rng(seed, "edges", cfg.pass_index)
     xyz, normal, station = true_edges(truth, cfg.sensor.edge_spacing_m, edge_rng)
     view, view_station = sensor_view(poses, station, step)
     side_code = edge_sides(xyz, view_station, view)
@@ -328,7 +335,7 @@ def simulate_network_run(
         xyz, side_code, normal, view_station, view, replace(meas, station=view.station),
         cfg.sensor, edge_rng, length_m=truth.mainline.length,
     )  # fmt: skip
-    lane_rng = _rng(seed, "lanes")
+    lane_rng = _rng(seed, "lanes", cfg.pass_index)
     paint, paint_station, paint_counts = painted_points(
         truth, cfg.style, cfg.sensor.lane_spacing_m, lane_rng
     )
@@ -354,8 +361,10 @@ def simulate_network_run(
         else:
             osm_name = "map.osm"
             ramp_ways = write_route_osm(truth, tmp / osm_name, cfg.osm, _rng(seed, "osm"))
+        drive_no = f", pass {cfg.pass_index}" if cfg.pass_index > 1 else ""
         comment = (
-            f"Simulated mapping run along roads {','.join(rt.road_ids)} of {name}, seed {seed}."
+            f"Simulated mapping run along roads {','.join(rt.road_ids)} of {name}, "
+            f"seed {seed}{drive_no}."
         )
         (tmp / "run.toml").write_text(
             run_toml_text(
@@ -378,6 +387,8 @@ def simulate_network_run(
         doc = route_truth_json(
             truth, cfg, seed=seed, car_lane=car_lane, ramp_ways=ramp_ways, counts=counts
         )
+        if cfg.pass_index > 1:
+            doc["pass"] = cfg.pass_index
         write_truth_files(tmp, doc, truth.network)
 
     write_run_folder(out, fill)

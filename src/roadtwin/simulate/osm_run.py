@@ -13,7 +13,9 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 from pathlib import Path
+from typing import Literal
 
+from .._errors import InputError
 from .markings import MarkingStyle
 from .network_run import NetworkRunSettings, simulate_network_run
 from .osm_truth import OsmTruthSettings, truth_from_osm
@@ -27,6 +29,7 @@ def simulate_osm_run(
     seed: int = 0,
     truth_settings: OsmTruthSettings | None = None,
     settings: NetworkRunSettings | None = None,
+    direction: Literal["forward", "opposite"] = "forward",
 ) -> Path:
     """Simulate a mapping run along a real OSM carriageway, with its lane-level truth.
 
@@ -45,8 +48,14 @@ def simulate_osm_run(
     truth_settings
         :class:`~roadtwin.simulate.osm_truth.OsmTruthSettings` (realistic defaults).
     settings
-        Car, noise, sensor settings; the traffic side, frame origin, marking pattern and
-        OSM file always come from the truth (the chain's country).
+        Car, noise, sensor settings (``pass_index`` for another drive of the same truth);
+        the traffic side, frame origin, marking pattern and OSM file always come from the
+        truth (the chain's country).
+    direction
+        ``"forward"``: the chain itself; ``"opposite"``: the carriageway running the other
+        way beside it (:func:`~roadtwin.simulate.opposite.opposite_chain`), its truth in
+        the forward truth's frame with the same seed and OSM offset field, so a run in
+        each direction describes one highway.
 
     Returns
     -------
@@ -54,6 +63,13 @@ def simulate_osm_run(
         ``out_dir``.
     """
     truth = truth_from_osm(osm_path, chain=chain, settings=truth_settings, seed=seed)
+    if direction == "opposite":
+        from .opposite import opposite_truth
+
+        truth = opposite_truth(osm_path, truth, chain=chain, settings=truth_settings)
+    elif direction != "forward":
+        msg = f"direction {direction!r}: expected 'forward' or 'opposite'"
+        raise InputError(msg)
     paint = truth.style.markings
     base = settings or NetworkRunSettings()
     style = replace(

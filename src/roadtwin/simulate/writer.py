@@ -41,9 +41,19 @@ log = logging.getLogger(__name__)
 _STREAMS = {"poses": 1, "edges": 2, "lanes": 3, "osm": 4}
 """Independent random streams per component: ``default_rng([seed, stream])``."""
 
+_SENSOR_STREAMS = frozenset({"poses", "edges", "lanes"})
 
-def _rng(seed: int, name: str) -> np.random.Generator:
-    return np.random.default_rng([seed, _STREAMS[name]])
+
+def _rng(seed: int, name: str, pass_index: int = 1) -> np.random.Generator:
+    """The random stream ``name`` of a run. Pass ``pass_index`` > 1 (the same road driven
+    again) draws new poses, edge points, occlusions and lane samples from the streams
+    ``[seed, stream, pass_index]``; the truth and the OSM stay those of pass 1, whose
+    streams (``[seed, stream]``) are unchanged."""
+    if pass_index < 1:
+        raise InputError(f"pass {pass_index}: expected 1, 2, ...")
+    if pass_index == 1 or name not in _SENSOR_STREAMS:
+        return np.random.default_rng([seed, _STREAMS[name]])
+    return np.random.default_rng([seed, _STREAMS[name], pass_index])
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray], *, decimals: int = 4) -> None:
@@ -145,9 +155,10 @@ def run_toml_text(
     )
 
 
-def _run_toml(sc: Scenario, edges_name: str, osm_name: str) -> str:
+def _run_toml(sc: Scenario, edges_name: str, osm_name: str, pass_index: int = 1) -> str:
+    drive = f", pass {pass_index}" if pass_index > 1 else ""
     return run_toml_text(
-        comment=f"Simulated mapping run: roadtwin scenario {sc.name!r}, seed {sc.seed}.",
+        comment=f"Simulated mapping run: roadtwin scenario {sc.name!r}, seed {sc.seed}{drive}.",
         origin=sc.origin,
         crs="local",
         traffic_side=sc.traffic_side,
@@ -285,7 +296,11 @@ def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> 
 
 
 def simulate_run(
-    scenario: Scenario | str | os.PathLike, out_dir: str | os.PathLike, *, seed: int | None = None
+    scenario: Scenario | str | os.PathLike,
+    out_dir: str | os.PathLike,
+    *,
+    seed: int | None = None,
+    pass_index: int = 1,
 ) -> Path:
     """Simulate a mapping run with ground truth into ``out_dir``.
 
@@ -297,6 +312,10 @@ def simulate_run(
         Run folder to write (created; existing files of the same names are replaced).
     seed
         Overrides the scenario's seed. Same scenario and seed give the same bytes.
+    pass_index
+        Which drive of the same road this is (1, 2, ...): pass 1 is the run as before;
+        pass N > 1 has the same truth and OSM but new pose errors, edge points, occlusions
+        and lane samples (see :func:`_rng`). ``truth.json`` records ``"pass"`` for N > 1.
 
     Returns
     -------
@@ -309,9 +328,9 @@ def simulate_run(
     out = Path(out_dir)
     truth = build_truth(sc)
     poses = true_poses(truth)
-    meas = measured_poses(poses, truth, _rng(sc.seed, "poses"))
-    edges, side, edge_counts = edge_points(truth, poses, meas, _rng(sc.seed, "edges"))
-    frames, ego, lane_counts = lane_samples(truth, poses, _rng(sc.seed, "lanes"))
+    meas = measured_poses(poses, truth, _rng(sc.seed, "poses", pass_index))
+    edges, side, edge_counts = edge_points(truth, poses, meas, _rng(sc.seed, "edges", pass_index))
+    frames, ego, lane_counts = lane_samples(truth, poses, _rng(sc.seed, "lanes", pass_index))
     edges_name = f"road_edges.{sc.road_edges_format}"
 
     def fill(tmp: Path) -> None:
@@ -322,7 +341,9 @@ def simulate_run(
         else:
             osm_name = "map.osm"
             ramp_ways = write_osm(truth, tmp / osm_name, _rng(sc.seed, "osm"))
-        (tmp / "run.toml").write_text(_run_toml(sc, edges_name, osm_name), encoding="utf-8")
+        (tmp / "run.toml").write_text(
+            _run_toml(sc, edges_name, osm_name, pass_index), encoding="utf-8"
+        )
         counts = {
             "frames": int(poses.frame.size),
             "edge_points": int(side.size),
@@ -330,7 +351,10 @@ def simulate_run(
             "edges": edge_counts,
             "lanes": lane_counts,
         }
-        write_truth_files(tmp, _truth_json(truth, ramp_ways, counts), truth.network)
+        doc = _truth_json(truth, ramp_ways, counts)
+        if pass_index > 1:
+            doc["pass"] = pass_index
+        write_truth_files(tmp, doc, truth.network)
 
     write_run_folder(out, fill)
     log.info(

@@ -2,7 +2,8 @@
 
 Keeps every way with a ``highway`` tag that has a node inside a lon/lat box, with all of
 its nodes (so ways are complete) and their tags. Data: © OpenStreetMap contributors, ODbL.
-Run: ``python tests/data/osm/crop_extracts.py /work/shared/data/osm/north-bayreuth-a9.osm.gz``
+Run: ``python tests/data/osm/crop_extracts.py /work/shared/data/osm/north-bayreuth-a9.osm.gz
+[NAME ...]``
 """
 
 from __future__ import annotations
@@ -16,6 +17,8 @@ CROPS = {
     # name: (lon_min, lat_min, lon_max, lat_max) around an A9 junction
     "a9-bindlacher-berg.osm": (11.598, 50.0095, 11.613, 50.0205),
     "a9-dreieck-bayreuth-kulmbach.osm.gz": (11.594, 50.0195, 11.614, 50.0305),
+    # an A9 interchange with both carriageways, their ramps and the roads beyond them
+    "a9-bayreuth-nord.osm.gz": (11.486, 50.0345, 11.501, 50.0425),
 }
 
 
@@ -44,6 +47,9 @@ def crop(source: Path, target: Path, box: tuple[float, float, float, float]) -> 
 if __name__ == "__main__":
     src = Path(sys.argv[1])
     here = Path(__file__).parent
+    only = sys.argv[2:]  # optional: the names to (re)cut
     for name, box in CROPS.items():
+        if only and name not in only:
+            continue
         crop(src, here / name, box)
         print(name, (here / name).stat().st_size, "bytes")

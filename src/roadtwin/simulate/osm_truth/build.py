@@ -108,6 +108,10 @@ class OsmTruth:
     seed: int
     skipped: tuple[tuple[str, str], ...] = ()
     notes: tuple[str, ...] = field(default_factory=tuple)
+    offset_centre_xy: tuple[float, float] = (0.0, 0.0)
+    """Centre (mapping frame, metres) of the OSM offset field's waves: a truth of the other
+    carriageway built with the same seed, origin and centre is moved off OSM by the same
+    field, so the two carriageways keep OSM's relative placement."""
 
     def metadata(self) -> dict:
         """What truth.json needs about the map."""
@@ -148,6 +152,7 @@ def truth_from_osm(
     origin: Origin | None = None,
     settings: OsmTruthSettings | None = None,
     seed: int = 0,
+    offset_centre_xy: tuple[float, float] | None = None,
 ) -> OsmTruth:
     """Lane-level ground truth of one real motorway/trunk carriageway of an OSM extract.
 
@@ -165,6 +170,10 @@ def truth_from_osm(
     seed
         Seed of every random choice (offset field, widths, grades, shoulders): the same
         seed gives the same map, byte for byte.
+    offset_centre_xy
+        Centre of the offset field's waves (mapping frame, metres); default the chain's
+        mean point. Give the other carriageway's ``OsmTruth.offset_centre_xy`` (with the
+        same seed and origin) to move both carriageways off OSM by the same field.
     """
     from dataclasses import replace
 
@@ -193,7 +202,8 @@ def truth_from_osm(
     seg_lanes = tagged_lanes(roads, ch, cs.default_lanes)
 
     # ---- mainline reference line ---------------------------------------------------
-    fld = offset_field(_rng(seed, 1), cfg.offset, centre=ch.xy.mean(axis=0))
+    centre_xy = ch.xy.mean(axis=0) if offset_centre_xy is None else np.asarray(offset_centre_xy)
+    fld = offset_field(_rng(seed, 1), cfg.offset, centre=centre_xy)
     centre = smooth_line(ch.xy + fld(ch.xy), window_m=cfg.mainline_smooth_window_m)
     s_c = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(centre, axis=0).T))])
     # tagged lanes along the smoothed line (by the OSM stations, scaled)
@@ -374,6 +384,7 @@ def truth_from_osm(
         seed=seed,
         skipped=tuple(skipped),
         notes=tuple(layout.notes),
+        offset_centre_xy=(float(centre_xy[0]), float(centre_xy[1])),
     )
 
 
