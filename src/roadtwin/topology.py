@@ -662,8 +662,9 @@ def build_topology(
         if a - last_end < cfg.min_road_length_m or length - b < cfg.min_road_length_m:
             skipped.append((what, "too close to the run's end or to another ramp's junction"))
             continue
-        if not direct and ramp.road.length < zl + cfg.min_road_length_m:
-            skipped.append((what, f"ramp shorter than {zl + cfg.min_road_length_m:.0f} m"))
+        # a short ramp gives half its length to the connecting road (_ramp_connecting_road)
+        if not direct and ramp.road.length < 2.0 * cfg.min_road_length_m:
+            skipped.append((what, f"ramp shorter than {2.0 * cfg.min_road_length_m:.0f} m"))
             continue
         zones.append(_Zone(ramp, a, b))
         last_end = b
