@@ -21,6 +21,21 @@ class LoadConfig:
     scaled by the time step) is a trajectory jump: an error."""
     osm_buffer_m: float = 400.0
     """OSM ways are cropped to this buffer around the trajectory before building the graph."""
+    cell_station_m: float = 0.25
+    """Density reduction (:mod:`roadtwin.reduction`): cell length along the trajectory
+    (metres)."""
+    cell_lateral_m: float = 0.05
+    """Density reduction: cell width across the trajectory (metres)."""
+    edge_points_per_m: float = 10.0
+    """Rows per metre of each road edge after the density reduction (about twice what the
+    simulator's default sensor gives)."""
+    lane_samples_per_m: float = 5.0
+    """Rows per metre of each lane marking after the density reduction."""
+    reduce_factor: float = 2.0
+    """Points are reduced only where a line is denser than this times its target
+    (``edge_points_per_m`` / ``lane_samples_per_m``); sparser runs pass unchanged."""
+    chunk_points: int = 1_000_000
+    """Points (or CSV rows) read per chunk: bounds the working memory of loading."""
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,9 @@
 
 Vectorised readers for the road-edge formats of DESIGN.md section 3 -- LAS/LAZ (laspy with
 lazrs), PLY (ascii and binary, own header parser + ``np.fromfile``), CSV, NPY and Parquet
-(pyarrow) -- and the column checks shared with :mod:`roadtwin.io`. Every problem raises
+(pyarrow) -- and the column checks shared with :mod:`roadtwin.io`. Point files and CSV tables
+can be read in chunks (:func:`iter_road_edges`, :func:`iter_table`) so that a run of tens of
+millions of points never sits in memory at once; the checks are the same. Every problem raises
 :class:`~roadtwin._errors.InputError` naming the file, the data row (1 = first row after the
 header) or field, and what was expected.
 
@@ -14,7 +16,8 @@ read as right). The result uses :data:`SIDE_LEFT` (+1) / :data:`SIDE_RIGHT` (-1)
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +77,38 @@ def read_table(path: Path, what: str) -> pd.DataFrame:
     return df
 
 
+def iter_table(path: Path, what: str, *, chunk_rows: int) -> Iterator[pd.DataFrame]:
+    """Read a CSV file with a header row in chunks of ``chunk_rows`` rows.
+
+    Same checks and messages as :func:`read_table` (empty file, header without rows, not a
+    CSV); column names stripped and lower-cased in every chunk. Yields at least one chunk.
+    """
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg)
+    try:
+        reader = pd.read_csv(
+            path, skipinitialspace=True, encoding="utf-8-sig", chunksize=max(1, chunk_rows)
+        )
+        first = True
+        with reader:
+            for df in reader:
+                df.columns = [str(c).strip().lower() for c in df.columns]
+                if first and df.shape[0] == 0:
+                    break
+                first = False
+                yield df
+    except pd.errors.EmptyDataError:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg) from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        msg = f"{path}: not a readable CSV file ({one_line(exc)}); expected {what}"
+        raise InputError(msg) from None
+    if first:
+        msg = f"{path}: file has a header but no data rows (expected {what})"
+        raise InputError(msg)
+
+
 def require_columns(columns: Iterable[str], needed: Iterable[str], path: Path, what: str) -> None:
     """Raise an InputError naming the first of ``needed`` missing from ``columns``."""
     have = set(columns)
@@ -86,8 +121,9 @@ def require_columns(columns: Iterable[str], needed: Iterable[str], path: Path, w
             raise InputError(msg)
 
 
-def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
-    """A column as float64; non-numbers, NaN and inf name the first bad data row."""
+def float_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> NDArray[np.float64]:
+    """A column as float64; non-numbers, NaN and inf name the first bad data row
+    (``first_row``: data row of the column's first value, 0-based, for chunks)."""
     series = values if isinstance(values, pd.Series) else pd.Series(np.asarray(values))
     if series.dtype.kind in "fiub":
         arr = series.to_numpy(dtype=np.float64)
@@ -97,7 +133,8 @@ def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
         if bad_text.any():
             row = int(np.argmax(bad_text))
             msg = (
-                f"{path}: data row {row + 1}, column '{name}': {series.iloc[row]!r} is not a number"
+                f"{path}: data row {first_row + row + 1}, column '{name}': {series.iloc[row]!r} "
+                "is not a number"
             )
             raise InputError(msg)
     finite = np.isfinite(arr)
@@ -105,21 +142,23 @@ def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
         row = int(np.argmin(finite))
         count = int(finite.size - np.count_nonzero(finite))
         msg = (
-            f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not a finite number "
-            f"({count} NaN/inf value(s) in this column; expected finite numbers)"
+            f"{path}: data row {first_row + row + 1}, column '{name}': {arr[row]} is not a "
+            f"finite number ({count} NaN/inf value(s) in this column; expected finite numbers)"
         )
         raise InputError(msg)
     return arr
 
 
-def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
+def int_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> NDArray[np.int64]:
     """A column of integer values (``1000`` or ``1000.0``) as int64, checked like floats."""
-    arr = float_column(values, path, name)
+    arr = float_column(values, path, name, first_row=first_row)
     rounded = np.round(arr)
     bad = np.abs(arr - rounded) > 1e-9
     if bad.any():
         row = int(np.argmax(bad))
-        msg = f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not an integer"
+        msg = (
+            f"{path}: data row {first_row + row + 1}, column '{name}': {arr[row]} is not an integer"
+        )
         raise InputError(msg)
     return rounded.astype(np.int64)
 
@@ -129,8 +168,28 @@ def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
 # ---------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class EdgeChunk:
+    """Consecutive road-edge points of a file.
+
+    Attributes
+    ----------
+    xyz : (n, 3) float64 points, mapping frame, metres.
+    side : (n,) int8, +1 left, -1 right, 0 unknown.
+    first_row : data row of the first point (0-based; error messages add 1).
+    """
+
+    xyz: NDArray[np.float64]
+    side: NDArray[np.int8]
+    first_row: int
+
+
+DEFAULT_CHUNK_POINTS = 1_000_000
+"""Points per chunk of :func:`iter_road_edges` (about 40 MB of working memory)."""
+
+
 def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
-    """Read road-edge points from LAS/LAZ, PLY, CSV, NPY or Parquet.
+    """Read all road-edge points of a LAS/LAZ, PLY, CSV, NPY or Parquet file.
 
     Parameters
     ----------
@@ -144,36 +203,80 @@ def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.i
     edges : (N, 3) float64 points, mapping frame, metres.
     edge_side : (N,) int8, +1 left, -1 right, 0 unknown.
     """
+    chunks = list(iter_road_edges(path))
+    return (
+        np.vstack([c.xyz for c in chunks]),
+        np.concatenate([c.side for c in chunks]),
+    )
+
+
+def iter_road_edges(
+    path: str | Path, *, chunk_points: int = DEFAULT_CHUNK_POINTS
+) -> Iterator[EdgeChunk]:
+    """Read road-edge points in chunks of at most ``chunk_points`` (file order).
+
+    Same formats, checks and messages as :func:`read_road_edges` (a bad value names its
+    data row in the whole file); LAS/LAZ are read with laspy's chunk iterator, PLY and NPY
+    through memory maps, Parquet by record batches, CSV by pandas chunks. Yields at least
+    one chunk, or raises :class:`~roadtwin._errors.InputError`.
+    """
     path = Path(path)
     name = path.name.lower()
     if path.stat().st_size == 0:
         msg = f"{path}: file is empty (expected road-edge points x,y,z)"
         raise InputError(msg)
+    n = max(1, int(chunk_points))
     if name.endswith((".las", ".laz")):
-        cols, side = _read_las(path)
+        parts = _las_chunks(path, n)
     elif name.endswith(".ply"):
-        cols, side = _read_ply(path)
+        parts = _ply_chunks(path, n)
     elif name.endswith(".csv"):
-        df = read_table(path, "columns x,y,z[,side]")
-        require_columns(df.columns, "xyz", path, "columns x,y,z[,side]")
-        cols = {c: df[c] for c in "xyz"}
-        side = df.get("side")
+        parts = _csv_chunks(path, n)
     elif name.endswith(".npy"):
-        cols, side = _read_npy(path)
+        parts = _npy_chunks(path, n)
     elif name.endswith(".parquet"):
-        cols, side = _read_parquet(path)
+        parts = _parquet_chunks(path, n)
     else:
         msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
         raise InputError(msg)
-    xyz = np.column_stack([float_column(cols[c], path, c) for c in "xyz"])
-    if xyz.shape[0] == 0:
+    row = 0
+    for cols, side in parts:
+        xyz = np.column_stack([float_column(cols[c], path, c, first_row=row) for c in "xyz"])
+        codes = _side_codes(side, path, xyz.shape[0], first_row=row)
+        if xyz.shape[0] == 0:
+            continue
+        yield EdgeChunk(xyz, codes, row)
+        row += xyz.shape[0]
+    if row == 0:
         msg = f"{path}: no points (expected road-edge points x,y,z)"
         raise InputError(msg)
-    codes = _side_codes(side, path, xyz.shape[0])
-    return xyz, codes
 
 
-def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
+def count_road_edges(path: str | Path) -> int | None:
+    """Number of points a road-edge file says it holds (LAS/LAZ, PLY, NPY and Parquet
+    headers), or ``None`` (CSV, unreadable header): for progress bars only."""
+    path = Path(path)
+    name = path.name.lower()
+    try:
+        if name.endswith((".las", ".laz")):
+            import laspy
+
+            with laspy.open(path) as reader:
+                return int(reader.header.point_count)
+        if name.endswith(".npy"):
+            return int(np.load(path, mmap_mode="r", allow_pickle=False).shape[0])
+        if name.endswith(".parquet"):
+            import pyarrow.parquet as pq
+
+            return int(pq.ParquetFile(path).metadata.num_rows)
+        if name.endswith(".ply"):
+            return int(_ply_header(path).count)
+    except Exception:  # only a hint: the reader reports what is wrong
+        return None
+    return None
+
+
+def _side_codes(side: Any, path: Path, n: int, *, first_row: int = 0) -> NDArray[np.int8]:
     """Map a ``side`` column (strings or integer codes) to +1 left / -1 right / 0."""
     if side is None:
         return np.zeros(n, np.int8)
@@ -186,7 +289,8 @@ def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
         if not ok.all():
             row = int(np.argmin(ok))
             msg = (
-                f"{path}: data row {row + 1}, field 'side': {vals[row]:g} is not a side code "
+                f"{path}: data row {first_row + row + 1}, field 'side': {vals[row]:g} is not a "
+                "side code "
                 "(expected 1 = left, 2 = right, 0 = unknown)"
             )
             raise InputError(msg)
@@ -201,7 +305,8 @@ def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
     if not ok.all():
         row = int(np.argmin(ok))
         msg = (
-            f"{path}: data row {row + 1}, column 'side': {series.iloc[row]!r} is not a side "
+            f"{path}: data row {first_row + row + 1}, column 'side': {series.iloc[row]!r} is "
+            "not a side "
             "(expected 'left' or 'right')"
         )
         raise InputError(msg)
@@ -210,68 +315,95 @@ def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
     return out
 
 
-def _read_las(path: Path) -> tuple[dict[str, Any], Any]:
+def _las_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
     import laspy
 
     try:
-        las = laspy.read(path)
+        reader = laspy.open(path)
     except Exception as exc:  # laspy raises many kinds on corrupt files
         msg = f"{path}: not a readable LAS/LAZ file ({one_line(exc)})"
         raise InputError(msg) from None
-    cols = {"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z)}
-    names = {d.lower(): d for d in las.point_format.dimension_names}
-    side = np.asarray(las[names["side"]]) if "side" in names else None
-    return cols, side
+    with reader:
+        names = {d.lower(): d for d in reader.header.point_format.dimension_names}
+        side_name = names.get("side")
+        chunks = reader.chunk_iterator(n)
+        while True:
+            try:
+                points = next(chunks)
+            except StopIteration:
+                break
+            except Exception as exc:
+                msg = f"{path}: not a readable LAS/LAZ file ({one_line(exc)})"
+                raise InputError(msg) from None
+            cols = {"x": np.asarray(points.x), "y": np.asarray(points.y), "z": np.asarray(points.z)}
+            yield cols, (np.asarray(points[side_name]) if side_name else None)
 
 
-def _read_npy(path: Path) -> tuple[dict[str, Any], Any]:
+def _csv_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
+    what = "columns x,y,z[,side]"
+    for df in iter_table(path, what, chunk_rows=n):
+        require_columns(df.columns, "xyz", path, what)
+        yield {c: df[c] for c in "xyz"}, df.get("side")
+
+
+def _npy_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
     try:
-        arr = np.load(path, allow_pickle=False)
+        arr = np.load(path, mmap_mode="r", allow_pickle=False)
     except (ValueError, OSError) as exc:
         msg = f"{path}: not a readable .npy array ({one_line(exc)})"
         raise InputError(msg) from None
     if arr.dtype.names:
-        names = {n.lower(): n for n in arr.dtype.names}
+        names = {name.lower(): name for name in arr.dtype.names}
         require_columns(names, "xyz", path, "fields x,y,z[,side]")
-        cols = {c: arr[names[c]] for c in "xyz"}
-        side = arr[names["side"]] if "side" in names else None
-        return cols, side
+        for i in range(0, arr.shape[0], n):
+            part = arr[i : i + n]
+            side = part[names["side"]] if "side" in names else None
+            yield {c: np.asarray(part[names[c]]) for c in "xyz"}, side
+        return
     if arr.ndim != 2 or arr.shape[1] not in (3, 4):
         msg = (
             f"{path}: array of shape {arr.shape}; expected (N, 3) x,y,z, (N, 4) x,y,z,side "
             "or a structured array with fields x,y,z[,side]"
         )
         raise InputError(msg)
-    cols = {c: arr[:, i] for i, c in enumerate("xyz")}
-    if arr.shape[1] == 3:
-        return cols, None
-    fourth = np.asarray(arr[:, 3], dtype=float)
-    if not np.isin(fourth, (0.0, 1.0, 2.0, -1.0)).all():
+    with_side = arr.shape[1] == 4
+    if with_side and not np.isin(np.asarray(arr[:, 3], dtype=float), (0.0, 1.0, 2.0, -1.0)).all():
         warnings.warn(
             f"{path}: 4th column is not a side code (expected 1 = left, 2 = right, "
             "0 = unknown); ignored, sides unknown",
             InputWarning,
-            stacklevel=4,
+            stacklevel=5,
         )
-        return cols, None
-    return cols, fourth
+        with_side = False
+    for i in range(0, arr.shape[0], n):
+        part = np.asarray(arr[i : i + n])
+        yield {c: part[:, k] for k, c in enumerate("xyz")}, (part[:, 3] if with_side else None)
 
 
-def _read_parquet(path: Path) -> tuple[dict[str, Any], Any]:
+def _parquet_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
     import pyarrow.parquet as pq
 
     try:
-        schema = pq.read_schema(path)
+        file = pq.ParquetFile(path)
+        schema = file.schema_arrow
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
         msg = f"{path}: not a readable Parquet file ({one_line(exc)})"
         raise InputError(msg) from None
-    names = {n.lower(): n for n in schema.names}
+    names = {name.lower(): name for name in schema.names}
     require_columns(names, "xyz", path, "columns x,y,z[,side]")
     wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
-    table = pq.read_table(path, columns=wanted)
-    cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
-    side = table.column(names["side"]).to_pandas() if "side" in names else None
-    return cols, side
+    batches = file.iter_batches(batch_size=n, columns=wanted)
+    while True:
+        try:
+            batch = next(batches)
+        except StopIteration:
+            break
+        except Exception as exc:
+            msg = f"{path}: not a readable Parquet file ({one_line(exc)})"
+            raise InputError(msg) from None
+        cols = {c: batch.column(names[c]).to_numpy(zero_copy_only=False) for c in "xyz"}
+        side = batch.column(names["side"]).to_pandas() if "side" in names else None
+        yield cols, side
 
 
 _PLY_TYPES = {
@@ -294,8 +426,19 @@ _PLY_TYPES = {
 }
 
 
-def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
-    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
+@dataclass(frozen=True)
+class _PlyHeader:
+    fmt: str
+    count: int
+    props: list[tuple[str, str | None]]
+    body_offset: int
+    header_lines: int
+    skip_rows: int
+    skip_bytes: int
+
+
+def _ply_header(path: Path) -> _PlyHeader:
+    """Parse a PLY header up to the ``vertex`` element (ascii, binary little/big endian)."""
     with path.open("rb") as fh:
         head = fh.read(65536)
     end = head.find(b"end_header")
@@ -342,6 +485,21 @@ def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
         msg = f"{path}: PLY file has no 'vertex' element (expected x,y,z vertices)"
         raise InputError(msg)
     count, props = vertex
+    return _PlyHeader(
+        fmt,
+        count,
+        props,
+        body_offset,
+        len(head[:body_offset].splitlines()),
+        skip_rows,
+        skip_bytes,
+    )
+
+
+def _ply_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
+    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
+    hdr = _ply_header(path)
+    count, props = hdr.count, hdr.props
     if any(t is None for _, t in props):
         msg = f"{path}: PLY 'vertex' element has list properties; expected scalar x,y,z[,side]"
         raise InputError(msg)
@@ -350,36 +508,45 @@ def _read_ply(path: Path) -> tuple[dict[str, Any], Any]:
     if count == 0:
         msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
         raise InputError(msg)
-    if fmt == "ascii":
+    if hdr.fmt == "ascii":
+        seen = 0
         try:
-            df = pd.read_csv(
+            reader = pd.read_csv(
                 path,
                 sep=r"\s+",
                 header=None,
-                skiprows=len(head[:body_offset].splitlines()) + skip_rows,
+                skiprows=hdr.header_lines + hdr.skip_rows,
                 nrows=count,
                 names=names,
                 usecols=range(len(names)),
                 engine="c",
+                chunksize=n,
             )
+            with reader:
+                for df in reader:
+                    seen += df.shape[0]
+                    yield {c: df[c] for c in "xyz"}, df.get("side")
         except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
             msg = f"{path}: PLY ascii body not readable ({one_line(exc)})"
             raise InputError(msg) from None
-        if df.shape[0] != count:
-            msg = f"{path}: PLY header says {count} vertices, body has {df.shape[0]}"
+        if seen != count:
+            msg = f"{path}: PLY header says {count} vertices, body has {seen}"
             raise InputError(msg)
-        cols = {c: df[c] for c in "xyz"}
-        return cols, df.get("side")
-    endian = "<" if fmt == "binary_little_endian" else ">"
-    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])
+        return
+    endian = "<" if hdr.fmt == "binary_little_endian" else ">"
+    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])  # type: ignore[operator]
     size = path.stat().st_size
-    need = body_offset + skip_bytes + count * dtype.itemsize
+    need = hdr.body_offset + hdr.skip_bytes + count * dtype.itemsize
     if size < need:
         msg = (
             f"{path}: PLY body too short: header says {count} vertices of {dtype.itemsize} "
-            f"bytes, file has {size - body_offset - skip_bytes} bytes of vertex data"
+            f"bytes, file has {size - hdr.body_offset - hdr.skip_bytes} bytes of vertex data"
         )
         raise InputError(msg)
-    data = np.fromfile(path, dtype=dtype, count=count, offset=body_offset + skip_bytes)
-    cols = {c: data[c].astype(np.float64) for c in "xyz"}
-    return cols, (data["side"] if "side" in names else None)
+    data = np.memmap(
+        path, dtype=dtype, mode="r", offset=hdr.body_offset + hdr.skip_bytes, shape=(count,)
+    )
+    for i in range(0, count, n):
+        part = np.asarray(data[i : i + n])
+        cols = {c: part[c].astype(np.float64) for c in "xyz"}
+        yield cols, (part["side"] if "side" in names else None)
