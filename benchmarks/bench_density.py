@@ -333,8 +333,14 @@ def child_build(run_dir: Path, out_json: Path) -> None:
     out_json.write_text(json.dumps(rec), encoding="utf-8")
 
 
+THREADS = "1"
+"""BLAS/OpenMP threads of the measured processes (``roadtwin`` itself sets 1: see cli.py)."""
+
+
 def _env(src: Path | None) -> dict[str, str]:
     env = dict(os.environ)
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[var] = THREADS
     paths = [str(Path(__file__).resolve().parent)]
     if src is not None:
         paths.insert(0, str(src))
@@ -357,11 +363,10 @@ def run_cli(run_dir: Path, src: Path | None, timeout_s: float) -> dict[str, Any]
     import tempfile
 
     out = Path(tempfile.mkdtemp(prefix="bench-density-cli-"))
-    code = "import sys; from roadtwin.cli import main; sys.exit(main())"
-    args = ["-q", "build", str(run_dir), "-o", str(out), "--no-check", "--no-drive"]
+    args = ["-q", "build", str(run_dir), "-o", str(out), *NO_EXTRAS]
     t0 = time.perf_counter()
     proc = subprocess.Popen(
-        [sys.executable, "-c", code, *args],
+        [sys.executable, "-c", _MAIN, *args],
         env=_env(src),
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
@@ -380,6 +385,7 @@ def run_cli(run_dir: Path, src: Path | None, timeout_s: float) -> dict[str, Any]
 # ---------------------------------------------------------------------------
 
 NO_EXTRAS = ("--no-check", "--no-drive")
+_MAIN = "import sys; from roadtwin.cli import main; sys.exit(main())"
 _FIRST_STAGE = """
 import sys, time
 import roadtwin.cli as cli
@@ -389,7 +395,7 @@ def factory(args):
     def listener(name, total, unit):
         if not getattr(listener, "seen", False):
             listener.seen = True
-            print(f"FIRST_STAGE {time.time():.6f} {name}", file=sys.stderr, flush=True)
+            print(f"\\nFIRST_STAGE {time.time():.6f} {name}", file=sys.stderr, flush=True)
         return inner(name, total, unit)
     return listener
 cli._progress_listener = factory
@@ -397,22 +403,28 @@ sys.exit(cli.main(sys.argv[1:]))
 """
 
 
-def startup(run_dir: Path, repeat: int = 5) -> dict[str, float]:
+def startup(run_dir: Path, src: Path | None, repeat: int = 5) -> dict[str, float]:
     """Best-of-``repeat`` seconds of ``roadtwin --help`` and from launching ``roadtwin build``
     to the start of its first stage (``import roadtwin.cli`` + ``main`` as the console
-    script does)."""
+    script does; a checkout without the progress hook gives NaN)."""
     import tempfile
 
-    exe = shutil.which("roadtwin") or "roadtwin"
+    env = _env(src)
     helps, firsts = [], []
     for _ in range(repeat):
         t0 = time.perf_counter()
-        subprocess.run([exe, "--help"], capture_output=True, check=True)
+        subprocess.run(
+            [sys.executable, "-c", _MAIN, "--help"],
+            capture_output=True,
+            check=True,
+            env=env,
+        )
         helps.append(time.perf_counter() - t0)
         out = Path(tempfile.mkdtemp(prefix="bench-density-start-"))
         t_launch = time.time()
         proc = subprocess.Popen(
             [sys.executable, "-c", _FIRST_STAGE, "build", str(run_dir), "-o", str(out), *NO_EXTRAS],
+            env=env,
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             text=True,
@@ -420,8 +432,8 @@ def startup(run_dir: Path, repeat: int = 5) -> dict[str, float]:
         first = None
         assert proc.stderr is not None
         for line in proc.stderr:
-            if line.startswith("FIRST_STAGE"):
-                first = float(line.split()[1]) - t_launch
+            if "FIRST_STAGE" in line:
+                first = float(line.split("FIRST_STAGE", 1)[1].split()[0]) - t_launch
                 break
         proc.kill()
         proc.wait()
@@ -522,7 +534,7 @@ def main(argv: list[str] | None = None) -> int:
 
     args.workdir.mkdir(parents=True, exist_ok=True)
     info = machine()
-    info["blas_threads"] = os.environ.get("OPENBLAS_NUM_THREADS", "library default")
+    info["blas_threads"] = THREADS
     info["src"] = str(args.src) if args.src else "this checkout"
     print("# roadtwin density benchmark", flush=True)
     print(", ".join(f"{k}: {v}" for k, v in info.items()), flush=True)
@@ -547,7 +559,7 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print(tables(results))
     if not args.no_startup:
-        start = startup(ensure_case(args.workdir, "2km-sparse"))
+        start = startup(ensure_case(args.workdir, "2km-sparse"), args.src)
         info.update({k: f"{v:.3f}" for k, v in start.items()})
         print(
             f"\nstart-up: roadtwin --help {start['help_s']:.3f} s, first stage of a build "

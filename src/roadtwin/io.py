@@ -39,6 +39,7 @@ from .pointfiles import (
     read_road_edges,
     read_table,
     require_columns,
+    stack_columns,
 )
 from .progress import progress
 from .reduction import CellAccumulator, Reduction, TrajectoryLine, trajectory_line
@@ -664,7 +665,7 @@ def iter_lane_samples(
         x = px + c * ex - s * ey
         y = py + s * ex + c * ey
         z = pz + ez if ez is not None else pz - pose_height_m
-        yield np.column_stack([x, y, z]), frame.astype(np.int64), row0
+        yield stack_columns([x, y, z]), frame.astype(np.int64), row0
         row0 += ex.size
 
 

@@ -241,7 +241,7 @@ def iter_road_edges(
         raise InputError(msg)
     row = 0
     for cols, side in parts:
-        xyz = np.column_stack([float_column(cols[c], path, c, first_row=row) for c in "xyz"])
+        xyz = stack_columns([float_column(cols[c], path, c, first_row=row) for c in "xyz"])
         codes = _side_codes(side, path, xyz.shape[0], first_row=row)
         if xyz.shape[0] == 0:
             continue
@@ -250,6 +250,14 @@ def iter_road_edges(
     if row == 0:
         msg = f"{path}: no points (expected road-edge points x,y,z)"
         raise InputError(msg)
+
+
+def stack_columns(columns: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """``(n, k)`` array with contiguous columns (Fortran order: no copy to take a column)."""
+    out = np.empty((columns[0].size, len(columns)), order="F")
+    for k, col in enumerate(columns):
+        out[:, k] = col
+    return out
 
 
 def count_road_edges(path: str | Path) -> int | None:

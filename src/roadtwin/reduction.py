@@ -179,61 +179,83 @@ def _coarse_cells(x: FloatArray, y: FloatArray) -> tuple[IntArray, FloatArray]:
     return codes.astype(np.int64), (np.column_stack([cx, cy]) + 0.5) * _COARSE_M
 
 
+def _cell_codes(
+    group: IntArray, i_s: IntArray, i_t: IntArray, *, n_s: int, n_t: int
+) -> tuple[IntArray, IntArray]:
+    """Index of every point's cell among the chunk's occupied cells, and their keys
+    ``(group * n_s + i_s) * n_t + i_t``: counted in a raster over the chunk's range of
+    groups, stations and offsets where that is small (a chunk of a file in driving order
+    covers a few hundred metres), else by hashing the keys."""
+    lo = [int(a.min()) for a in (group, i_s, i_t)]
+    span = [int(a.max()) - b + 1 for a, b in zip((group, i_s, i_t), lo, strict=True)]
+    size = span[0] * span[1] * span[2]
+    if size <= 4 * group.size + 1024:
+        local = ((group - lo[0]) * span[1] + (i_s - lo[1])) * span[2] + (i_t - lo[2])
+        occupied = np.flatnonzero(np.bincount(local, minlength=size))
+        index = np.zeros(size, np.int64)
+        index[occupied] = np.arange(occupied.size)
+        g, rest = np.divmod(occupied, span[1] * span[2])
+        s_, t_ = np.divmod(rest, span[2])
+        keys = ((g + lo[0]) * n_s + (s_ + lo[1])) * n_t + (t_ + lo[2])
+        return index[local], keys
+    import pandas as pd  # hash factorisation: linear, no sort
+
+    codes, uniq = pd.factorize((group * n_s + i_s) * n_t + i_t)
+    return codes.astype(np.int64), np.asarray(uniq, dtype=np.int64)
+
+
 def _project(
     line: TrajectoryLine, x: FloatArray, y: FloatArray, limit_m: float
-) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray, FloatArray]:
     """Station, lateral offset and the distance test of points (mapping frame, metres).
 
-    The vertex nearest to the centre of each occupied 1 m grid cell is looked up once
-    (dense points share cells, so the KD-tree sees a fraction of them); each point is
-    projected onto the segment before or after that vertex, by the side of the vertex
-    tangent it lies on. The result depends on the point alone (not on its chunk).
-    ``near`` is exactly the test "distance to the nearest vertex <= limit_m": the few
-    points close to the limit are looked up in the KD-tree one by one.
+    Per occupied 1 m grid cell (dense points share cells, so the KD-tree sees a fraction of
+    them): the vertex nearest to the cell's centre, the segment before or after it by the
+    side of the vertex tangent the centre lies on, and that segment's projection as an
+    affine map ``(x, y) -> (s, t)``; every point of the cell goes through its cell's map
+    (a projection extended a metre past a 2 m segment's end is off by ~(1 m)^2 x
+    curvature / 2: 0.5 mm at a 1000 m radius). The result depends on the point alone, not
+    on the chunk it came in. ``near`` is exactly the test "distance to the nearest vertex
+    <= limit_m": cells that straddle the limit are decided point by point in the KD-tree.
+    Also returns x and y relative to the line's first vertex.
     """
     n_v = line.xy.shape[0]
     if x.size == 0:
-        return np.zeros(0), np.zeros(0), np.zeros(0, dtype=bool)
+        return np.zeros(0), np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0), np.zeros(0)
     ref_x, ref_y = float(line.xy[0, 0]), float(line.xy[0, 1])
     rx = x - ref_x
     ry = y - ref_y
     cell, centre = _coarse_cells(rx, ry)
+    half_diagonal = math.sqrt(0.5) * _COARSE_M
     reach = limit_m + 2.0 * _COARSE_M
-    _, v_c = line.tree.query(
+    d_c, v_c = line.tree.query(
         centre + np.array([ref_x, ref_y]), distance_upper_bound=reach, workers=-1
     )
-    found_c = v_c < n_v
-    found = found_c[cell]
-    v = np.where(found_c, v_c, 0)[cell]
+    found = v_c < n_v
+    v = np.where(found, v_c, 0)
     if n_v == 1:
-        s, t = rx, ry
-        dist2 = rx * rx + ry * ry
+        ux, uy = np.ones(v.size), np.zeros(v.size)
+        s0, t0 = np.zeros(v.size), np.zeros(v.size)
     else:
         vx, vy = line.rel_x, line.rel_y
-        # the segment before or after the vertex, by the side of its tangent the point is on
-        # (a vertex found via the coarse cell is at most one off the point's nearest one;
-        # a projection extended past a 2 m segment's end is off by ~(excess^2 * curvature))
-        ahead = (rx - vx[v]) * line.tangent_x[v] + (ry - vy[v]) * line.tangent_y[v] >= 0.0
-        k = np.where(ahead, v, v - 1)
-        np.clip(k, 0, n_v - 2, out=k)
-        a0 = rx - vx[k]
-        a1 = ry - vy[k]
+        ahead = (centre[:, 0] - vx[v]) * line.tangent_x[v]
+        ahead += (centre[:, 1] - vy[v]) * line.tangent_y[v]
+        k = np.clip(np.where(ahead >= 0.0, v, v - 1), 0, n_v - 2)
         ux, uy = line.seg_ux[k], line.seg_uy[k]
-        along = a0 * ux + a1 * uy
-        s = line.s[k] + along
-        t = ux * a1 - uy * a0
-        # distance to the nearer end vertex of the segment (the nearest vertex but for
-        # points close to a kink of the line: those near the limit are checked exactly)
-        rest = along - line.seg_len[k]
-        dist2 = np.minimum(a0 * a0 + a1 * a1, rest * rest + t * t)
-    near = found & (dist2 <= limit_m * limit_m)
-    sure_m = max(limit_m - 4.0 * _COARSE_M - 2.0, 0.0)
-    unsure = np.flatnonzero(found & (dist2 > sure_m * sure_m))
-    if unsure.size:
+        s0 = line.s[k] - vx[k] * ux - vy[k] * uy
+        t0 = uy * vx[k] - ux * vy[k]
+    s = s0[cell] + ux[cell] * rx + uy[cell] * ry
+    t = t0[cell] + ux[cell] * ry - uy[cell] * rx
+    # a point lies within half a diagonal of its cell's centre
+    all_near = found & (d_c + half_diagonal <= limit_m)
+    unsure_c = found & ~all_near & (d_c - half_diagonal <= limit_m)
+    near = all_near[cell]
+    if unsure_c.any():
+        unsure = np.flatnonzero(unsure_c[cell])
         pts = np.column_stack([x[unsure], y[unsure]])
         d_exact, _ = line.tree.query(pts, distance_upper_bound=limit_m, workers=-1)
         near[unsure] = np.isfinite(d_exact)
-    return s, t, near
+    return s, t, near, rx, ry
 
 
 @dataclass(frozen=True)
@@ -348,11 +370,11 @@ class CellAccumulator:
         xyz = np.asarray(xyz, dtype=float)
         x, y, z = (np.ascontiguousarray(xyz[:, k]) for k in range(3))
         group = np.asarray(group, dtype=np.int64)
-        s, t, near = _project(self.line, x, y, self.limit)
+        s, t, near, rx, ry = _project(self.line, x, y, self.limit)
         all_near = bool(near.all())
         if not all_near:
-            x, y, z, group, s, t = x[near], y[near], z[near], group[near], s[near], t[near]
-        n = x.size
+            rx, ry, z, group, s, t = rx[near], ry[near], z[near], group[near], s[near], t[near]
+        n = rx.size
         self.points += n
         if self._raw is not None:
             if self.points <= self.keep_raw_points:
@@ -365,27 +387,24 @@ class CellAccumulator:
                 self._raw = None
         if n == 0:
             return near
-        i_s = np.floor((s - self.s0) * (1.0 / self.ds)).astype(np.int64)
+        # kept points lie within the limit of the line, so s - s0 > 0 and t + limit >= 0:
+        # truncation is the floor (the clip only guards rounding at the far borders)
+        i_s = ((s - self.s0) * (1.0 / self.ds)).astype(np.int64)
         np.clip(i_s, 0, self.n_s - 1, out=i_s)
         t_lo = -self.limit
-        i_t = np.floor((t - t_lo) * (1.0 / self.dt)).astype(np.int64)
+        i_t = ((t - t_lo) * (1.0 / self.dt)).astype(np.int64)
         np.clip(i_t, 0, self.n_t - 1, out=i_t)
         u = t - (t_lo + i_t * self.dt)  # offset inside the cell, [0, dt)
-        key = (group * self.n_s + i_s) * self.n_t + i_t
-        self._add_sums(key, None, x - self.ref[0], y - self.ref[1], z, u, u * u)
-        return near
-
-    def _add_sums(self, key: IntArray, *weights: FloatArray) -> None:
-        import pandas as pd
-
-        codes, uniq = pd.factorize(key)
-        sums = np.column_stack([np.bincount(codes, w, minlength=uniq.size) for w in weights])
-        sums = sums.astype(np.float64, copy=False)
-        self._parts.append((np.asarray(uniq, dtype=np.int64), sums))
+        codes, uniq = _cell_codes(group, i_s, i_t, n_s=self.n_s, n_t=self.n_t)
+        sums = np.column_stack(
+            [np.bincount(codes, w, minlength=uniq.size) for w in (None, rx, ry, z, u, u * u)]
+        )
+        self._parts.append((uniq, sums.astype(np.float64, copy=False)))
         self._pending += uniq.size
         # merge when the pending partial tables outgrow the merged one (amortised linear)
         if self._pending > max(2 * self._merged, 2_000_000):
             self._merge()
+        return near
 
     def _merge(self) -> None:
         import pandas as pd
