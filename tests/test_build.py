@@ -132,7 +132,7 @@ def test_links_valid_and_routes(built, mode):
     findings = check_network(net)
     bad = [f.message for f in findings if f.severity == "error" and f.code in LINK_CODES]
     assert not bad, f"{built.name}: {bad}"
-    g = lane_graph(net, lane_changes=True)
+    g = lane_graph(net, traffic_side=built.run.traffic_side, lane_changes=True)
     side = -1 if built.run.traffic_side == "right" else 1
     mains = [r for r in net.roads if r.name == "mainline"]
     first, last = mains[0], mains[-1]
@@ -182,6 +182,8 @@ def test_cli_outputs_and_consumers(built):
     consumers = {c.name.lower(): c for c in built.report.consumers}
     asam = next(c for n, c in consumers.items() if "asam" in n or "qc" in n)
     sumo = next(c for n, c in consumers.items() if "sumo" in n)
+    if "not installed" in (asam.status, sumo.status):
+        pytest.skip("external checkers not installed (roadtwin[validate])")
     assert asam.status == "passed", asam
     assert asam.errors == 0
     assert sumo.status == "passed", sumo

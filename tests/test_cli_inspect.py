@@ -211,7 +211,7 @@ BAD = {
     "text in lane samples": (
         _set("lane_samples.csv", 2, "y", "abc"),
         2,
-        r"lane_samples\.csv: data row 3, column 'y': 'abc' is not a number",
+        r"lane_samples\.csv: data row 3, column 'y': not a number",
     ),
     "bad side": (
         _set("road_edges.csv", 3, "side", "middle"),

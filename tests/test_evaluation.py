@@ -14,7 +14,6 @@ from roadtwin.config import EvaluationConfig
 from roadtwin.evaluation import (
     EvaluationReport,
     combine_reports,
-    data_quality,
     evaluate,
     format_table,
     lane_graph,
@@ -467,7 +466,7 @@ def test_multi_run_table_reproducible_from_json(truth, tmp_path):
     assert isinstance(combined, EvaluationReport)
 
 
-def test_height_residual_and_data_quality(truth):
+def test_height_residual(truth):
     run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=7)
     main_ids = {r.id for r in mainline_roads(truth)}
     raised = replace(
@@ -480,8 +479,6 @@ def test_height_residual_and_data_quality(truth):
     sc = self_consistency(raised, run)
     assert sc["height_rmse_m"] == pytest.approx(0.25, abs=1e-9)
     assert sc["overall_rmse_m"] == pytest.approx(0.0, abs=1e-6)
-    dq = data_quality(raised, run)
-    assert dq == {"xy_relative": sc["overall_rmse_m"], "z_relative": sc["height_rmse_m"]}
 
 
 def test_projection_prefers_the_road_a_point_lies_in_the_middle_of():

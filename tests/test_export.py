@@ -107,7 +107,8 @@ def test_geojson_lanes_and_boundaries(network, tmp_path):
 
 
 def test_png_and_atomic_write(network, tmp_path):
-    path = plot_network(network, None, tmp_path / "map.png")
+    path = tmp_path / "map.png"
+    plot_network(network, None, path)
     data = path.read_bytes()
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(data) > 10_000

@@ -81,7 +81,7 @@ def test_lane_sample_transform_by_hand(tmp_path):
     pd.DataFrame({"frame": [1, 3], "x": [2.0, 0.0], "y": [1.0, -1.75]}).to_csv(
         tmp_path / "l.csv", index=False
     )
-    run = load_run(tmp_path)
+    run = load_run(tmp_path, config=LoadConfig(min_driven_m=1.0))  # a 4 m run
     np.testing.assert_allclose(run.lane_samples, [[9.0, 22.0, 3.5], [11.75, 24.0, 3.5]], atol=1e-12)
     np.testing.assert_array_equal(run.lane_sample_frame, [1, 3])
     np.testing.assert_array_equal(run.edge_side, [0, 0])

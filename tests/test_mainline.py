@@ -439,3 +439,22 @@ def test_outer_edge_steps_are_located_to_the_metre_at_half_point_density():
     np.testing.assert_allclose(breaks, [400.0, 800.0], atol=0.5)
     np.testing.assert_allclose(edge[410:790], 12.0, atol=0.03)
     np.testing.assert_allclose(edge[:390], 18.0, atol=0.03)
+
+
+def test_points_of_another_level_give_no_superelevation():
+    """Edge points of a ramp passing 5 m under the road beside it (same xy band) are not
+    road surface: no superelevation appears and the elevation stays within centimetres."""
+    road = truth_road(aux_lane=False)
+    run = sample_run(road)
+    s, t = road.project(run.edges)
+    # a stretch of the outer side seen 5 m lower (an underpass beside the carriageway)
+    low = (s > 600.0) & (s < 700.0) & (t < -8.0)
+    edges = run.edges.copy()
+    edges[low, 2] -= 5.0
+    built = build_mainline(replace(run, edges=edges))
+    assert built.road.superelevation is None
+    s_chk = np.arange(50.0, built.road.length - 50.0, 5.0)
+    xy = built.road.xy(s_chk)
+    s_true, _ = road.project(xy)
+    dz = built.road.height(s_chk) - road.height(s_true)
+    assert float(np.max(np.abs(dz))) < 0.05

@@ -35,7 +35,7 @@ def test_chunks_hold_the_whole_file_in_order(tmp_path, edge_format):
     ("column", "value", "message"),
     [
         ("x", np.nan, r"data row 26, column 'x': nan is not a finite number"),
-        ("y", "abc", r"data row 26, column 'y': 'abc' is not a number"),
+        ("y", "abc", r"data row 26, column 'y': not a number"),
         ("side", "up", r"data row 26, column 'side': 'up' is not a side"),
     ],
 )

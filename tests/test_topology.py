@@ -291,7 +291,7 @@ def test_topology_links_and_routes(mainline, ramps, side, junctions):
             dh = math.degrees((hb - ha + math.pi) % (2 * math.pi) - math.pi)
             assert abs(dh) <= 0.5
     # routes over the lane graph (lane changes allowed inside a lane section)
-    g = lane_graph(net, lane_changes=True)
+    g = lane_graph(net, traffic_side=side, lane_changes=True)
     sign = -1 if side == "right" else 1
     first, last = ids["1"], ids["3"]
     start = ("1", 0, sign * 2)
@@ -304,7 +304,7 @@ def test_topology_links_and_routes(mainline, ramps, side, junctions):
     assert nx.has_path(g, start, end)
     # without lane changes: the deceleration lane leads into the exit, the entry into the
     # acceleration lane
-    g0 = lane_graph(net)
+    g0 = lane_graph(net, traffic_side=side)
     assert nx.has_path(g0, ("1", len(first.lane_sections) - 1, sign * 5), (exit_id, 0, sign * 2))
     assert nx.has_path(g0, (entry_id, 0, sign * 2), ("3", 0, sign * 5))
 
@@ -457,3 +457,76 @@ def test_unlink_width_jumps_drops_only_jumping_links():
     assert (first.right[0].successor, second.right[0].predecessor) == (-1, -1)
     assert (first.right[1].successor, second.right[1].predecessor) == (None, None)
     assert unlink_width_jumps(out) is out
+
+
+def test_prune_zero_width_links_everywhere():
+    """A lane of zero width at a contact keeps no link there: between lane sections, across
+    a road link and in a junction (ASAM zero_width_at_start/end, new_lane_appear); lanes of
+    width keep theirs, and what remains is mutual."""
+    from roadtwin.model import (
+        Connection,
+        CubicPiece,
+        CubicProfile,
+        Junction,
+        Lane,
+        LaneLink,
+        LaneSection,
+        Line,
+        Road,
+        RoadLink,
+    )
+    from roadtwin.topology import prune_zero_width_links
+
+    opening = CubicProfile((CubicPiece(0.0, 0.0, 0.0, 3 * 3.5 / 50**2, -2 * 3.5 / 50**3),))
+    a = Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, 100.0),),
+        (
+            LaneSection(
+                0.0, right=(Lane(-1, "driving", CubicProfile.constant(3.5), successor=-1),)
+            ),
+            LaneSection(
+                50.0,
+                right=(
+                    Lane(-1, "driving", CubicProfile.constant(3.5), predecessor=-1, successor=-1),
+                    Lane(-2, "driving", opening, predecessor=-1, successor=-2),
+                ),
+            ),
+        ),
+        successor=RoadLink("road", "2", "start"),
+    )
+    b = Road(
+        "2",
+        (Line(0.0, 100.0, 0.0, 0.0, 50.0),),
+        (
+            LaneSection(
+                0.0,
+                right=(
+                    Lane(-1, "driving", CubicProfile.constant(3.5), predecessor=-1),
+                    Lane(-2, "driving", CubicProfile.constant(0.0), predecessor=-2, successor=-1),
+                ),
+            ),
+        ),
+        predecessor=RoadLink("road", "1", "end"),
+        successor=RoadLink("junction", "9"),
+    )
+    c = Road(
+        "3",
+        (Line(0.0, 150.0, 0.0, 0.0, 20.0),),
+        (LaneSection(0.0, right=(Lane(-1, "driving", CubicProfile.constant(3.5)),)),),
+        junction="9",
+    )
+    j = Junction("9", (Connection("0", "2", "3", "start", (LaneLink(-1, -1), LaneLink(-2, -1))),))
+    roads, junctions = prune_zero_width_links([a, b, c], [j])
+    ra, rb, _ = roads
+    s0, s1 = ra.lane_sections
+    # the lane opening from zero width in section 2 of road 1 has no predecessor
+    assert s1.right[1].predecessor is None
+    assert s1.right[0].predecessor == -1
+    assert s0.right[0].successor == -1
+    # road 1 -> road 2: lane -2 reaches road 2's zero-width lane -2: unlinked both ways
+    assert s1.right[1].successor is None
+    assert rb.lane_sections[0].right[1].predecessor is None
+    assert (s1.right[0].successor, rb.lane_sections[0].right[0].predecessor) == (-1, -1)
+    # junction: only the lane with width is linked
+    assert junctions[0].connections[0].lane_links == (LaneLink(-1, -1),)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import shutil
 import subprocess
@@ -33,6 +34,11 @@ from roadtwin.xodr import read_xodr, schema_errors, to_xodr_bytes, write_xodr
 
 sys.path.insert(0, str(Path(__file__).parent))
 from networks import GEO_REFERENCE, mainline_exit_network
+
+HAVE_SCHEMA = importlib.util.find_spec("qc_opendrive") is not None
+NEEDS_SCHEMA = pytest.mark.skipif(
+    not HAVE_SCHEMA, reason="the 1.8 XSD ships with asam-qc-opendrive (roadtwin[validate])"
+)
 
 DATA = Path(__file__).parent / "data" / "xodr"
 SHARED_TOWN06 = Path("/work/shared/data/xodr/Town06.xodr")
@@ -194,6 +200,7 @@ def test_every_geometry_type_is_written(rich):
         assert abs(g1.hdg - h) < 1e-12
 
 
+@NEEDS_SCHEMA
 def test_written_files_are_schema_valid_1_8(rich, tmp_path):
     _, path, _ = rich
     assert schema_errors(path) == []
@@ -328,7 +335,8 @@ def test_reads_esmini_e6mini():
 def test_other_tools_maps_survive_write_read(tmp_path, name):
     net = read_xodr(DATA / name)
     data = to_xodr_bytes(net)
-    assert schema_errors(data) == []
+    if HAVE_SCHEMA:
+        assert schema_errors(data) == []
     (tmp_path / name).write_bytes(data)
     back = read_xodr(tmp_path / name)
     assert back.roads == net.roads

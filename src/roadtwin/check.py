@@ -50,6 +50,7 @@ from typing import Literal
 import numpy as np
 
 from ._errors import InputError
+from ._perf import gc_paused
 from .consumers import ConsumerResult, find_tool, run_asam, run_sumo
 from .model import Lane, LaneSection, Road, RoadNetwork
 from .xodr import read_xodr
@@ -805,7 +806,8 @@ class _Checker:
 
 def _analyse(network: RoadNetwork, config: CheckConfig | None) -> _Checker:
     checker = _Checker(network, config or CheckConfig())
-    checker.run()
+    with gc_paused():  # linear on maps of 10^5 roads (see roadtwin._perf)
+        checker.run()
     return checker
 
 

@@ -1,23 +1,37 @@
 """Command-line interface: ``roadtwin inspect|simulate|build|check|evaluate|demo``.
 
-A thin layer: it parses arguments, reads TOML config, shows progress and turns
-:class:`~roadtwin._errors.InputError` into one line on stderr and exit code 2.
-All work happens in library functions, which never print.
+A thin layer: it parses arguments, reads TOML config, shows progress and turns every
+failure into one line on stderr (all work happens in library functions, which never print).
+
+Exit codes: 0 ok; 1 the map has errors (``check``, ``build``); 2 bad input, or a file that
+cannot be read or written (every :class:`~roadtwin._errors.RoadtwinError` and ``OSError``:
+missing, not a folder, permission denied, disk full, read-only file system), one line
+``roadtwin: error: ...``; 3 an internal error (a bug: ``-v`` shows the traceback); 130
+interrupted (Ctrl-C); 143 terminated (SIGTERM). Interrupted or failed commands remove
+their temporary files and stop the external tools they started. ``-q``/``-v`` are
+accepted before or after the command; progress bars are drawn only on a terminal.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import os
+import signal
 import sys
+import threading
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 
 from . import __version__
-from ._errors import FitError, InputError, InputWarning
+from ._errors import InputError, RoadtwinError, one_line
 
 log = logging.getLogger("roadtwin")
+
+EXIT_BAD_INPUT = 2
+EXIT_INTERNAL = 3
 
 
 def _load_config(path: Path | None):
@@ -31,12 +45,31 @@ def _load_config(path: Path | None):
     except ModuleNotFoundError:  # Python 3.10
         import tomli as tomllib  # type: ignore[no-redef]
     if not path.is_file():
-        raise InputError(f"{path}: config file not found")
+        what = "not a file" if path.exists() else "config file not found"
+        raise InputError(f"{path}: {what} (--config expects a TOML file)")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: not a UTF-8 text file (--config expects TOML)") from None
     except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{path}: not valid TOML: {exc}") from None
-    return PipelineConfig.from_dict(data)
+        raise InputError(f"{path}: not valid TOML: {one_line(exc)}") from None
+    return PipelineConfig.from_dict(data, source=str(path))
+
+
+def progress(args: argparse.Namespace, iterable: Iterable | None = None, **kwargs):
+    """A tqdm bar on stderr, drawn only on a terminal and without ``-q`` (log files and
+    pipes get no carriage-return garbage)."""
+    from tqdm import tqdm
+
+    disable = bool(getattr(args, "quiet", False)) or not _stderr_is_terminal()
+    return tqdm(iterable, file=sys.stderr, disable=disable, **kwargs)
+
+
+def _stderr_is_terminal() -> bool:
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
 
 
 # ---------------------------------------------------------------------------
@@ -66,6 +99,7 @@ def _add_inspect(sub: argparse._SubParsersAction) -> None:
 def _cmd_inspect(args: argparse.Namespace) -> int:
     import time
 
+    from ._files import check_output_dir
     from .io import load_run
     from .osm import highway_counts, load_osm, load_osm_online
     from .plots import plot_overview
@@ -81,6 +115,7 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         osm_graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy, config=cfg)
         osm_source = run.osm_path.name
     out = args.output if args.output is not None else run.root / "overview.png"
+    check_output_dir(out.parent, inputs=run.input_files, names=[out.name])
     plot_overview(run, osm_graph, out)
 
     s = run.summary()
@@ -128,11 +163,135 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
 
 
 def _add_simulate(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="simulate a mapping run with ground truth from a scenario")
-    p.add_argument("scenario", help="scenario TOML file, or the name of a bundled example")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a mapping run with ground truth from a scenario or an OpenDRIVE map",
+    )
+    p.add_argument(
+        "scenario", nargs="?", help="scenario TOML file, or the name of a bundled example"
+    )
     p.add_argument("-o", "--output", type=Path, required=True, help="run folder to write")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    g = p.add_argument_group("runs along a route through an OpenDRIVE map (the map is the truth)")
+    g.add_argument("--xodr", type=Path, default=None, help="OpenDRIVE map to drive through")
+    g.add_argument(
+        "--route",
+        default=None,
+        help="road ids in driving order, comma separated (default: the longest through-route)",
+    )
+    g.add_argument(
+        "--lane",
+        type=int,
+        default=0,
+        help="lane to drive, counted from the median side (default 0: the outermost through lane)",
+    )
+    g.add_argument(
+        "--style", default="de", help="national marking style: de, at, us, uk, fr (default de)"
+    )
+    g.add_argument(
+        "--traffic",
+        choices=["right", "left"],
+        default=None,
+        help="traffic side (default: from the map's road rule, else right)",
+    )
+    g.add_argument(
+        "--osm",
+        type=Path,
+        default=None,
+        help="copy this OSM file into the run instead of drawing one",
+    )
+    h = p.add_argument_group(
+        "runs along a real OSM carriageway (a lane-level truth is built from the OSM chain)"
+    )
+    h.add_argument(
+        "--from-osm",
+        type=Path,
+        default=None,
+        metavar="EXTRACT",
+        help="OSM extract (.osm, .osm.gz, .osm.bz2, .osm.pbf); it is the run's map input",
+    )
+    h.add_argument(
+        "--chain",
+        default=None,
+        help="the carriageway: an OSM way id or a ref such as 'A 70' (default: the longest "
+        "one-way motorway/trunk chain)",
+    )
     p.set_defaults(func=_cmd_simulate)
+
+
+def _cmd_simulate_network(args: argparse.Namespace) -> int:
+    """``simulate --xodr MAP`` or ``simulate --from-osm EXTRACT``: a run along a route."""
+    import json
+    import time
+
+    from .simulate import NetworkRunSettings, simulate_osm_run, simulate_xodr_run
+    from .simulate.markings import marking_style
+    from .simulate.scenario import Car
+
+    started = time.perf_counter()
+    if args.from_osm is not None:
+        if not args.from_osm.is_file():
+            raise InputError(f"{args.from_osm}: OSM extract not found")
+        chain = args.chain
+        if chain is not None and chain.strip().isdigit():
+            chain = int(chain)
+        source = f"{args.from_osm} chain {args.chain or '(longest)'}"
+        out = simulate_osm_run(
+            args.from_osm,
+            args.output,
+            chain=chain,
+            seed=args.seed or 0,
+            settings=NetworkRunSettings(car=Car(lane=args.lane)),
+        )
+    else:
+        if args.osm is not None and not args.osm.is_file():
+            raise InputError(f"{args.osm}: OSM file not found")
+        settings = NetworkRunSettings(
+            car=Car(lane=args.lane),
+            style=marking_style(args.style),
+            osm_file=str(args.osm) if args.osm is not None else "",
+        )
+        route = [r for r in args.route.split(",") if r.strip()] if args.route else None
+        source = str(args.xodr)
+        out = simulate_xodr_run(
+            args.xodr,
+            args.output,
+            route=route,
+            settings=settings,
+            seed=args.seed or 0,
+            traffic_side=args.traffic,
+        )
+    truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
+    counts = truth["counts"]
+    ramps = ", ".join(
+        f"{r['type']} at {r['station_m']:.0f} m ({r['lanes']} lane)" for r in truth["ramps"]
+    )
+    route_txt = ",".join(
+        f"{r['road_id']}{'' if r['direction'] == '+s' else '(-s)'}"
+        for r in truth["source"]["route"]
+    )
+    fit = truth["source"]["fit_max_error_mm"]
+    files = ", ".join(sorted(p.name for p in out.iterdir() if p.is_file()))
+    style = truth["noise"].get("markings", {}).get("name", args.style)
+    print(
+        "\n".join(
+            [
+                f"map        {source} (seed {truth['seed']}, {truth['traffic_side']}-hand "
+                f"traffic, {style} markings)",
+                f"route      roads {route_txt}",
+                f"mainline   {truth['mainline_length_m'] / 1000:.3f} km, "
+                f"{len(truth['mainline_roads'])} roads, car in lane {truth['car_lane']}",
+                f"ramps      {ramps or 'none'}",
+                f"truth fit  max {fit['median_edge']:.2f} mm (median edge), "
+                f"{fit['lane_borders']:.2f} mm (lane borders) from the map",
+                f"run        {counts['frames']:,} frames, {counts['edge_points']:,} road-edge "
+                f"points, {counts['lane_samples']:,} lane samples",
+                f"wrote      {out}: {files}",
+                f"time       {time.perf_counter() - started:.2f} s",
+            ]
+        )
+    )
+    return 0
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
@@ -141,6 +300,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
     from .simulate import load_scenario, simulate_run
 
+    given = [x for x in (args.scenario, args.xodr, args.from_osm) if x is not None]
+    if len(given) != 1:
+        raise InputError("simulate: give one of SCENARIO, --xodr MAP or --from-osm EXTRACT")
+    if args.xodr is not None or args.from_osm is not None:
+        return _cmd_simulate_network(args)
     started = time.perf_counter()
     scenario = load_scenario(args.scenario)
     out = simulate_run(scenario, args.output, seed=args.seed)
@@ -208,11 +372,9 @@ def _add_build(sub: argparse._SubParsersAction) -> None:
 def _cmd_build(args: argparse.Namespace) -> int:
     import dataclasses
     import json
-    import shutil
-    import tempfile
     import time
 
-    from tqdm import tqdm
+    from ._files import check_output_dir, staged_output
 
     # only what the first stage needs is imported before it starts (start-up time); the
     # later stages import their modules when they begin
@@ -226,7 +388,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         cfg = dataclasses.replace(
             cfg, topology=dataclasses.replace(cfg.topology, junctions=args.junctions)
         )
-    out = args.output if args.output is not None else args.run_dir / "out"
+    names = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
     tools = None
     if not args.no_drive:
         from .drive import find_esmini
@@ -237,7 +399,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
         steps.append("check")
     if tools is not None:
         steps.append("drive")
-    bar = tqdm(total=len(steps), disable=args.quiet, unit="step", file=sys.stderr)
+    bar = progress(args, total=len(steps), unit="step")
     times: dict[str, float] = {}
 
     def step(name: str) -> None:
@@ -246,6 +408,8 @@ def _cmd_build(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     step("load run")
     run = load_run(args.run_dir, config=cfg.load)
+    out = args.output if args.output is not None else run.root / "out"
+    check_output_dir(out, inputs=run.input_files, input_dirs=[run.root], names=names)
     times["load run"] = time.perf_counter() - t0
     bar.update()
 
@@ -275,10 +439,7 @@ def _cmd_build(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     step("write files")
-    out.mkdir(parents=True, exist_ok=True)
-    names = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
-    tmp = Path(tempfile.mkdtemp(prefix=".build.", dir=out))
-    try:
+    with staged_output(out) as tmp:
         write_xodr(result.network, tmp / "map.xodr")
         write_kml(result.network, run.frame, tmp / "map.kml")
         write_geojson(result.network, run.frame, tmp / "map.geojson")
@@ -309,14 +470,8 @@ def _cmd_build(args: argparse.Namespace) -> int:
             "skipped": [list(x) for x in (*result.ramp_set.skipped, *result.topology.skipped)],
             "warnings": list(result.warnings),
         }
-        (tmp / "build.json").write_text(json.dumps(info, indent=2) + "\n", encoding="utf-8")
-        busy = [name for name in names if (out / name).is_dir()]
-        if busy:
-            raise InputError(f"{out}: cannot write {', '.join(busy)}: a folder of that name exists")
-        for name in names:
-            (tmp / name).replace(out / name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        atomic_json = (json.dumps(info, indent=2) + "\n").encode("utf-8")
+        (tmp / "build.json").write_bytes(atomic_json)
     times["write files"] = time.perf_counter() - t0
     bar.update()
 
@@ -481,6 +636,7 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     import time
 
+    from ._files import check_output_dir, staged_output
     from .evaluation import evaluate_paths, format_table
     from .report import write_report
 
@@ -491,19 +647,29 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         return "-" if value is None else f"{100.0 * value:.1f} %"
 
     start = time.perf_counter()
-    progress = None
-    if len(args.run_dirs) > 1 and not args.quiet:
-        from tqdm import tqdm
 
-        def progress(items):
-            return tqdm(items, desc="evaluate", unit="run", file=sys.stderr)
+    def runs_bar(items):
+        return progress(args, items, desc="evaluate", unit="run")
 
     for run_dir in args.run_dirs:
         if not (run_dir / "run.toml").is_file():
             raise InputError(f"{run_dir}: not a mapping-run folder (no run.toml)")
     if args.truth is not None and not args.truth.is_file():
-        raise InputError(f"{args.truth}: truth file not found")
-    report = evaluate_paths(args.xodr, args.run_dirs, truth_path=args.truth, progress=progress)
+        what = "not a file" if args.truth.exists() else "truth file not found"
+        raise InputError(f"{args.truth}: {what}")
+    out_dir = args.output if args.output is not None else args.xodr.parent / "report"
+    inputs = [args.xodr, *([args.truth] if args.truth is not None else [])]
+    for run_dir in args.run_dirs:
+        inputs += [p for p in run_dir.iterdir() if p.is_file()]
+    check_output_dir(
+        out_dir, inputs=inputs, input_dirs=args.run_dirs, names=["report.json", "report.html"]
+    )
+    report = evaluate_paths(
+        args.xodr,
+        args.run_dirs,
+        truth_path=args.truth,
+        progress=runs_bar if len(args.run_dirs) > 1 else None,
+    )
     if args.compare_methods:
         from .evaluation import combine_reports, compare_methods, load_truth
         from .io import load_run
@@ -518,8 +684,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
             run = load_run(run_dir, config=config.load)
             extra.append(compare_methods(run, truth=truth, truth_info=info, config=config))
         report = combine_reports([report, *extra])
-    out_dir = args.output if args.output is not None else args.xodr.parent / "report"
-    paths = write_report(report, out_dir)
+    with staged_output(out_dir) as tmp:
+        written = write_report(report, tmp)
+    paths = {role: out_dir / p.name for role, p in written.items()}
     print(format_table(report))
     for run in report.runs:
         line = f"{run.label} [{run.method or 'map'}]:"
@@ -598,16 +765,10 @@ def _drive(map_path: Path, out_dir: Path, args: argparse.Namespace, drive_cfg, *
     """Drive ``map_path`` (the shared step of ``drive``, ``build``, ``demo``, ``check``)."""
     from .drive import drive_map
 
-    progress = None
-    if not args.quiet:
-        from tqdm import tqdm
+    def routes(items, total):
+        return progress(args, items, total=total, desc="drive", unit="route", leave=False)
 
-        def progress(items, total):
-            return tqdm(
-                items, total=total, desc="drive", unit="route", file=sys.stderr, leave=False
-            )
-
-    return drive_map(map_path, out_dir, esmini=tools, config=drive_cfg, progress=progress)
+    return drive_map(map_path, out_dir, esmini=tools, config=drive_cfg, progress=routes)
 
 
 def _drive_config(args: argparse.Namespace):
@@ -667,8 +828,6 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     import tempfile
     import time
 
-    from tqdm import tqdm
-
     from .simulate import load_scenario, simulate_run
 
     started = time.perf_counter()
@@ -705,8 +864,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         run = load_run(run_dir)
         osm_graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
         state["run"], state["osm_graph"] = run, osm_graph
-        png = plot_overview(run, osm_graph, run_dir / "overview.png")
-        wrote.append(Path(png))
+        plot_overview(run, osm_graph, run_dir / "overview.png")
+        wrote.append(run_dir / "overview.png")
         return f"loaded, {osm_graph.number_of_edges()} OSM edges, overview plotted"
 
     def build() -> str:
@@ -770,7 +929,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     stages.append(("drive", drive, has("pipeline", "build_map")))
     can_evaluate = has("pipeline", "build_map") and has("evaluation", "evaluate_paths")
     stages.append(("evaluate", evaluate, can_evaluate))
-    bar = tqdm(stages, desc="demo", unit="stage", disable=args.quiet, file=sys.stderr, leave=False)
+    bar = progress(args, stages, desc="demo", unit="stage", leave=False)
     for name, stage, available in bar:
         bar.set_postfix_str(name)
         if not available:
@@ -796,16 +955,33 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------
 
 
+def _verbosity_options(parser: argparse.ArgumentParser, *, default) -> None:
+    parser.add_argument(
+        "-v", "--verbose", action="store_true", default=default, help="log every stage"
+    )
+    parser.add_argument(
+        "-q", "--quiet", action="store_true", default=default, help="no progress bars, no info"
+    )
+
+
 def build_parser() -> argparse.ArgumentParser:
-    """The ``roadtwin`` argument parser."""
+    """The ``roadtwin`` argument parser (``-q``/``-v`` before or after the command)."""
     parser = argparse.ArgumentParser(
         prog="roadtwin",
         description="Georeferenced OpenDRIVE digital twins of highways from LiDAR + OSM.",
     )
     parser.add_argument("--version", action="version", version=f"roadtwin {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log every stage")
-    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars")
+    _verbosity_options(parser, default=False)
+    # the same options after the command; SUPPRESS keeps a value given before it
+    common = argparse.ArgumentParser(add_help=False)
+    _verbosity_options(common, default=argparse.SUPPRESS)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    original_add = sub.add_parser
+
+    def add_parser(name: str, **kwargs) -> argparse.ArgumentParser:
+        return original_add(name, parents=[common, *kwargs.pop("parents", [])], **kwargs)
+
+    sub.add_parser = add_parser  # type: ignore[method-assign]
     for add in (
         _add_inspect,
         _add_simulate,
@@ -819,27 +995,183 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+# ---------------------------------------------------------------------------
+# one error path: messages, logging, warnings, signals
+# ---------------------------------------------------------------------------
+
+
+class Terminated(BaseException):
+    """Raised in the main thread when SIGTERM (or SIGHUP) arrives, so that ``finally``
+    blocks remove temporary files and external tools are stopped, as on Ctrl-C."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _LineFormatter(logging.Formatter):
+    """Every log record as ``roadtwin: <level>: <message>`` on one line, the same format as
+    warnings and errors."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"roadtwin: {record.levelname.lower()}: {one_line(record.getMessage())}"
+
+
+class _StderrHandler(logging.Handler):
+    """Writes to the *current* ``sys.stderr`` (tests swap it between commands)."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            _print_line(self.format(record))
+        except Exception:  # pragma: no cover - logging must never raise
+            self.handleError(record)
+
+
+def _print_line(line: str) -> None:
+    _close_bars()
+    print(line, file=sys.stderr, flush=True)
+
+
+def _close_bars() -> None:
+    """Close open progress bars so a message never glues onto a bar line."""
+    tqdm = sys.modules.get("tqdm")
+    if tqdm is None:
+        return
+    for bar in list(getattr(tqdm.tqdm, "_instances", ())):
+        with contextlib.suppress(Exception):
+            bar.close()
+
+
+@contextlib.contextmanager
+def _logging(verbose: bool, quiet: bool) -> Iterator[None]:
+    root = logging.getLogger()
+    handler = _StderrHandler()
+    handler.setFormatter(_LineFormatter())
+    level = logging.INFO if verbose and not quiet else logging.WARNING
+    old_level, old_root_level = log.level, root.level
+    if not verbose:  # libraries log what they then raise (laspy): the error line says it
+        handler.addFilter(lambda record: record.name.split(".")[0] == "roadtwin")
+    root.addHandler(handler)
+    root.setLevel(logging.WARNING)
+    log.setLevel(level)
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(old_root_level)
+        log.setLevel(old_level)
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    print(f"roadtwin: warning: {message}", file=sys.stderr)
+    _print_line(f"roadtwin: warning: {one_line(message)}")
+
+
+@contextlib.contextmanager
+def _warnings_as_lines() -> Iterator[None]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        previous = warnings.showwarning
+        warnings.showwarning = _show_warning
+        try:
+            yield
+        finally:
+            warnings.showwarning = previous
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _signals_as_exceptions() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`Terminated`; SIGINT raises KeyboardInterrupt (Python's
+    default, restored if something replaced it)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    wanted = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: _raise_terminated}
+    if hasattr(signal, "SIGHUP"):
+        wanted[signal.SIGHUP] = _raise_terminated
+    previous = {}
+    for signum, handler in wanted.items():
+        with contextlib.suppress(ValueError, OSError):
+            previous[signum] = signal.signal(signum, handler)
+    old_hook = sys.unraisablehook
+
+    def redeliver(unraisable) -> None:
+        # A signal that lands in a destructor or weakref callback raises there, and Python
+        # only prints it ("Exception ignored"): send it again a moment later, when the main
+        # thread has left the callback, so that it reaches the command.
+        exc = unraisable.exc_value
+        if isinstance(exc, (Terminated, KeyboardInterrupt)):
+            signum = exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+            timer = threading.Timer(0.01, os.kill, (os.getpid(), signum))
+            timer.daemon = True
+            timer.start()
+        else:
+            old_hook(unraisable)
+
+    sys.unraisablehook = redeliver
+    try:
+        yield
+    finally:
+        sys.unraisablehook = old_hook
+        for signum, handler in previous.items():
+            with contextlib.suppress(ValueError, OSError, TypeError):
+                signal.signal(signum, handler)
+
+
+def _os_error_text(exc: OSError) -> str:
+    """``path: reason`` for an OS error (permission denied, disk full, read-only, ...)."""
+    reason = exc.strerror or one_line(exc) or type(exc).__name__
+    names = [str(f) for f in (exc.filename, exc.filename2) if f is not None]
+    return f"{' -> '.join(names)}: {reason}" if names else reason
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Run a parsed command through the one error path; returns the exit code."""
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        _print_line("roadtwin: error: interrupted")
+        return 128 + signal.SIGINT
+    except Terminated as exc:
+        _print_line(f"roadtwin: error: terminated by {signal.Signals(exc.signum).name}")
+        return 128 + exc.signum
+    except RoadtwinError as exc:
+        _print_line(f"roadtwin: error: {one_line(exc)}")
+        return EXIT_BAD_INPUT
+    except OSError as exc:
+        _print_line(f"roadtwin: error: {_os_error_text(exc)}")
+        return EXIT_BAD_INPUT
+    except MemoryError:
+        _print_line(
+            "roadtwin: error: out of memory: the input is larger than this machine can "
+            "process (see the limits in the README)"
+        )
+        return EXIT_BAD_INPUT
+    except Exception as exc:  # a bug: one line, the traceback only with -v
+        if getattr(args, "verbose", False):
+            import traceback
+
+            _close_bars()
+            traceback.print_exc(file=sys.stderr)
+        _print_line(
+            f"roadtwin: error: internal error ({type(exc).__name__}: {one_line(exc)[:200]}); "
+            "please report it with the output of -v"
+        )
+        return EXIT_INTERNAL
+    finally:
+        _close_bars()
 
 
 def _progress_listener(args: argparse.Namespace):
-    """Listener for :mod:`roadtwin.progress`: a tqdm bar per long stage (none with ``-q``),
-    a log line per stage with ``-v``."""
+    """Listener for :mod:`roadtwin.progress`: a bar per long stage inside a command (drawn
+    like every bar, see :func:`progress`), a log line per stage with ``-v``."""
     import time
 
     def listener(name: str, total: float | None, unit: str):
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=total,
-            desc=name,
-            unit=unit,
-            unit_scale=True,
-            disable=args.quiet or not sys.stderr.isatty(),
-            leave=False,
-            file=sys.stderr,
-        )
+        bar = progress(args, total=total, desc=name, unit=unit, unit_scale=True, leave=False)
         started = time.perf_counter()
         close = bar.close
 
@@ -854,39 +1186,19 @@ def _progress_listener(args: argparse.Namespace):
     return listener
 
 
-def _single_threaded_blas() -> None:
-    """One BLAS/OpenMP thread unless the user chose otherwise: the stages solve many small
-    systems, where a second spinning BLAS thread on a shared 2-core machine made the ramp
-    stage 30x slower (0.6 s -> 21 s measured), never faster. Must run before NumPy loads."""
-    import os
-
-    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``roadtwin`` console script; returns the exit code."""
-    _single_threaded_blas()
     from .progress import listening
 
     parser = build_parser()
     args = parser.parse_args(argv)
-    logging.basicConfig(
-        level=logging.INFO if args.verbose else logging.WARNING,
-        format="%(levelname)s %(name)s: %(message)s",
-    )
-    with warnings.catch_warnings():
-        warnings.simplefilter("always", InputWarning)
-        previous = warnings.showwarning
-        warnings.showwarning = _show_warning
-        try:
-            with listening(_progress_listener(args)):
-                return int(args.func(args) or 0)
-        except (InputError, FitError) as exc:
-            print(f"roadtwin: error: {exc}", file=sys.stderr)
-            return 2
-        finally:
-            warnings.showwarning = previous
+    with (
+        _signals_as_exceptions(),
+        _logging(args.verbose, args.quiet),
+        _warnings_as_lines(),
+        listening(_progress_listener(args)),
+    ):
+        return run_command(args)
 
 
 if __name__ == "__main__":  # pragma: no cover

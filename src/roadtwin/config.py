@@ -6,8 +6,66 @@ these objects as keyword arguments. Each stage's module owns the meaning of its 
 
 from __future__ import annotations
 
+import math
+import typing
 from dataclasses import dataclass, field, fields, replace
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
+
+from ._errors import InputError
+
+
+def check_fields(config: Any, table: str) -> None:
+    """Validate a stage configuration against its type hints, in place.
+
+    Every field must have its annotated type: ``bool``; ``int`` (not a bool); ``float``
+    (an int is converted; NaN and infinity refused); a ``Literal`` value. Numbers whose
+    default is positive must be positive, unless the class lists the field in
+    ``_ZERO_OK`` (zero allowed) or gives it a closed range in ``_RANGES``.
+
+    Raises
+    ------
+    InputError
+        Naming ``[table] key``, the value and what was expected.
+    """
+    hints = typing.get_type_hints(type(config))
+    ranges: dict[str, tuple[float, float]] = getattr(config, "_RANGES", {})
+    zero_ok: frozenset[str] = getattr(config, "_ZERO_OK", frozenset())
+    for f in fields(config):
+        value = getattr(config, f.name)
+        hint = hints[f.name]
+        shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+        where = f"config [{table}] {f.name} = {shown}"
+        if typing.get_origin(hint) is Literal:
+            allowed = typing.get_args(hint)
+            if value not in allowed or isinstance(value, bool):
+                msg = f"{where}: expected one of {', '.join(repr(a) for a in allowed)}"
+                raise InputError(msg)
+            continue
+        if hint is bool:
+            if not isinstance(value, bool):
+                raise InputError(f"{where}: expected true or false")
+            continue
+        if hint not in (int, float):
+            continue
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise InputError(f"{where}: expected {'an integer' if hint is int else 'a number'}")
+        if hint is int and not isinstance(value, int):
+            raise InputError(f"{where}: expected an integer")
+        if not math.isfinite(value):
+            raise InputError(f"{where}: expected a finite number")
+        if hint is float and not isinstance(value, float):
+            object.__setattr__(config, f.name, float(value))
+        default = f.default
+        if f.name in ranges:
+            lo, hi = ranges[f.name]
+            if not lo <= value <= hi:
+                raise InputError(f"{where}: expected a number in [{lo:g}, {hi:g}]")
+        elif isinstance(default, (int, float)) and default > 0:
+            if f.name in zero_ok:
+                if value < 0:
+                    raise InputError(f"{where}: expected a number >= 0")
+            elif value <= 0:
+                raise InputError(f"{where}: expected a number > 0")
 
 
 @dataclass(frozen=True)
@@ -21,6 +79,23 @@ class LoadConfig:
     scaled by the time step) is a trajectory jump: an error."""
     osm_buffer_m: float = 400.0
     """OSM ways are cropped to this buffer around the trajectory before building the graph."""
+    min_driven_m: float = 50.0
+    """A run whose vehicle drives less than this (metres) is refused: nothing to map."""
+    max_driven_km: float = 500.0
+    """A run longer than this (kilometres) is refused: cost and memory grow linearly with
+    the length (about 1 GiB per 100 km with the default method); split longer runs."""
+    max_poses: int = 2_000_000
+    """A trajectory with more poses is refused (55 h at 10 Hz; at most ~1 GiB of arrays)."""
+    max_points: int = 1_000_000_000
+    """Road-edge point files and lane-sample tables with more rows are refused. They are
+    read in chunks and reduced while reading (memory stays bounded), at about 0.3 s per
+    million points on one core: this bounds the time, not the memory."""
+    max_origin_distance_km: float = 200.0
+    """Every pose must lie within this (kilometres) of the run's GPS origin (for the
+    ``local`` frame: of (0, 0)); farther means a wrong CRS, units or origin."""
+    allow_files_outside_run: bool = False
+    """Files named in ``run.toml`` must lie inside the run folder (after following
+    symbolic links) unless this is true."""
     cell_station_m: float = 0.25
     """Density reduction (:mod:`roadtwin.reduction`): cell length along the trajectory
     (metres)."""
@@ -36,6 +111,9 @@ class LoadConfig:
     (``edge_points_per_m`` / ``lane_samples_per_m``); sparser runs pass unchanged."""
     chunk_points: int = 1_000_000
     """Points (or CSV rows) read per chunk: bounds the working memory of loading."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "load")
 
 
 @dataclass(frozen=True)
@@ -68,6 +146,13 @@ class MainlineConfig:
     """Cut-off wavelength of the elevation / cross-slope smoother (metres)."""
     elevation_tolerance_m: float = 0.005
     """Max deviation of the C1 elevation pieces from the smoothed heights (metres)."""
+    elevation_gate_m: float = 0.5
+    """Road-edge points farther above or below the surface under the car than this plus
+    the steepest cross slope over their distance from the car belong to another level
+    (a ramp passing over or under) and give no heights (metres)."""
+    superelevation_max_rad: float = 0.1
+    """Steepest plausible cross slope (radians; design guides stop at about 8 %); the
+    superelevation is clipped to it."""
     superelevation_min_rad: float = 0.005
     """Superelevation is written only where the mean cross slope over
     ``superelevation_min_length_m`` exceeds this (radians) and is significant."""
@@ -137,6 +222,18 @@ class MainlineConfig:
     about 12) before the bin counts as a marking the map lacks."""
     quality_max_lane_m: float = 5.0
     """A driving lane wider than this (metres) is flagged: a boundary was missed."""
+
+    _ZERO_OK: ClassVar[frozenset[str]] = frozenset(
+        {"edge_outlier_min_m", "superelevation_min_rad", "superelevation_k_sigma"}
+    )
+    _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
+        "broken_gap_fraction": (0.0, 1.0),
+        "seed": (0, 2**32 - 1),
+        "paper_max_clusters": (2, 64),
+    }
+
+    def __post_init__(self) -> None:
+        check_fields(self, "mainline")
 
 
 @dataclass(frozen=True)
@@ -232,6 +329,24 @@ class RampConfig:
     """Measured points within this (metres) of a mainline boundary of their kind belong to
     the mainline and are not used as ramp evidence."""
 
+    _ZERO_OK: ClassVar[frozenset[str]] = frozenset(
+        {
+            "snap_to_section_m",
+            "evidence_exclude_m",
+            "gore_search_upstream_m",
+            "gore_search_downstream_m",
+            "inner_shoulder_width_m",
+            "hard_shoulder_width_m",
+        }
+    )
+    _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
+        "max_heading_diff_deg": (0.0, 180.0),
+        "savgol_polyorder": (1, 10),
+    }
+
+    def __post_init__(self) -> None:
+        check_fields(self, "ramps")
+
 
 @dataclass(frozen=True)
 class TopologyConfig:
@@ -243,6 +358,9 @@ class TopologyConfig:
     """Length along the mainline of a junction with connecting roads (metres)."""
     min_road_length_m: float = 5.0
     """A ramp whose junction would leave a mainline road shorter than this is skipped."""
+
+    def __post_init__(self) -> None:
+        check_fields(self, "topology")
 
 
 @dataclass(frozen=True)
@@ -265,11 +383,10 @@ class EvaluationConfig:
     """Roads the run's points are compared with: ``all`` (mainline and ramp roads, the
     nearest boundary wins; gore points belong to the ramp) or ``mainline`` only."""
 
+    _ZERO_OK: ClassVar[frozenset[str]] = frozenset({"end_tolerance_m"})
+
     def __post_init__(self) -> None:
-        for name in ("max_lateral_m", "truth_step_m", "ramp_match_distance_m"):
-            if not getattr(self, name) > 0:
-                msg = f"evaluation config: {name} must be > 0, got {getattr(self, name)}"
-                raise ValueError(msg)
+        check_fields(self, "evaluation")
 
 
 @dataclass(frozen=True)
@@ -309,11 +426,11 @@ class DriveConfig:
     timeout_s: float = 120.0
     """Wall-clock limit of one esmini run (seconds)."""
 
+    _ZERO_OK: ClassVar[frozenset[str]] = frozenset({"end_margin_m"})
+    _RANGES: ClassVar[dict[str, tuple[float, float]]] = {"workers": (1, 64)}
+
     def __post_init__(self) -> None:
-        for name in ("speed_m_s", "timestep_s", "max_jump_m", "reach_tolerance_m", "stuck_s"):
-            if not getattr(self, name) > 0:
-                msg = f"drive config: {name} must be > 0, got {getattr(self, name)}"
-                raise ValueError(msg)
+        check_fields(self, "drive")
 
 
 @dataclass(frozen=True)
@@ -337,21 +454,33 @@ class PipelineConfig:
         )
 
     @classmethod
-    def from_dict(cls, data: dict[str, dict[str, Any]]) -> PipelineConfig:
-        """Build from ``{"mainline": {...}, ...}`` (as read from a TOML file)."""
-        from ._errors import InputError
+    def from_dict(cls, data: dict[str, Any], *, source: str = "config") -> PipelineConfig:
+        """Build from ``{"mainline": {...}, ...}`` (as read from a TOML file).
 
+        Every value is checked (type, finite, positive where it must be; see
+        :func:`check_fields`); errors name ``source``, the table and the key.
+        """
         parts: dict[str, Any] = {}
+        known_tables = {f.name for f in fields(cls)}
+        unknown_tables = set(data) - known_tables
+        if unknown_tables:
+            msg = (
+                f"{source}: unknown tables {sorted(unknown_tables)}; known: {sorted(known_tables)}"
+            )
+            raise InputError(msg)
         for f in fields(cls):
             table = data.get(f.name, {})
+            if not isinstance(table, dict):
+                msg = f"{source}: [{f.name}] must be a table of settings, not a value"
+                raise InputError(msg)
             default = f.default_factory()  # type: ignore[misc]
             known = {g.name for g in fields(default)}
             unknown = set(table) - known
             if unknown:
-                msg = f"config [{f.name}]: unknown keys {sorted(unknown)}; known: {sorted(known)}"
+                msg = f"{source}: [{f.name}] unknown keys {sorted(unknown)}; known: {sorted(known)}"
                 raise InputError(msg)
-            parts[f.name] = replace(default, **table)
-        unknown_tables = set(data) - {f.name for f in fields(cls)}
-        if unknown_tables:
-            raise InputError(f"config: unknown tables {sorted(unknown_tables)}")
+            try:
+                parts[f.name] = replace(default, **table)
+            except InputError as exc:
+                raise InputError(f"{source}: {exc}") from None
         return cls(**parts)

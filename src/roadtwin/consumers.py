@@ -14,8 +14,10 @@ Each tool is looked up next to ``sys.executable`` first, then on ``PATH``
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -26,7 +28,7 @@ from typing import Literal
 
 from .model import RoadNetwork
 
-__all__ = ["ConsumerResult", "find_tool", "run_asam", "run_sumo"]
+__all__ = ["ConsumerResult", "find_tool", "run_asam", "run_sumo", "run_tool"]
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,46 @@ def find_tool(name: str) -> str | None:
     return shutil.which(name)
 
 
+def run_tool(
+    cmd: list[str], *, timeout_s: float, cwd: str | os.PathLike | None = None
+) -> subprocess.CompletedProcess[str]:
+    """Run an external tool in its own process group and collect its output.
+
+    The console scripts of the eclipse-sumo wheel are Python wrappers that start the real
+    binary as their own child, so killing the direct child is not enough: on a timeout, an
+    interrupt (Ctrl-C), SIGTERM or any other exception the whole group is killed before
+    the exception goes on, and no tool outlives roadtwin.
+
+    Raises
+    ------
+    subprocess.TimeoutExpired
+        The tool ran longer than ``timeout_s`` (it has been killed).
+    """
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        errors="replace",
+        cwd=cwd,
+        start_new_session=True,  # own process group; a terminal's Ctrl-C reaches only us
+    )
+    try:
+        out, err = proc.communicate(timeout=timeout_s)
+    except BaseException:
+        _kill_group(proc)
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.kill()
+    proc.communicate()
+
+
 def run_sumo(path: Path, network: RoadNetwork, *, timeout_s: float = 600.0) -> ConsumerResult:
     """Load the map with SUMO ``netconvert --opendrive-files`` and collect its messages."""
     name = "sumo netconvert"
@@ -83,9 +125,7 @@ def run_sumo(path: Path, network: RoadNetwork, *, timeout_s: float = 600.0) -> C
             str(Path(tmp) / "net.net.xml"),
         ]
         try:
-            proc = subprocess.run(
-                cmd, capture_output=True, text=True, timeout=timeout_s, check=False
-            )
+            proc = run_tool(cmd, timeout_s=timeout_s)
         except subprocess.TimeoutExpired:
             return ConsumerResult(
                 name, "failed", errors=1, messages=(f"timed out after {timeout_s} s",)
@@ -138,14 +178,7 @@ def run_asam(path: Path, *, timeout_s: float = 600.0) -> ConsumerResult:
             encoding="utf-8",
         )
         try:
-            proc = subprocess.run(
-                [exe, "-c", str(config_file)],
-                capture_output=True,
-                text=True,
-                timeout=timeout_s,
-                check=False,
-                cwd=tmp,
-            )
+            proc = run_tool([exe, "-c", str(config_file)], timeout_s=timeout_s, cwd=tmp)
         except subprocess.TimeoutExpired:
             return ConsumerResult(
                 name, "failed", errors=1, messages=(f"timed out after {timeout_s} s",)

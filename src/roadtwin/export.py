@@ -5,8 +5,8 @@
   paper's Google Earth overlays, connecting roads orange.
 * :func:`write_geojson` -- lane polygons and lane borders in WGS84 (RFC 7946 order
   lon, lat), with road id, road name, lane id and type as properties.
-* :func:`plot_network` -- a PNG of the built map over the run's inputs (road-edge points,
-  lane samples, trajectory), in the mapping frame.
+* :func:`plot_network` -- a figure of the built map over the run's inputs (road-edge points,
+  lane samples, trajectory), in the mapping frame; written as PNG only when a path is given.
 
 All writers are atomic: they write a temporary file next to the target and rename it.
 Coordinates come from the model in the mapping frame and are transformed with
@@ -18,18 +18,23 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from lxml import etree
 from numpy.typing import NDArray
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+from ._errors import FitError
+from ._files import atomic_write_bytes
 from .frames import MappingFrame
 from .model import LaneSection, Road, RoadNetwork
 
-__all__ = ["network_lines", "plot_network", "write_geojson", "write_kml"]
+__all__ = ["figure_png", "network_lines", "plot_network", "write_geojson", "write_kml"]
 
 KML_NS = "http://www.opengis.net/kml/2.2"
 # KML colours are aabbggrr
@@ -50,20 +55,6 @@ def _role(road: Road) -> str:
     if road.name == "connector" or road.junction != "-1":
         return "connector"
     return "other"
-
-
-def _atomic_write(path: str | os.PathLike, data: bytes) -> Path:
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
 
 
 def _section_stations(road: Road, k: int, step_m: float) -> NDArray[np.float64]:
@@ -100,7 +91,14 @@ def network_lines(
 
 def _lonlat(frame: MappingFrame, xy: NDArray[np.float64]) -> NDArray[np.float64]:
     lon, lat = frame.to_lonlat(xy[:, 0], xy[:, 1])
-    return np.stack([lon, lat], axis=1)
+    ll = np.stack([lon, lat], axis=1)
+    if not np.isfinite(ll).all():  # never write Infinity/NaN into KML or GeoJSON
+        msg = (
+            f"map coordinates (up to {np.nanmax(np.abs(xy)):.3g} m) have no WGS84 position in "
+            f"the frame {frame.crs!r}: cannot write KML/GeoJSON"
+        )
+        raise FitError(msg)
+    return ll
 
 
 def kml_bytes(network: RoadNetwork, frame: MappingFrame, *, step_m: float = 2.0) -> bytes:
@@ -159,7 +157,7 @@ def write_kml(
     -------
     Path of the written file.
     """
-    return _atomic_write(path, kml_bytes(network, frame, step_m=step_m))
+    return atomic_write_bytes(path, kml_bytes(network, frame, step_m=step_m))
 
 
 def _round(ll: NDArray[np.float64]) -> list[list[float]]:
@@ -264,12 +262,14 @@ def write_geojson(
     LineString), ``road_id``, ``road_name``, ``section``, ``lane_id``, ``type`` (lane
     type; ``"center"`` for lane 0) and, for boundaries, ``mark`` (road mark type).
     """
-    data = json.dumps(geojson_dict(network, frame, step_m=step_m), separators=(",", ":"))
-    return _atomic_write(path, data.encode("utf-8"))
+    data = json.dumps(
+        geojson_dict(network, frame, step_m=step_m), separators=(",", ":"), allow_nan=False
+    )
+    return atomic_write_bytes(path, data.encode("utf-8"))
 
 
-def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike = "map.png") -> Path:
-    """PNG of the built map (lane borders by role) over the run's inputs (atomic).
+def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike | None = None) -> Figure:
+    """Figure of the built map (lane borders by role) over the run's inputs.
 
     Parameters
     ----------
@@ -279,12 +279,16 @@ def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike = "map.
         The :class:`~roadtwin.io.MappingRun` it was built from (road-edge points, lane
         samples and trajectory are drawn underneath), or ``None``.
     path
-        Output PNG.
-    """
-    import matplotlib
+        If given, the figure is also written there as PNG (atomically); nothing is
+        written otherwise.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (object API with an Agg canvas: no pyplot state, no backend change).
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     pts = [xy for _, _, lane_id, xy in network_lines(network, step_m=25.0) if lane_id == 0]
     if run is not None:
@@ -292,7 +296,9 @@ def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike = "map.
     allxy = np.vstack(pts) if pts else np.zeros((2, 2))
     span = np.ptp(allxy, axis=0) + 40.0
     aspect = float(np.clip(span[1] / span[0], 0.3, 1.5))
-    fig, ax = plt.subplots(figsize=(12, 1.5 + 10.5 * aspect), dpi=110)
+    fig = Figure(figsize=(12, 1.5 + 10.5 * aspect), dpi=110)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
     if run is not None:
         edges = np.asarray(run.edges)
         if edges.size:
@@ -321,9 +327,15 @@ def plot_network(network: RoadNetwork, run=None, path: str | os.PathLike = "map.
     )
     ax.legend(loc="best", markerscale=10, fontsize=8)
     fig.tight_layout()
-    import io as _io
+    if path is not None:
+        atomic_write_bytes(path, figure_png(fig))
+    return fig
 
-    buf = _io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None})
-    plt.close(fig)
-    return _atomic_write(path, buf.getvalue())
+
+def figure_png(fig: Figure, **savefig) -> bytes:
+    """A matplotlib figure as PNG bytes (no ``Software`` metadata: same figure, same bytes)."""
+    import io
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", metadata={"Software": None}, **savefig)
+    return buf.getvalue()

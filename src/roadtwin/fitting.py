@@ -13,6 +13,7 @@ metres) and knows nothing about LiDAR, OSM or OpenDRIVE files. The two fitters r
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -414,12 +415,65 @@ def _cubic_arc_length(coef: FloatArray) -> float:
     return total
 
 
+class _SegmentedSpline:
+    """Interpolating spline of a polyline in chord length, one spline per segment between
+    break points (a break may be a kink: neighbouring segments share only the point).
+
+    With no breaks this is exactly one cubic spline (linear below four points).
+    """
+
+    def __init__(self, s: FloatArray, pts: FloatArray, break_idx: NDArray[np.int64]) -> None:
+        bounds = [0, *(int(i) for i in break_idx), s.size - 1]
+        self.starts = s[bounds[:-1]]
+        self.splines = []
+        for a, b in itertools.pairwise(bounds):
+            n = b - a + 1
+            k = 3 if n >= 4 else (1 if n <= 2 or len(bounds) == 2 else 2)
+            self.splines.append(make_interp_spline(s[a : b + 1], pts[a : b + 1], k=k))
+
+    def segment_of(self, x: ArrayLike) -> NDArray[np.int64]:
+        """Segment index of chord stations x (a break belongs to the segment after it)."""
+        idx = np.searchsorted(self.starts, np.asarray(x, dtype=float), side="right") - 1
+        return np.clip(idx, 0, len(self.splines) - 1)
+
+    def direction(self, x: float, seg: int, *, max_kink_rad: float = 0.01) -> FloatArray:
+        """Unit tangent at chord station ``x`` of segment ``seg``; at a break where the two
+        segments' tangents differ by less than ``max_kink_rad`` (a smooth curve split
+        there) their mean, so the pieces on both sides meet without a kink."""
+        d = np.asarray(self.splines[seg](x, 1), dtype=float)
+        d = d / np.linalg.norm(d)
+        k = int(np.searchsorted(self.starts, x))  # segment starting exactly at x, if any
+        other = None
+        if k < len(self.starts) and abs(self.starts[k] - x) < 1e-9 and k > 0:
+            other = k - 1 if k == seg else k
+        if other is None or other == seg:
+            return d
+        e = np.asarray(self.splines[other](x, 1), dtype=float)
+        e = e / np.linalg.norm(e)
+        if float(np.dot(d, e)) < math.cos(max_kink_rad):
+            return d  # a real kink of the curve: keep it
+        m = d + e
+        return m / np.linalg.norm(m)
+
+    def __call__(self, x: ArrayLike, nu: int = 0, *, seg: ArrayLike | None = None) -> FloatArray:
+        if len(self.splines) == 1:
+            return self.splines[0](x, nu)
+        x_arr = np.asarray(x, dtype=float)
+        idx = self.segment_of(x_arr) if seg is None else np.broadcast_to(seg, x_arr.shape)
+        out = np.empty((*x_arr.shape, 2))
+        for k in np.unique(idx):
+            sel = idx == k
+            out[sel] = self.splines[int(k)](x_arr[sel], nu)
+        return out
+
+
 def fit_parampoly3_chain(
     xy: ArrayLike,
     *,
     tolerance_m: float = 0.02,
     max_piece_m: float = 400.0,
     min_piece_m: float = 1.0,
+    breaks_m: ArrayLike = (),
 ) -> tuple[ParamPoly3, ...]:
     """Fit chained ParamPoly3 pieces (``pRange="normalized"``) to a smooth dense polyline.
 
@@ -441,6 +495,11 @@ def fit_parampoly3_chain(
         Maximum deviation, metres.
     max_piece_m, min_piece_m
         Bounds on the spline arc length covered by one piece, metres.
+    breaks_m
+        Chord stations (cumulative point-to-point length of ``xy``, metres; snapped to the
+        nearest input point) where a piece must start, e.g. where the curve will be cut into
+        roads or where it has a curvature jump or kink: the interpolating spline is split
+        there, so the fit does not ring across it.
 
     Returns
     -------
@@ -455,17 +514,19 @@ def fit_parampoly3_chain(
     if pts.shape[0] < 2:
         raise FitError("fit_parampoly3_chain: need at least two distinct points")
     s_in = arc_length(pts)
-    if pts.shape[0] >= 4:
-        spline = make_interp_spline(s_in, pts, k=3)
-    else:
-        spline = make_interp_spline(s_in, pts, k=1)
+    forced = np.asarray(breaks_m, dtype=float).reshape(-1)
+    forced = forced[(forced > 1e-9) & (forced < s_in[-1] - 1e-9)]
+    break_idx = np.unique(np.clip(np.searchsorted(s_in, forced), 1, s_in.size - 2))
+    break_idx = break_idx[(break_idx > 0) & (break_idx < s_in.size - 1)]
+    spline = _SegmentedSpline(s_in, pts, break_idx)
     # spline arc length table (Gauss-Legendre per input interval) -> knot placement in
     # true arc length of the spline
     a_, b_ = s_in[:-1], s_in[1:]
     half = 0.5 * (b_ - a_)
     nodes8, weights8 = np.polynomial.legendre.leggauss(8)
     q = (0.5 * (a_ + b_))[:, None] + half[:, None] * nodes8[None, :]
-    dq = spline(q.ravel(), 1).reshape((*q.shape, 2))
+    seg_of_q = np.repeat(spline.segment_of(0.5 * (a_ + b_)), nodes8.size)
+    dq = spline(q.ravel(), 1, seg=seg_of_q).reshape((*q.shape, 2))
     seg_len = half * (np.hypot(dq[..., 0], dq[..., 1]) @ weights8)
     arc = np.concatenate([[0.0], np.cumsum(seg_len)])  # spline arc length at s_in
 
@@ -475,25 +536,37 @@ def fit_parampoly3_chain(
     def piece(ca: float, cb: float) -> tuple[FloatArray, float, float]:
         """Hermite coefficients between chord params ca, cb; returns coef, arc a, arc b."""
         la, lb = float(np.interp(ca, s_in, arc)), float(np.interp(cb, s_in, arc))
-        p0, p1 = spline(ca), spline(cb)
-        d0, d1 = spline(ca, 1), spline(cb, 1)
+        seg = int(spline.segment_of(0.5 * (ca + cb)))
+        p0, p1 = spline(ca, seg=seg), spline(cb, seg=seg)
         span = lb - la
-        m0 = d0 / np.linalg.norm(d0) * span
-        m1 = d1 / np.linalg.norm(d1) * span
+        if len(spline.splines) == 1:
+            d0, d1 = spline(ca, 1, seg=seg), spline(cb, 1, seg=seg)
+            m0 = d0 / np.linalg.norm(d0) * span
+            m1 = d1 / np.linalg.norm(d1) * span
+        else:
+            m0 = spline.direction(ca, seg) * span
+            m1 = spline.direction(cb, seg) * span
         return _hermite_coefficients(p0, p1, m0, m1), la, lb
 
     def error(coef: FloatArray, ca: float, cb: float, la: float, lb: float) -> float:
         i0, i1 = np.searchsorted(s_in, [ca, cb])
         chord = np.concatenate([[ca], s_in[i0:i1], [cb], np.linspace(ca, cb, 9)])
-        ref = spline(chord)
+        ref = spline(chord, seg=spline.segment_of(0.5 * (ca + cb)))
         arc_c = np.interp(chord, s_in, arc)
         p = (arc_c - la) / max(lb - la, 1e-12)
         dev = np.linalg.norm(_cubic_eval(coef, p) - ref, axis=1)
         return float(dev.max())
 
-    n0 = max(1, math.ceil(arc[-1] / max_piece_m))
-    knots_arc = list(np.linspace(0.0, arc[-1], n0 + 1))
-    stack = [(chord_at(knots_arc[i]), chord_at(knots_arc[i + 1])) for i in range(n0)][::-1]
+    forced = s_in[break_idx]
+    bounds = np.unique(np.concatenate([[0.0, s_in[-1]], forced]))
+    stack = []
+    for ca, cb in itertools.pairwise(bounds):
+        la, lb = float(np.interp(ca, s_in, arc)), float(np.interp(cb, s_in, arc))
+        n0 = max(1, math.ceil((lb - la) / max_piece_m))
+        knots = np.linspace(la, lb, n0 + 1)
+        chords = [ca, *(chord_at(k) for k in knots[1:-1]), cb]
+        stack += [(chords[i], chords[i + 1]) for i in range(n0)]
+    stack = stack[::-1]
     done: list[tuple[FloatArray, float, float]] = []
     while stack:
         ca, cb = stack.pop()

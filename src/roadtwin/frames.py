@@ -83,7 +83,8 @@ class MappingFrame:
         """PROJ string for OpenDRIVE ``<geoReference>`` (without ``+no_defs``)."""
         if self.crs == "local":
             return local_proj_string(self.origin)
-        text = self._crs.to_proj4() or ""
+        # a PROJ string as given (pyproj's round trip only warns and reorders it)
+        text = self.crs if self.crs.lstrip().startswith("+proj=") else self._crs.to_proj4() or ""
         return " ".join(tok for tok in text.split() if tok not in ("+no_defs", "+type=crs"))
 
     @cached_property
@@ -112,5 +113,5 @@ class MappingFrame:
     @cached_property
     def origin_xy(self) -> tuple[float, float]:
         """The GPS origin in mapping-frame metres ((0, 0) for ``local``)."""
-        x, y = self.from_lonlat([self.origin.lon_deg], [self.origin.lat_deg])
-        return float(x[0]), float(y[0])
+        x, y = self._from_wgs84.transform(float(self.origin.lon_deg), float(self.origin.lat_deg))
+        return float(x), float(y)

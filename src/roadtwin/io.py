@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import warnings
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
@@ -30,6 +31,7 @@ from .config import LoadConfig
 from .frames import MappingFrame, Origin
 from .pointfiles import (
     EDGE_SUFFIXES,
+    check_coordinates,
     count_road_edges,
     float_column,
     int_column,
@@ -64,7 +66,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class Trajectory:
     """Vehicle poses, one per LiDAR frame, sorted by ``t``.
 
@@ -89,6 +91,9 @@ class Trajectory:
         """(N, 2) pose positions, mapping frame, metres."""
         return self.xyz[:, :2]
 
+    def __repr__(self) -> str:
+        return f"Trajectory({self.frame.size} poses, {self.length_m:.1f} m)"
+
     @property
     def length_m(self) -> float:
         """Driven length along the poses (metres)."""
@@ -111,7 +116,7 @@ class RunSummary:
     traffic_side: str
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class MappingRun:
     """Everything a mapping run provides, in the mapping frame.
 
@@ -128,6 +133,7 @@ class MappingRun:
     lane_sample_frame : (M,) int64 frame index of each sample (nearest pose for ``t`` rows).
     osm_path : OSM file named in run.toml, or None.
     traffic_side : ``"right"`` or ``"left"``-hand traffic.
+    input_files : run.toml and every file it names (outputs must never replace them).
     edge_reduction, lane_reduction : how dense points were reduced to the rows above
         (:class:`~roadtwin.reduction.Reduction`: points read, rows, density, the spread
         of the points behind each row), or None for points that were never looked at
@@ -146,8 +152,17 @@ class MappingRun:
     traffic_side: Literal["right", "left"] = "right"
     dropped_edge_points: int = 0
     dropped_lane_samples: int = 0
+    input_files: tuple[Path, ...] = ()
     edge_reduction: Reduction | None = None
     lane_reduction: Reduction | None = None
+
+    def __repr__(self) -> str:
+        s = self.summary()
+        return (
+            f"MappingRun({str(self.root)!r}, {s.driven_length_m / 1000:.3f} km, "
+            f"{s.frames} poses, {s.edge_points} edge points, {s.lane_samples} lane samples, "
+            f"crs={self.frame.crs!r}, traffic_side={self.traffic_side!r})"
+        )
 
     def summary(self) -> RunSummary:
         """Counts (points read, not rows kept), driven length, duration and bounding box."""
@@ -180,6 +195,10 @@ TRAJECTORY_COLUMNS = ("frame", "t", "x", "y", "z", "yaw")
 OSM_SUFFIXES = (".osm", ".osm.gz", ".osm.bz2", ".osm.pbf")
 _MIN_MOTION_STEP_M = 0.2
 _MOTION_BASELINE_M = 2.0
+_MAX_YAW_ERROR_DEG = 15.0
+"""Largest median difference between yaw and the direction of travel (degrees); a vehicle's
+heading follows its track to within a few degrees (side slip, antenna offsets)."""
+_MAX_POSE_HEIGHT_M = 10.0
 
 
 def load_run(
@@ -218,13 +237,24 @@ def load_run(
         manifest_path, root = root, root.parent
     else:
         manifest_path = root / "run.toml"
+    if not root.is_dir():
+        what = "not a folder" if root.exists() else "folder not found"
+        msg = f"{root}: {what} (expected a mapping-run folder with run.toml, or its run.toml)"
+        raise InputError(msg)
     manifest = _read_manifest(manifest_path)
     frame = _frame_from_manifest(manifest, manifest_path)
     pose_height = _number(manifest, "vehicle", "pose_height", manifest_path, default=0.0)
+    if abs(pose_height) > _MAX_POSE_HEIGHT_M:
+        msg = (
+            f"{manifest_path}: [vehicle] pose_height = {pose_height:g}: expected the height of "
+            f"the pose point above the road in metres (at most {_MAX_POSE_HEIGHT_M:g})"
+        )
+        raise InputError(msg)
     side = _traffic_side(manifest, manifest_path)
-    files = _files_from_manifest(manifest, manifest_path, root)
+    files = _files_from_manifest(manifest, manifest_path, root, cfg)
 
     trajectory = read_trajectory(files["trajectory"], config=cfg)
+    _check_origin_distance(trajectory, frame, files["trajectory"], manifest_path, cfg)
     line = trajectory_line(trajectory.xy)
     edge_acc = _accumulator(line, cfg, kind="edges", reduce=reduce, n_groups=3)
     edge_path = files["road_edges"]
@@ -232,7 +262,9 @@ def load_run(
         dropped_e = _stream(
             (
                 (c.xyz, c.side.astype(np.int64) + 1, None, c.first_row)
-                for c in iter_road_edges(edge_path, chunk_points=cfg.chunk_points)
+                for c in iter_road_edges(
+                    edge_path, chunk_points=cfg.chunk_points, max_points=cfg.max_points
+                )
             ),
             edge_acc,
             edge_path,
@@ -251,6 +283,7 @@ def load_run(
                     trajectory,
                     pose_height_m=pose_height,
                     chunk_rows=cfg.chunk_points,
+                    max_rows=cfg.max_points,
                 )
             ),
             lane_acc,
@@ -284,6 +317,7 @@ def load_run(
         traffic_side=side,
         dropped_edge_points=dropped_e,
         dropped_lane_samples=dropped_l,
+        input_files=(manifest_path, *files.values()),
         edge_reduction=edge_rows.info,
         lane_reduction=lane_rows.info,
     )
@@ -309,7 +343,8 @@ def load_run(
 
 def _read_manifest(path: Path) -> dict[str, Any]:
     if not path.is_file():
-        msg = f"{path}: file not found (expected the run manifest run.toml in the run folder)"
+        what = "not a file" if path.exists() else "file not found"
+        msg = f"{path}: {what} (expected the run manifest run.toml in the run folder)"
         raise InputError(msg)
     try:
         text = path.read_text(encoding="utf-8")
@@ -384,9 +419,12 @@ def _traffic_side(manifest: dict[str, Any], path: Path) -> Literal["right", "lef
     return side
 
 
-def _files_from_manifest(manifest: dict[str, Any], path: Path, root: Path) -> dict[str, Path]:
+def _files_from_manifest(
+    manifest: dict[str, Any], path: Path, root: Path, cfg: LoadConfig
+) -> dict[str, Path]:
     table = _table(manifest, "files", path, required=True)
     files: dict[str, Path] = {}
+    real_root = Path(os.path.realpath(root))
     for key in ("trajectory", "road_edges", "lane_samples", "osm"):
         name = table.get(key)
         if name is None:
@@ -395,11 +433,23 @@ def _files_from_manifest(manifest: dict[str, Any], path: Path, root: Path) -> di
             msg = f"{path}: [files] {key} is missing (expected a file name relative to the run)"
             raise InputError(msg)
         if not isinstance(name, str) or not name.strip():
-            msg = f"{path}: [files] {key} = {name!r}: expected a file name"
+            msg = f"{path}: [files] {key}: expected a file name (a string)"
             raise InputError(msg)
         file = root / name
-        if not file.is_file():
+        shown = name if len(name) <= 80 else name[:77] + "..."
+        real = Path(os.path.realpath(file))
+        if not cfg.allow_files_outside_run and not real.is_relative_to(real_root):
+            msg = (
+                f"{path}: [files] {key} = {shown!r} lies outside the run folder {root} "
+                "(a run's files must be inside its folder; [load] allow_files_outside_run = "
+                "true allows it)"
+            )
+            raise InputError(msg)
+        if not file.exists():
             msg = f"{file}: file not found (named by [files] {key} in {path.name})"
+            raise InputError(msg)
+        if not file.is_file():
+            msg = f"{file}: not a regular file (named by [files] {key} in {path.name})"
             raise InputError(msg)
         files[key] = file
     edge_name = files["road_edges"].name.lower()
@@ -449,11 +499,12 @@ def read_trajectory(path: str | Path, *, config: LoadConfig | None = None) -> Tr
     cfg = config if config is not None else LoadConfig()
     path = Path(path)
     what = "columns frame,t,x,y,z,yaw[,pitch,roll]"
-    df = read_table(path, what)
+    df = read_table(path, what, max_rows=cfg.max_poses)
     require_columns(df.columns, TRAJECTORY_COLUMNS, path, what)
     frame = int_column(df["frame"], path, "frame")
     t = float_column(df["t"], path, "t")
     xyz = np.column_stack([float_column(df[c], path, c) for c in ("x", "y", "z")])
+    check_coordinates(xyz, path)
     yaw = float_column(df["yaw"], path, "yaw")
     n = t.size
     pitch = float_column(df["pitch"], path, "pitch") if "pitch" in df else np.zeros(n)
@@ -485,6 +536,7 @@ def read_trajectory(path: str | Path, *, config: LoadConfig | None = None) -> Tr
             "(expected one pose per time stamp)"
         )
         raise InputError(msg)
+    _check_motion(path, xyz[:, :2], t, cfg)
     _check_yaw(path, xyz[:, :2], yaw)
     _check_jumps(path, xyz[:, :2], t, cfg)
     return Trajectory(
@@ -501,11 +553,52 @@ def _wrap(angle: NDArray[np.float64]) -> NDArray[np.float64]:
     return (angle + np.pi) % (2.0 * np.pi) - np.pi
 
 
+def _check_motion(
+    path: Path, xy: NDArray[np.float64], t: NDArray[np.float64], cfg: LoadConfig
+) -> None:
+    """The vehicle must drive a plausible distance, in metres.
+
+    A run shorter than ``min_driven_m`` has nothing to map: either the vehicle stood still
+    or x/y hold longitude/latitude degrees (steps of 1e-5 that still lead somewhere).
+    """
+    steps = np.hypot(*np.diff(xy, axis=0).T)
+    driven = float(steps.sum())
+    duration = float(t[-1] - t[0])
+    if driven < cfg.min_driven_m:
+        net = float(np.hypot(*(xy.max(axis=0) - xy.min(axis=0))))
+        degrees = (  # slow (under 0.01 units/s: 1 km/s in degrees) but going somewhere
+            0.0 < driven < 0.01 * max(duration, 1e-9)
+            and net > 0.5 * driven
+            and bool(np.all(np.abs(xy[:, 0]) <= 180.0) and np.all(np.abs(xy[:, 1]) <= 90.0))
+        )
+        if degrees:
+            msg = (
+                f"{path}: columns 'x','y' look like longitude/latitude degrees (the poses "
+                f"advance {driven:.2g} units in {duration:.0f} s, within [-180, 180] x "
+                "[-90, 90]); expected metres in the mapping frame of run.toml"
+            )
+        else:
+            msg = (
+                f"{path}: the vehicle drives only {driven:.2f} m in {duration:.0f} s "
+                f"({xy.shape[0]} poses; a standing vehicle?); a mapping run must drive at "
+                f"least {cfg.min_driven_m:g} m"
+            )
+        raise InputError(msg)
+    if driven > cfg.max_driven_km * 1000.0:
+        msg = (
+            f"{path}: the trajectory is {driven / 1000:.0f} km long; runs longer than "
+            f"{cfg.max_driven_km:g} km ([load] max_driven_km) are refused: split the run"
+        )
+        raise InputError(msg)
+
+
 def _check_yaw(path: Path, xy: NDArray[np.float64], yaw: NDArray[np.float64]) -> None:
     """Yaw must be radians, CCW from +x, along the direction of travel.
 
     The direction of travel is taken over a baseline of about ``_MOTION_BASELINE_M`` (several
-    poses at high pose rates) so that position noise does not dominate it.
+    poses at high pose rates) so that position noise does not dominate it. The median
+    difference must stay under ``_MAX_YAW_ERROR_DEG``; a compass heading (clockwise from
+    north, ``pi/2 - yaw``) or a reversed yaw is named when it explains the data better.
     """
     seg = np.hypot(*np.diff(xy, axis=0).T)
     typical = float(np.median(seg))
@@ -517,28 +610,54 @@ def _check_yaw(path: Path, xy: NDArray[np.float64], yaw: NDArray[np.float64]) ->
     if np.count_nonzero(moving) >= 3:
         motion = np.arctan2(step[moving, 1], step[moving, 0])
         y_mid = yaw[:-k][moving]
-        err_rad = np.degrees(np.median(np.abs(_wrap(y_mid - motion))))
-        err_deg = np.degrees(np.median(np.abs(_wrap(np.radians(y_mid) - motion))))
+
+        def median_error_deg(candidate: NDArray[np.float64]) -> float:
+            return float(np.degrees(np.median(np.abs(_wrap(candidate - motion)))))
+
+        err_rad = median_error_deg(y_mid)
+        err_deg = median_error_deg(np.radians(y_mid))
         if err_deg < 10.0 and err_rad > max(3.0 * err_deg, 8.0):
             msg = (
                 f"{path}: column 'yaw' is in degrees (it matches the direction of travel only "
                 f"read as degrees; max |yaw| = {max_abs:.1f}); expected radians, CCW from +x"
             )
             raise InputError(msg)
-        if err_rad > 60.0:
-            compass = np.degrees(np.median(np.abs(_wrap(np.pi / 2 - y_mid - motion))))
-            hint = (
-                " (it looks like a compass heading, clockwise from north)" if compass < 15.0 else ""
-            )
+        compass = median_error_deg(np.pi / 2 - y_mid)
+        backwards = median_error_deg(y_mid + np.pi)
+        looks_compass = compass < 0.5 * err_rad and compass < _MAX_YAW_ERROR_DEG
+        if err_rad > _MAX_YAW_ERROR_DEG or (looks_compass and err_rad > 5.0):
+            hint = ""
+            if looks_compass:
+                hint = " (it looks like a compass heading, clockwise from north: pi/2 - yaw)"
+            elif backwards < _MAX_YAW_ERROR_DEG:
+                hint = " (it points backwards: off by 180 deg)"
             msg = (
                 f"{path}: column 'yaw' does not match the direction of travel (median "
-                f"difference {err_rad:.0f} deg){hint}; expected radians, CCW from +x"
+                f"difference {err_rad:.0f} deg, at most {_MAX_YAW_ERROR_DEG:g} expected){hint}; "
+                "expected radians, CCW from +x (east)"
             )
             raise InputError(msg)
     elif max_abs > 2.0 * np.pi + 0.1:  # a vehicle that hardly moves cannot turn full circles
         msg = (
             f"{path}: column 'yaw' reaches |yaw| = {max_abs:.1f}, far beyond 2*pi: looks like "
             "degrees; expected radians, CCW from +x"
+        )
+        raise InputError(msg)
+
+
+def _check_origin_distance(
+    trajectory: Trajectory, frame: MappingFrame, path: Path, manifest: Path, cfg: LoadConfig
+) -> None:
+    """Poses far from the run's GPS origin mean a wrong CRS, wrong units or a wrong origin."""
+    ox, oy = frame.origin_xy
+    far = float(np.max(np.hypot(trajectory.xy[:, 0] - ox, trajectory.xy[:, 1] - oy)))
+    if far > cfg.max_origin_distance_km * 1000.0:
+        o = frame.origin
+        msg = (
+            f"{path}: poses lie up to {far / 1000:.0f} km from the GPS origin of {manifest} "
+            f"(lat {o.lat_deg:g}, lon {o.lon_deg:g}) in crs {frame.crs!r}; expected within "
+            f"{cfg.max_origin_distance_km:g} km ([load] max_origin_distance_km): wrong "
+            "[frame] crs, units or [origin]?"
         )
         raise InputError(msg)
 
@@ -572,6 +691,7 @@ def read_lane_samples(
     trajectory: Trajectory,
     *,
     pose_height_m: float = 0.0,
+    max_rows: int | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Read lane samples (ego frame) and transform them into the mapping frame.
 
@@ -584,6 +704,8 @@ def read_lane_samples(
         Poses; a ``t`` row takes the pose interpolated in time (yaw unwrapped).
     pose_height_m
         Height of the pose point above the road; used for z when there is no ``z`` column.
+    max_rows
+        Refuse files with more rows (:attr:`~roadtwin.config.LoadConfig.max_points`).
 
     Returns
     -------
@@ -592,7 +714,9 @@ def read_lane_samples(
         z = pose z + ego z, or pose z - pose_height_m without a ``z`` column.
     frame : (M,) int64 frame of each sample (nearest pose in time for ``t`` rows).
     """
-    parts = list(iter_lane_samples(path, trajectory, pose_height_m=pose_height_m))
+    parts = list(
+        iter_lane_samples(path, trajectory, pose_height_m=pose_height_m, max_rows=max_rows)
+    )
     return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
@@ -602,6 +726,7 @@ def iter_lane_samples(
     *,
     pose_height_m: float = 0.0,
     chunk_rows: int = 1_000_000,
+    max_rows: int | None = None,
 ) -> Iterator[tuple[NDArray[np.float64], NDArray[np.int64], int]]:
     """:func:`read_lane_samples` in chunks of ``chunk_rows`` rows (file order).
 
@@ -614,11 +739,14 @@ def iter_lane_samples(
     order = np.argsort(traj_frame)
     sorted_frames = traj_frame[order]
     row0 = 0
-    for df in iter_table(path, what, chunk_rows=chunk_rows):
+    for df in iter_table(path, what, chunk_rows=chunk_rows, max_rows=max_rows):
         require_columns(df.columns, ("x", "y"), path, what)
         ex = float_column(df["x"], path, "x", first_row=row0)
         ey = float_column(df["y"], path, "y", first_row=row0)
         ez = float_column(df["z"], path, "z", first_row=row0) if "z" in df else None
+        check_coordinates(
+            np.column_stack([ex, ey] if ez is None else [ex, ey, ez]), path, first_row=row0
+        )
         if "frame" in df:
             frame = int_column(df["frame"], path, "frame", first_row=row0)
             pos = np.searchsorted(sorted_frames, frame)
@@ -706,15 +834,25 @@ def _stream(
     advance: Callable[[float], object],
 ) -> int:
     """Feed chunks ``(xyz, group, payload, first_row)`` into ``acc``; returns the number of
-    points dropped beyond ``max_point_distance_m`` (warned about, or refused if all)."""
+    points dropped beyond ``max_point_distance_m`` (warned about, or refused if all).
+
+    The kept points must also spread along the run (at least ``min_driven_m``, or the
+    whole run if it is shorter): points that all sit at one spot are no road edge.
+    """
     limit = cfg.max_point_distance_m
     total = dropped = 0
     first_far: int | None = None
+    lo = np.full(2, np.inf)
+    hi = np.full(2, -np.inf)
     for xyz, group, payload, first_row in chunks:
         near = acc.add(xyz, group, payload)
         n_far = int(near.size - np.count_nonzero(near))
         if n_far and first_far is None:
             first_far = first_row + int(np.argmin(near))
+        if n_far < near.size:
+            kept = xyz[near, :2] if n_far else xyz[:, :2]
+            lo = np.minimum(lo, kept.min(axis=0))
+            hi = np.maximum(hi, kept.max(axis=0))
         dropped += n_far
         total += near.size
         advance(near.size)
@@ -722,6 +860,14 @@ def _stream(
         msg = (
             f"{path}: all {dropped} {what} are farther than {limit:g} m from the trajectory "
             "(expected points in the mapping frame of run.toml; wrong CRS or units?)"
+        )
+        raise InputError(msg)
+    span = float(np.hypot(*(hi - lo))) if total else 0.0
+    needed = min(cfg.min_driven_m, 0.5 * acc.line.length)
+    if span < needed:
+        msg = (
+            f"{path}: the {what} span only {span:.1f} m, along a {acc.line.length:.0f} m "
+            f"trajectory (all at one spot?); expected {what} along the run"
         )
         raise InputError(msg)
     if dropped:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Literal
 
@@ -59,6 +59,9 @@ class CubicProfile:
     """
 
     pieces: tuple[CubicPiece, ...] = ()
+
+    def __repr__(self) -> str:
+        return f"CubicProfile({len(self.pieces)} pieces)"
 
     @staticmethod
     def constant(value: float, s0: float = 0.0) -> CubicProfile:
@@ -336,6 +339,12 @@ class Lane:
     successor: int | None = None
     level: bool = False
 
+    def __repr__(self) -> str:
+        return (
+            f"Lane({self.id}, {self.type!r}, width={self.width!r}, "
+            f"predecessor={self.predecessor}, successor={self.successor})"
+        )
+
 
 @dataclass(frozen=True)
 class LaneSection:
@@ -350,6 +359,10 @@ class LaneSection:
     center: Lane = field(default_factory=lambda: Lane(0, "none"))
     right: tuple[Lane, ...] = ()
     single_side: bool = False
+
+    def __repr__(self) -> str:
+        ids = [lane.id for lane in self.lanes if lane.id != 0]
+        return f"LaneSection(s0={self.s0:.3f}, lanes={ids})"
 
     @property
     def lanes(self) -> tuple[Lane, ...]:
@@ -410,6 +423,22 @@ class Road:
     junction: str = "-1"
     road_type: str = "motorway"
     speed_limit_mps: float | None = None
+    osm_way_ids: tuple[int, ...] = ()
+    """OSM ways the road was built from (ramps; empty for roads from the LiDAR run).
+    Written to the map as ``<userData code="roadtwin:osm_way_ids">``."""
+
+    def __repr__(self) -> str:
+        links = [
+            f"{which}={link.element_type}:{link.element_id}"
+            for which, link in (("predecessor", self.predecessor), ("successor", self.successor))
+            if link is not None
+        ]
+        extra = "".join(", " + x for x in links)
+        return (
+            f"Road({self.id!r}, name={self.name!r}, length={self.length:.3f} m, "
+            f"{len(self.geometry)} pieces, {len(self.lane_sections)} lane sections, "
+            f"junction={self.junction!r}{extra})"
+        )
 
     @property
     def length(self) -> float:
@@ -510,13 +539,18 @@ class Road:
         s = np.linspace(0.0, self.length, n)
         return s, cKDTree(self.xy(s))
 
-    def project(self, points: ArrayLike, *, iterations: int = 4) -> tuple[FloatArray, FloatArray]:
+    def project(
+        self, points: ArrayLike, *, iterations: int = 4, s_init: ArrayLike | None = None
+    ) -> tuple[FloatArray, FloatArray]:
         """Frenet projection of mapping-frame points onto the reference line.
 
         Parameters
         ----------
         points
             ``(N, 2)`` or ``(N, 3)`` array (only x, y are used), mapping frame, metres.
+        s_init
+            Optional ``(N,)`` first guesses of the stations (metres) instead of the
+            nearest sampled point, for a road that comes back near itself (a loop).
 
         Returns
         -------
@@ -525,9 +559,12 @@ class Road:
             metres. Points beyond the ends get the offset at the end station.
         """
         pts = np.asarray(points, dtype=float)[:, :2]
-        s_tab, tree = self._projection_index
-        _, nearest = tree.query(pts)
-        s = s_tab[nearest]
+        if s_init is None:
+            s_tab, tree = self._projection_index
+            _, nearest = tree.query(pts)
+            s = s_tab[nearest]
+        else:
+            s = np.clip(np.asarray(s_init, dtype=float), 0.0, self.length)
         for _ in range(iterations):  # Newton steps on d/ds |P - C(s)|^2 = 0
             x, y, h, k = self.evaluate(s)
             dx, dy = pts[:, 0] - x, pts[:, 1] - y
@@ -574,6 +611,9 @@ class Junction:
     name: str = ""
     type: Literal["default", "direct"] = "default"
 
+    def __repr__(self) -> str:
+        return f"Junction({self.id!r}, {self.type!r}, {len(self.connections)} connections)"
+
 
 @dataclass(frozen=True)
 class Header:
@@ -582,7 +622,11 @@ class Header:
     ``geo_reference`` is the PROJ string of the mapping frame (no ``+no_defs``);
     ``offset`` an optional ``(x, y, z, hdg)`` of the OpenDRIVE ``<offset>`` element;
     ``data_quality`` optional absolute/relative errors in metres
-    (``{"xy_absolute": .., "z_absolute": .., "xy_relative": .., "z_relative": ..}``).
+    (``{"xy_absolute": .., "z_absolute": .., "xy_relative": .., "z_relative": ..}``) of the
+    measurement data, as OpenDRIVE's ``<dataQuality><error>`` defines them (absolute error,
+    and relative error between adjacent entries; not a fit residual);
+    ``user_data`` ``(code, value)`` pairs written as ``<userData>`` (generator, version,
+    method, measured self-consistency).
     """
 
     name: str = "roadtwin"
@@ -593,6 +637,7 @@ class Header:
     vendor: str = "roadtwin"
     date: str = ""
     data_quality: dict[str, float] | None = None
+    user_data: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -602,6 +647,13 @@ class RoadNetwork:
     header: Header
     roads: tuple[Road, ...]
     junctions: tuple[Junction, ...] = ()
+
+    def __repr__(self) -> str:
+        km = sum(r.length for r in self.roads) / 1000.0
+        return (
+            f"RoadNetwork({self.header.name!r}, {len(self.roads)} roads, "
+            f"{len(self.junctions)} junctions, {km:.3f} km)"
+        )
 
     @cached_property
     def id_to_road(self) -> dict[str, Road]:
@@ -625,8 +677,6 @@ class RoadNetwork:
 
 def chain_geometry(pieces: Sequence[Geometry]) -> tuple[Geometry, ...]:
     """Re-number ``s0`` of consecutive pieces so each starts where the previous ends."""
-    from dataclasses import replace
-
     out: list[Geometry] = []
     s = 0.0
     for piece in pieces:
@@ -649,3 +699,21 @@ def constant_lane(
         CubicProfile.constant(width_m),
         (RoadMark(0.0, mark),),
     )
+
+
+def continue_width(lane: Lane, w_start: float) -> Lane:
+    """``lane`` with its first width piece corrected to start at ``w_start`` (metres); the
+    correction fades out linearly over that piece (a lane that continues across a section
+    boundary or a link keeps its width there: fits of neighbouring sections differ by
+    millimetres)."""
+    pieces = lane.width.pieces
+    if not pieces:
+        return lane
+    p0 = pieces[0]
+    delta = w_start - p0.a
+    if abs(delta) < 1e-7:
+        return lane
+    span = (pieces[1].s0 if len(pieces) > 1 else p0.s0 + 1e9) - p0.s0
+    slope = -delta / span if len(pieces) > 1 else 0.0
+    first = replace(p0, a=p0.a + delta, b=p0.b + slope)
+    return replace(lane, width=replace(lane.width, pieces=(first, *pieces[1:])))

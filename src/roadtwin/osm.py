@@ -41,15 +41,11 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 from shapely.geometry import LineString
 
-from ._errors import InputError, InputWarning
+from ._errors import InputError, InputWarning, reason
 from .config import LoadConfig
 from .frames import MappingFrame
 
 log = logging.getLogger(__name__)
-
-
-def _one_line(exc: BaseException) -> str:
-    return " ".join(str(exc).split())
 
 
 WAY_TAGS = (
@@ -144,6 +140,7 @@ def load_osm(
     x, y = frame.from_lonlat(ways.lon, ways.lat)
     keep_way = _ways_near(np.column_stack([x, y]), ways.way_index, len(ways.ids), around_xy, cfg)
     if not keep_way.any():
+        _check_swapped_origin(path, ways, frame)
         return _no_ways(
             path,
             frame,
@@ -201,7 +198,7 @@ def load_osm_online(
                 truncate_by_edge=True,
             )
         except Exception as exc:  # osmnx raises InsufficientResponseError, HTTP errors
-            msg = f"OSM online query around the trajectory failed: {_one_line(exc)}"
+            msg = f"OSM online query around the trajectory failed: {reason(exc)}"
             raise InputError(msg) from None
         # Overpass data has lost whether motorway oneway was implied: drop reverse copies
         drop = [
@@ -281,8 +278,8 @@ def _read_highway_ways(path: Path, *, extra_tags: tuple[str, ...] = ()) -> _Ways
             refs.append(r)
             lons.append(lo)
             lats.append(la)
-    except RuntimeError as exc:
-        msg = f"{path}: not a readable OSM file ({_one_line(exc)})"
+    except (RuntimeError, ValueError, OSError, osmium.InvalidLocationError) as exc:
+        msg = f"{path}: not a readable OSM file ({reason(exc)})"
         raise InputError(msg) from None
     if out.ids:
         sizes = np.fromiter((len(r) for r in refs), np.int64, len(refs))
@@ -298,9 +295,41 @@ def _is_empty(path: Path) -> bool:
 
     try:
         return next(iter(osmium.FileProcessor(str(path))), None) is None
-    except RuntimeError as exc:
-        msg = f"{path}: not a readable OSM file ({_one_line(exc)})"
+    except (RuntimeError, ValueError, OSError) as exc:
+        msg = f"{path}: not a readable OSM file ({reason(exc)})"
         raise InputError(msg) from None
+
+
+def _km_between(lat1: float, lon1: float, lat2, lon2):
+    """Great-circle distance (km) on a sphere of the earth's mean radius."""
+    p1, p2 = np.radians(lat1), np.radians(lat2)
+    dlat, dlon = p2 - p1, np.radians(np.asarray(lon2) - lon1)
+    h = np.sin(dlat / 2) ** 2 + np.cos(p1) * np.cos(p2) * np.sin(dlon / 2) ** 2
+    return 2.0 * 6371.0 * np.arcsin(np.sqrt(np.clip(h, 0.0, 1.0)))
+
+
+_SWAP_NEAR_KM = 50.0
+
+
+def _check_swapped_origin(path: Path, ways: _Ways, frame: MappingFrame) -> None:
+    """Refuse a run whose OSM data lie where the origin would be with lat and lon swapped.
+
+    Only for the ``local`` frame, where the origin places the whole run: a swapped origin
+    moves the run to another continent, and the map would be built there without an error.
+    """
+    o = frame.origin
+    if frame.crs != "local" or abs(o.lon_deg) > 90.0:
+        return
+    lat_c, lon_c = float(np.median(ways.lat)), float(np.median(ways.lon))
+    here = float(_km_between(o.lat_deg, o.lon_deg, lat_c, lon_c))
+    swapped = float(_km_between(o.lon_deg, o.lat_deg, lat_c, lon_c))
+    if here > _SWAP_NEAR_KM and swapped < _SWAP_NEAR_KM:
+        msg = (
+            f"{path}: the OSM data lie {here:.0f} km from the run's origin (lat "
+            f"{o.lat_deg:g}, lon {o.lon_deg:g}) but {swapped:.0f} km from lat {o.lon_deg:g}, "
+            f"lon {o.lat_deg:g}: are [origin] lat and lon swapped in run.toml?"
+        )
+        raise InputError(msg)
 
 
 def _ways_near(

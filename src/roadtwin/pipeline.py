@@ -12,12 +12,14 @@ import time
 from dataclasses import dataclass, field, replace
 
 import networkx as nx
+from threadpoolctl import threadpool_limits
 
+from . import __version__
 from .config import PipelineConfig
-from .evaluation import data_quality
+from .evaluation import self_consistency
 from .io import MappingRun, reduce_run
 from .mainline import Mainline, build_mainline
-from .model import Header, RoadNetwork
+from .model import Header, Road, RoadNetwork
 from .progress import progress
 from .ramps import Ramp, RampSet, build_ramps, gores_from_lane_events
 from .topology import Topology, build_topology
@@ -67,6 +69,18 @@ class BuildResult:
         }
 
 
+def _with_osm_way_ids(topology: Topology) -> tuple[Road, ...]:
+    """The topology's roads, each ramp road carrying the OSM way ids it was built from."""
+    ways = {
+        rid: tuple(int(w) for w in ramp.osm_way_ids)
+        for rid, ramp in zip(topology.ramp_road_ids, topology.ramps, strict=True)
+    }
+    return tuple(
+        replace(road, osm_way_ids=ways[road.id]) if road.id in ways else road
+        for road in topology.roads
+    )
+
+
 def build_map(
     run: MappingRun,
     osm_graph: nx.MultiDiGraph | None,
@@ -91,7 +105,14 @@ def build_map(
         The network (header with the run's geoReference, OpenDRIVE 1.8) and every stage's
         result. A ramp that cannot be built or integrated is skipped with a warning.
     """
-    cfg = config or PipelineConfig()
+    # the stages solve many small dense problems: BLAS threads only contend for the cores
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _build_map(run, osm_graph, config or PipelineConfig())
+
+
+def _build_map(
+    run: MappingRun, osm_graph: nx.MultiDiGraph | None, cfg: PipelineConfig
+) -> BuildResult:
     timings: dict[str, float] = {}
     warnings: list[str] = []
 
@@ -135,21 +156,44 @@ def build_map(
     warnings.extend(f"skipped {what}: {why}" for what, why in topology.skipped)
     timings["topology"] = time.perf_counter() - t0
 
+    roads = _with_osm_way_ids(topology)
     header = Header(
         name=run.root.name if run.root is not None else "roadtwin",
         rev_major=1,
         rev_minor=8,
         geo_reference=run.frame.geo_reference,
+        # local frame: z is metres above the origin's altitude; <offset z> restores it
+        offset=(0.0, 0.0, run.frame.z_offset_m, 0.0) if run.frame.z_offset_m else None,
     )
-    network = RoadNetwork(header, topology.roads, topology.junctions)
+    network = RoadNetwork(header, roads, topology.junctions)
 
-    # The map carries its own accuracy: the paper's self-consistency RMSE as the relative
-    # error of <dataQuality>. Absolute errors need the run's GNSS accuracy, which the run
-    # folder does not state, so they stay NaN.
+    # The self-consistency RMSE is how far the run's own points lie from the map: a fit
+    # residual, not the "error range of the measurement data" (absolute, or relative
+    # between adjacent entries) that OpenDRIVE's <dataQuality><error> records, so it goes
+    # into <userData>; <dataQuality> stays empty until a run states its GNSS accuracy.
     t0 = time.perf_counter()
     with progress("self-consistency"):
-        quality = data_quality(network, run, config=cfg.evaluation)
-    network = replace(network, header=replace(header, data_quality=quality))
+        sc = self_consistency(network, run, config=cfg.evaluation)
+    user_data = [
+        ("roadtwin:generator", f"roadtwin {__version__}"),
+        ("roadtwin:method", cfg.mainline.method),
+        ("roadtwin:junctions", cfg.topology.junctions),
+        (
+            "roadtwin:self_consistency_rmse_m",
+            " ".join(
+                f"{key}={sc[key + '_rmse_m']:.4f}"
+                for key in ("road_edge", "lane_boundary", "overall", "height")
+            ),
+        ),
+    ]
+    if any(r.osm_way_ids for r in roads):
+        user_data.append(
+            (
+                "roadtwin:attribution",
+                "ramps from OpenStreetMap: (c) OpenStreetMap contributors, ODbL 1.0",
+            )
+        )
+    network = replace(network, header=replace(header, user_data=tuple(user_data)))
     timings["self-consistency"] = time.perf_counter() - t0
     log.info(
         "built %d roads, %d junctions (%d ramps) in %.2f s",

@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ._files import atomic_write_bytes
+
 if TYPE_CHECKING:
     import networkx as nx
+    from matplotlib.figure import Figure
 
     from .io import MappingRun
 
@@ -33,12 +34,12 @@ _OTHER_COLOR = "#b0b0b0"
 def plot_overview(
     run: MappingRun,
     osm_graph: nx.MultiDiGraph | None,
-    path: str | Path,
+    path: str | Path | None = None,
     *,
     max_points: int = 200_000,
     seed: int = 0,
-) -> Path:
-    """Write an overview PNG of a run in the mapping frame (atomically).
+) -> Figure:
+    """Overview figure of a run in the mapping frame; written as PNG when ``path`` is given.
 
     Parameters
     ----------
@@ -47,7 +48,7 @@ def plot_overview(
     osm_graph
         Projected OSM graph from :func:`roadtwin.osm.load_osm`, or None.
     path
-        PNG file to write; written to a temporary file first, then renamed.
+        PNG file to write (atomically), or None to write nothing.
     max_points
         Road-edge points and lane samples are randomly subsampled (seeded) to at most this.
     seed
@@ -55,14 +56,13 @@ def plot_overview(
 
     Returns
     -------
-    Path
-        The written PNG.
+    matplotlib.figure.Figure
+        The figure (object API, Agg canvas, no pyplot state).
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.collections import LineCollection
     from matplotlib.figure import Figure
 
-    path = Path(path)
     rng = np.random.default_rng(seed)
     summary = run.summary()
     xmin, ymin, xmax, ymax = summary.bbox_m
@@ -139,19 +139,11 @@ def plot_overview(
         framealpha=0.85,
     )
     fig.subplots_adjust(left=0.1, right=0.97, bottom=0.07, top=0.92)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", metadata={"Software": None})
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a PNG is an ordinary file
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    if path is not None:
+        from .export import figure_png
+
+        atomic_write_bytes(path, figure_png(fig))
+    return fig
 
 
 def _emptiest_corner(xy: np.ndarray, bbox: tuple[float, float, float, float]) -> str:

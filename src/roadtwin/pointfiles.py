@@ -3,7 +3,7 @@
 Vectorised readers for the road-edge formats of DESIGN.md section 3 -- LAS/LAZ (laspy with
 lazrs), PLY (ascii and binary, own header parser + ``np.fromfile``), CSV, NPY and Parquet
 (pyarrow) -- and the column checks shared with :mod:`roadtwin.io`. Point files and CSV tables
-can be read in chunks (:func:`iter_road_edges`, :func:`iter_table`) so that a run of tens of
+are read in chunks (:func:`iter_road_edges`, :func:`iter_table`) so that a run of tens of
 millions of points never sits in memory at once; the checks are the same. Every problem raises
 :class:`~roadtwin._errors.InputError` naming the file, the data row (1 = first row after the
 header) or field, and what was expected.
@@ -25,7 +25,32 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ._errors import InputError, InputWarning
+from ._errors import InputError, InputWarning, one_line, reason
+
+__all__ = [
+    "DEFAULT_CHUNK_POINTS",
+    "EDGE_SUFFIXES",
+    "MAX_COORDINATE_M",
+    "SIDE_LEFT",
+    "SIDE_RIGHT",
+    "EdgeChunk",
+    "check_coordinates",
+    "count_road_edges",
+    "float_column",
+    "int_column",
+    "iter_road_edges",
+    "iter_table",
+    "one_line",
+    "read_road_edges",
+    "read_table",
+    "require_columns",
+    "stack_columns",
+]
+
+MAX_COORDINATE_M = 1.0e8
+"""Largest absolute coordinate (metres) of any point or pose. No place on earth lies farther
+than ~2e7 m from a projected CRS's origin; beyond this the data are corrupt or not metres
+(and squares of such numbers overflow)."""
 
 EDGE_SUFFIXES = (".las", ".laz", ".ply", ".csv", ".npy", ".parquet")
 SIDE_LEFT = 1
@@ -34,17 +59,12 @@ SIDE_RIGHT = -1
 """Edge side code of a right road-edge point."""
 
 
-def one_line(exc: BaseException | str) -> str:
-    """An exception's text on one line (CLI errors are one line)."""
-    return " ".join(str(exc).split())
-
-
 # ---------------------------------------------------------------------------
 # tables (CSV / Parquet) -> validated float columns
 # ---------------------------------------------------------------------------
 
 
-def read_table(path: Path, what: str) -> pd.DataFrame:
+def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.DataFrame:
     """Read a CSV file with a header row.
 
     Parameters
@@ -53,6 +73,8 @@ def read_table(path: Path, what: str) -> pd.DataFrame:
         CSV file (comma separated, UTF-8 with or without BOM).
     what
         What the file should hold, for error messages (``"columns x,y,z[,side]"``).
+    max_rows
+        Refuse files with more data rows (``None``: no limit).
 
     Returns
     -------
@@ -62,62 +84,118 @@ def read_table(path: Path, what: str) -> pd.DataFrame:
     if path.stat().st_size == 0:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg)
+    nul = _first_nul(path)
+    if nul is not None:  # pandas would silently cut the field at the NUL
+        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
+        raise InputError(msg)
     try:
-        df = pd.read_csv(path, skipinitialspace=True, low_memory=False, encoding="utf-8-sig")
+        df = pd.read_csv(
+            path,
+            skipinitialspace=True,
+            low_memory=False,
+            encoding="utf-8-sig",
+            nrows=None if max_rows is None else max_rows + 1,
+        )
     except pd.errors.EmptyDataError:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg) from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        msg = f"{path}: not a readable CSV file ({one_line(exc)}); expected {what}"
+    except UnicodeDecodeError:
+        msg = f"{path}: not a UTF-8 text file; expected a CSV table with {what}"
+        raise InputError(msg) from None
+    except (pd.errors.ParserError, ValueError) as exc:
+        msg = f"{path}: not a readable CSV file ({reason(exc)}); expected {what}"
         raise InputError(msg) from None
     df.columns = [str(c).strip().lower() for c in df.columns]
     if df.shape[0] == 0:
         msg = f"{path}: file has a header but no data rows (expected {what})"
         raise InputError(msg)
+    if max_rows is not None and df.shape[0] > max_rows:
+        msg = (
+            f"{path}: more than {max_rows:,} data rows; larger files are refused "
+            "([load] max_poses / max_points): thin or split them"
+        )
+        raise InputError(msg)
     return df
 
 
-def iter_table(path: Path, what: str, *, chunk_rows: int) -> Iterator[pd.DataFrame]:
-    """Read a CSV file with a header row in chunks of ``chunk_rows`` rows.
+def _first_nul(path: Path, chunk: int = 1 << 22) -> int | None:
+    """Byte offset of the first NUL byte in a file, or None (read in 4 MiB chunks)."""
+    offset = 0
+    with path.open("rb") as fh:
+        while block := fh.read(chunk):
+            at = block.find(b"\0")
+            if at >= 0:
+                return offset + at
+            offset += len(block)
+    return None
 
-    Same checks and messages as :func:`read_table` (empty file, header without rows, not a
-    CSV); column names stripped and lower-cased in every chunk. Yields at least one chunk.
+
+def iter_table(
+    path: Path, what: str, *, chunk_rows: int, max_rows: int | None = None
+) -> Iterator[pd.DataFrame]:
+    """:func:`read_table` in chunks of ``chunk_rows`` rows (file order).
+
+    Same checks and messages (empty file, NUL bytes, not UTF-8, not a CSV, header without
+    rows, more than ``max_rows`` data rows); column names stripped and lower-cased in every
+    chunk. Yields at least one chunk.
     """
     if path.stat().st_size == 0:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg)
+    nul = _first_nul(path)
+    if nul is not None:  # pandas would silently cut the field at the NUL
+        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
+        raise InputError(msg)
+    rows = 0
     try:
         reader = pd.read_csv(
             path, skipinitialspace=True, encoding="utf-8-sig", chunksize=max(1, chunk_rows)
         )
-        first = True
         with reader:
             for df in reader:
                 df.columns = [str(c).strip().lower() for c in df.columns]
-                if first and df.shape[0] == 0:
+                if rows == 0 and df.shape[0] == 0:
                     break
-                first = False
+                rows += df.shape[0]
+                if max_rows is not None and rows > max_rows:
+                    msg = (
+                        f"{path}: more than {max_rows:,} data rows; larger files are refused "
+                        "([load] max_poses / max_points): thin or split them"
+                    )
+                    raise InputError(msg)
                 yield df
     except pd.errors.EmptyDataError:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg) from None
-    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
-        msg = f"{path}: not a readable CSV file ({one_line(exc)}); expected {what}"
+    except UnicodeDecodeError:
+        msg = f"{path}: not a UTF-8 text file; expected a CSV table with {what}"
         raise InputError(msg) from None
-    if first:
+    except (pd.errors.ParserError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        msg = f"{path}: not a readable CSV file ({reason(exc)}); expected {what}"
+        raise InputError(msg) from None
+    if rows == 0:
         msg = f"{path}: file has a header but no data rows (expected {what})"
         raise InputError(msg)
 
 
+def _column_names(columns: Iterable[str]) -> str:
+    """The found column names when they look like names; never other file content."""
+    names = [str(c) for c in columns]
+    plain = all(len(n) <= 32 and n.replace("_", "").replace(" ", "").isalnum() for n in names)
+    if plain and len(names) <= 20:
+        return "found: " + ", ".join(names)
+    return f"found {len(names)} column(s) that are not such names"
+
+
 def require_columns(columns: Iterable[str], needed: Iterable[str], path: Path, what: str) -> None:
     """Raise an InputError naming the first of ``needed`` missing from ``columns``."""
+    columns = list(columns)
     have = set(columns)
     for name in needed:
         if name not in have:
-            msg = (
-                f"{path}: missing column '{name}' (expected {what}; "
-                f"found: {', '.join(map(str, columns))})"
-            )
+            msg = f"{path}: missing column '{name}' (expected {what}; {_column_names(columns)})"
             raise InputError(msg)
 
 
@@ -132,9 +210,10 @@ def float_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> N
         bad_text = np.isnan(arr) & series.notna().to_numpy()
         if bad_text.any():
             row = int(np.argmax(bad_text))
+            count = int(np.count_nonzero(bad_text))
             msg = (
-                f"{path}: data row {first_row + row + 1}, column '{name}': {series.iloc[row]!r} "
-                "is not a number"
+                f"{path}: data row {first_row + row + 1}, column '{name}': not a number "
+                f"({count} such value(s) in this column; expected numbers)"
             )
             raise InputError(msg)
     finite = np.isfinite(arr)
@@ -147,6 +226,22 @@ def float_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> N
         )
         raise InputError(msg)
     return arr
+
+
+def check_coordinates(xyz: NDArray[np.float64], path: Path, *, first_row: int = 0) -> None:
+    """Refuse coordinates beyond :data:`MAX_COORDINATE_M` (corrupt, or not metres);
+    ``first_row``: data row of ``xyz[0]`` (0-based, for chunks)."""
+    if xyz.size == 0:
+        return
+    big = np.abs(xyz) > MAX_COORDINATE_M
+    if big.any():
+        row, col = np.unravel_index(int(np.argmax(big)), big.shape)
+        msg = (
+            f"{path}: data row {first_row + row + 1}: coordinate {xyz[row, col]:.3g} is beyond "
+            f"{MAX_COORDINATE_M:.0e} m ({int(big.any(axis=1).sum())} row(s)); expected "
+            "metres in the mapping frame"
+        )
+        raise InputError(msg)
 
 
 def int_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> NDArray[np.int64]:
@@ -188,7 +283,9 @@ DEFAULT_CHUNK_POINTS = 1_000_000
 """Points per chunk of :func:`iter_road_edges` (about 40 MB of working memory)."""
 
 
-def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
+def read_road_edges(
+    path: str | Path, *, max_points: int | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
     """Read all road-edge points of a LAS/LAZ, PLY, CSV, NPY or Parquet file.
 
     Parameters
@@ -197,13 +294,16 @@ def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.i
         Point file; ``x, y, z`` in the mapping frame (metres), optional ``side``
         (strings ``left``/``right``, or integers 1 = left, 2 = right, 0 = unknown;
         -1 is accepted for right).
+    max_points
+        Refuse files with more points (``None``: no limit); LAS/LAZ, PLY, NPY and Parquet
+        are refused from their headers, before the points are read.
 
     Returns
     -------
     edges : (N, 3) float64 points, mapping frame, metres.
     edge_side : (N,) int8, +1 left, -1 right, 0 unknown.
     """
-    chunks = list(iter_road_edges(path))
+    chunks = list(iter_road_edges(path, max_points=max_points))
     return (
         np.vstack([c.xyz for c in chunks]),
         np.concatenate([c.side for c in chunks]),
@@ -211,7 +311,7 @@ def read_road_edges(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.i
 
 
 def iter_road_edges(
-    path: str | Path, *, chunk_points: int = DEFAULT_CHUNK_POINTS
+    path: str | Path, *, chunk_points: int = DEFAULT_CHUNK_POINTS, max_points: int | None = None
 ) -> Iterator[EdgeChunk]:
     """Read road-edge points in chunks of at most ``chunk_points`` (file order).
 
@@ -226,25 +326,27 @@ def iter_road_edges(
         msg = f"{path}: file is empty (expected road-edge points x,y,z)"
         raise InputError(msg)
     n = max(1, int(chunk_points))
+    limit = max_points if max_points is not None else np.iinfo(np.int64).max
     if name.endswith((".las", ".laz")):
-        parts = _las_chunks(path, n)
+        parts = _las_chunks(path, n, limit)
     elif name.endswith(".ply"):
-        parts = _ply_chunks(path, n)
+        parts = _ply_chunks(path, n, limit)
     elif name.endswith(".csv"):
-        parts = _csv_chunks(path, n)
+        parts = _csv_chunks(path, n, max_points)
     elif name.endswith(".npy"):
-        parts = _npy_chunks(path, n)
+        parts = _npy_chunks(path, n, limit)
     elif name.endswith(".parquet"):
-        parts = _parquet_chunks(path, n)
+        parts = _parquet_chunks(path, n, limit)
     else:
         msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
         raise InputError(msg)
     row = 0
     for cols, side in parts:
         xyz = stack_columns([float_column(cols[c], path, c, first_row=row) for c in "xyz"])
-        codes = _side_codes(side, path, xyz.shape[0], first_row=row)
         if xyz.shape[0] == 0:
             continue
+        check_coordinates(xyz, path, first_row=row)
+        codes = _side_codes(side, path, xyz.shape[0], first_row=row)
         yield EdgeChunk(xyz, codes, row)
         row += xyz.shape[0]
     if row == 0:
@@ -323,15 +425,25 @@ def _side_codes(side: Any, path: Path, n: int, *, first_row: int = 0) -> NDArray
     return out
 
 
-def _las_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
+def _too_many(path: Path, count: int, limit: int) -> None:
+    if count > limit:
+        msg = (
+            f"{path}: {count:,} points; files with more than {limit:,} are refused "
+            "([load] max_points): thin or split them"
+        )
+        raise InputError(msg)
+
+
+def _las_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
     import laspy
 
     try:
         reader = laspy.open(path)
     except Exception as exc:  # laspy raises many kinds on corrupt files
-        msg = f"{path}: not a readable LAS/LAZ file ({one_line(exc)})"
+        msg = f"{path}: not a readable LAS/LAZ file ({reason(exc)})"
         raise InputError(msg) from None
     with reader:
+        _too_many(path, int(reader.header.point_count), limit)
         names = {d.lower(): d for d in reader.header.point_format.dimension_names}
         side_name = names.get("side")
         chunks = reader.chunk_iterator(n)
@@ -341,25 +453,30 @@ def _las_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
             except StopIteration:
                 break
             except Exception as exc:
-                msg = f"{path}: not a readable LAS/LAZ file ({one_line(exc)})"
+                msg = f"{path}: not a readable LAS/LAZ file ({reason(exc)})"
                 raise InputError(msg) from None
             cols = {"x": np.asarray(points.x), "y": np.asarray(points.y), "z": np.asarray(points.z)}
             yield cols, (np.asarray(points[side_name]) if side_name else None)
 
 
-def _csv_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
+def _csv_chunks(path: Path, n: int, limit: int | None) -> Iterator[tuple[dict[str, Any], Any]]:
     what = "columns x,y,z[,side]"
-    for df in iter_table(path, what, chunk_rows=n):
+    for df in iter_table(path, what, chunk_rows=n, max_rows=limit):
         require_columns(df.columns, "xyz", path, what)
         yield {c: df[c] for c in "xyz"}, df.get("side")
 
 
-def _npy_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
-    try:
-        arr = np.load(path, mmap_mode="r", allow_pickle=False)
-    except (ValueError, OSError) as exc:
-        msg = f"{path}: not a readable .npy array ({one_line(exc)})"
+def _npy_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
+    try:  # memory-mapped: the header's shape is checked against the file's size
+        arr = np.load(path, allow_pickle=False, mmap_mode="r")
+    except (ValueError, OSError, EOFError) as exc:
+        msg = f"{path}: not a readable .npy array ({reason(exc)})"
         raise InputError(msg) from None
+    if arr.ndim >= 1:
+        _too_many(path, int(arr.shape[0]), limit)
+    if arr.dtype.kind not in "fiub" and not arr.dtype.names:
+        msg = f"{path}: array of dtype {arr.dtype}; expected numbers (x,y,z[,side])"
+        raise InputError(msg)
     if arr.dtype.names:
         names = {name.lower(): name for name in arr.dtype.names}
         require_columns(names, "xyz", path, "fields x,y,z[,side]")
@@ -388,15 +505,17 @@ def _npy_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
         yield {c: part[:, k] for k, c in enumerate("xyz")}, (part[:, 3] if with_side else None)
 
 
-def _parquet_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
+def _parquet_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
     import pyarrow.parquet as pq
 
     try:
         file = pq.ParquetFile(path)
         schema = file.schema_arrow
+        rows = int(file.metadata.num_rows)
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
-        msg = f"{path}: not a readable Parquet file ({one_line(exc)})"
+        msg = f"{path}: not a readable Parquet file ({reason(exc)})"
         raise InputError(msg) from None
+    _too_many(path, rows, limit)
     names = {name.lower(): name for name in schema.names}
     require_columns(names, "xyz", path, "columns x,y,z[,side]")
     wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
@@ -406,11 +525,15 @@ def _parquet_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
             batch = next(batches)
         except StopIteration:
             break
-        except Exception as exc:
-            msg = f"{path}: not a readable Parquet file ({one_line(exc)})"
+        except Exception as exc:  # corrupt pages surface only when the data is read
+            msg = f"{path}: Parquet data not readable ({reason(exc)})"
             raise InputError(msg) from None
-        cols = {c: batch.column(names[c]).to_numpy(zero_copy_only=False) for c in "xyz"}
-        side = batch.column(names["side"]).to_pandas() if "side" in names else None
+        try:
+            cols = {c: batch.column(names[c]).to_numpy(zero_copy_only=False) for c in "xyz"}
+            side = batch.column(names["side"]).to_pandas() if "side" in names else None
+        except Exception as exc:
+            msg = f"{path}: Parquet data not readable ({reason(exc)})"
+            raise InputError(msg) from None
         yield cols, side
 
 
@@ -465,6 +588,9 @@ def _ply_header(path: Path) -> _PlyHeader:
         if tok[0] == "format" and len(tok) >= 2:
             fmt = tok[1]
         elif tok[0] == "element" and len(tok) == 3:
+            if not tok[2].isdigit():
+                msg = f"{path}: PLY header: element count is not a number"
+                raise InputError(msg)
             elements.append((tok[1], int(tok[2]), []))
         elif tok[0] == "property" and elements:
             if tok[1] == "list":
@@ -472,7 +598,10 @@ def _ply_header(path: Path) -> _PlyHeader:
             elif len(tok) == 3 and tok[1] in _PLY_TYPES:
                 elements[-1][2].append((tok[2], _PLY_TYPES[tok[1]]))
             else:
-                msg = f"{path}: PLY header line {raw.strip()!r}: unknown property type"
+                msg = (
+                    f"{path}: PLY header: a property of unknown type "
+                    f"(expected {', '.join(_PLY_TYPES)})"
+                )
                 raise InputError(msg)
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         msg = f"{path}: PLY format {fmt!r}; expected ascii or binary_little/big_endian"
@@ -504,7 +633,7 @@ def _ply_header(path: Path) -> _PlyHeader:
     )
 
 
-def _ply_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
+def _ply_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
     """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
     hdr = _ply_header(path)
     count, props = hdr.count, hdr.props
@@ -516,6 +645,7 @@ def _ply_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
     if count == 0:
         msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
         raise InputError(msg)
+    _too_many(path, count, limit)
     if hdr.fmt == "ascii":
         seen = 0
         try:
@@ -535,7 +665,7 @@ def _ply_chunks(path: Path, n: int) -> Iterator[tuple[dict[str, Any], Any]]:
                     seen += df.shape[0]
                     yield {c: df[c] for c in "xyz"}, df.get("side")
         except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
-            msg = f"{path}: PLY ascii body not readable ({one_line(exc)})"
+            msg = f"{path}: PLY ascii body not readable ({reason(exc)})"
             raise InputError(msg) from None
         if seen != count:
             msg = f"{path}: PLY header says {count} vertices, body has {seen}"

@@ -11,9 +11,7 @@ import base64
 import html
 import json
 import logging
-import os
 import re
-import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +19,9 @@ import numpy as np
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
+from ._files import atomic_write_bytes
 from .evaluation import TABLE_TARGETS, EvaluationReport, PointErrors, RunEvaluation
+from .export import figure_png
 
 log = logging.getLogger(__name__)
 
@@ -29,27 +29,8 @@ MAX_PLOT_POINTS = 8000
 """Largest number of points drawn per series (evenly strided, deterministic)."""
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _stride(n: int, limit: int = MAX_PLOT_POINTS) -> slice:
     return slice(None, None, max(1, -(-n // limit)))
-
-
-def _fig_png(fig: Figure) -> bytes:
-    import io
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
-    return buf.getvalue()
 
 
 # ---------------------------------------------------------------------------
@@ -57,8 +38,8 @@ def _fig_png(fig: Figure) -> bytes:
 # ---------------------------------------------------------------------------
 
 
-def plot_map(run: RunEvaluation) -> bytes:
-    """Map plot (PNG bytes): built boundaries over the measurements coloured by |error|."""
+def plot_map(run: RunEvaluation) -> Figure:
+    """Map plot (figure): built boundaries over the measurements coloured by |error|."""
     panels = [("self", "Measurements vs map (self-consistency)")]
     if any(k.startswith("truth/") for k in run.details):
         panels.append(("truth", "Truth boundaries vs map"))
@@ -101,11 +82,11 @@ def plot_map(run: RunEvaluation) -> bytes:
         ax.set_title(f"{run.label}: {title}")
         ax.set_xlabel("x (m, mapping frame)")
         ax.set_ylabel("y (m)")
-    return _fig_png(fig)
+    return fig
 
 
-def plot_error_along_s(run: RunEvaluation) -> bytes:
-    """Signed lateral error along the mainline station for each boundary (PNG bytes)."""
+def plot_error_along_s(run: RunEvaluation) -> Figure:
+    """Signed lateral error along the mainline station for each boundary (figure)."""
     keys = [
         k
         for k in (
@@ -150,11 +131,11 @@ def plot_error_along_s(run: RunEvaluation) -> bytes:
     if not keys:
         axes[0].text(0.5, 0.5, "no evaluated points", ha="center", transform=axes[0].transAxes)
     axes[-1].set_xlabel("station along the mainline (m)")
-    return _fig_png(fig)
+    return fig
 
 
-def plot_histogram(run: RunEvaluation) -> bytes:
-    """Histograms of |lateral error|: self-consistency and (if any) against truth (PNG)."""
+def plot_histogram(run: RunEvaluation) -> Figure:
+    """Histograms of |lateral error|: self-consistency and (if any) against truth (figure)."""
     groups = [("self", "self-consistency")]
     if any(k.startswith("truth/") for k in run.details):
         groups.append(("truth", "against truth"))
@@ -176,7 +157,7 @@ def plot_histogram(run: RunEvaluation) -> bytes:
         ax.set_xlabel("|lateral error| (m)")
         ax.set_ylabel("points")
         ax.set_title(f"{run.label}: {title}")
-    return _fig_png(fig)
+    return fig
 
 
 PLOTS = (
@@ -484,15 +465,17 @@ def write_report(
         prefix = f"{i + 1:02d}_{_slug(run.label)}_" if multi else ""
         for stem, plot in PLOTS:
             name = f"{prefix}{stem}"
-            png = plot(run)
+            png = figure_png(plot(run), dpi=100)
             path = out / f"{name}.png"
-            _atomic_write(path, png)
+            atomic_write_bytes(path, png)
             paths[name] = path
             images[name] = png
     doc = report.to_dict()
     paths["json"] = out / "report.json"
-    _atomic_write(paths["json"], (json.dumps(doc, indent=2, sort_keys=True) + "\n").encode("utf-8"))
+    atomic_write_bytes(
+        paths["json"], (json.dumps(doc, indent=2, sort_keys=True) + "\n").encode("utf-8")
+    )
     paths["html"] = out / "report.html"
-    _atomic_write(paths["html"], render_html(report, images, drive=drive).encode("utf-8"))
+    atomic_write_bytes(paths["html"], render_html(report, images, drive=drive).encode("utf-8"))
     log.info("wrote evaluation report (%d run(s)) to %s", len(report.runs), out)
     return paths

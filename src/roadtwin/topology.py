@@ -49,6 +49,7 @@ from .model import (
     RoadMark,
     RoadNetwork,
     chain_geometry,
+    continue_width,
 )
 from .ramps import Ramp, hermite_piece
 
@@ -284,6 +285,27 @@ def _continuous(
     return out
 
 
+def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_start: bool) -> Road:
+    """``road`` whose first section's lanes linked from ``before``'s last section (``links``:
+    lane of ``before`` -> lane of ``road``) start with the widths those lanes end with, so
+    linked lane borders meet exactly (separately fitted sections differ by millimetres)."""
+    if not links or not at_start:
+        return road
+    last = before.lane_sections[-1]
+    span = before.length - last.s0
+    w_end = {ln.id: float(ln.width.value(np.array([span]))[0]) for ln in (*last.left, *last.right)}
+    target = {b: w_end[a] for a, b in links.items() if a in w_end}
+    first = road.lane_sections[0]
+
+    def fix(lane: Lane) -> Lane:
+        return continue_width(lane, target[lane.id]) if lane.id in target else lane
+
+    first = replace(
+        first, left=tuple(fix(x) for x in first.left), right=tuple(fix(x) for x in first.right)
+    )
+    return replace(road, lane_sections=(first, *road.lane_sections[1:]))
+
+
 def _pose(road: Road, s: float) -> tuple[float, float, float]:
     x, y, h, _ = road.evaluate(np.array([s]))
     return float(x[0]), float(y[0]), float(h[0])
@@ -407,6 +429,164 @@ def unlink_width_jumps(road: Road, *, max_jump_m: float = 0.01) -> Road:
         sections[k] = replace(a, left=new_sides["left"][0], right=new_sides["right"][0])
         sections[k + 1] = replace(b, left=new_sides["left"][1], right=new_sides["right"][1])
     return replace(road, lane_sections=tuple(sections)) if changed else road
+
+
+def _width_at(road: Road, section: int, lane_id: int, at_end: bool) -> float | None:
+    """Width (metres) of ``lane_id`` at the start or end of lane section ``section``."""
+    sec = road.lane_sections[section]
+    lane = next((ln for ln in (*sec.left, *sec.right) if ln.id == lane_id), None)
+    if lane is None:
+        return None
+    hi = (
+        road.lane_sections[section + 1].s0 if section + 1 < len(road.lane_sections) else road.length
+    )
+    return float(lane.width.value(np.array([hi - sec.s0 if at_end else 0.0]))[0])
+
+
+def prune_zero_width_links(
+    roads: Sequence[Road], junctions: Sequence[Junction], *, min_width_m: float = 0.01
+) -> tuple[tuple[Road, ...], tuple[Junction, ...]]:
+    """Remove every lane link at which one of the two lanes has (almost) zero width.
+
+    OpenDRIVE: a lane that appears or ends has no link at its zero-width end, and no lane
+    links to a lane of zero width (the ASAM rules ``zero_width_at_start/end`` and
+    ``new_lane_appear``). Links between lane sections of a road, between linked roads and
+    junction lane links are all checked at their contact; both sides of a link go together
+    so links stay mutual.
+    """
+    by_id = {r.id: r for r in roads}
+    drop: set[tuple[str, int, int, str, int]] = set()  # (road, section, lane, attr, target)
+
+    def narrow(road: Road, section: int, lane_id: int, at_end: bool) -> bool:
+        w = _width_at(road, section, lane_id, at_end)
+        return w is not None and w < min_width_m
+
+    def end_section(road: Road, contact: str | None) -> tuple[int, bool]:
+        return (0, False) if contact in (None, "start") else (len(road.lane_sections) - 1, True)
+
+    for road in roads:
+        secs = road.lane_sections
+        for k, sec in enumerate(secs):
+            for lane in (*sec.left, *sec.right):
+                if lane.successor is not None:
+                    if k + 1 < len(secs):
+                        if narrow(road, k, lane.id, True) or narrow(
+                            road, k + 1, lane.successor, False
+                        ):
+                            drop.add((road.id, k, lane.id, "succ", lane.successor))
+                            drop.add((road.id, k + 1, lane.successor, "pred", lane.id))
+                    elif road.successor is not None and road.successor.element_type == "road":
+                        other = by_id.get(road.successor.element_id)
+                        if other is not None:
+                            j, j_end = end_section(other, road.successor.contact_point)
+                            if narrow(road, k, lane.id, True) or narrow(
+                                other, j, lane.successor, j_end
+                            ):
+                                drop.add((road.id, k, lane.id, "succ", lane.successor))
+                if lane.predecessor is not None:
+                    if k > 0:
+                        if narrow(road, k, lane.id, False) or narrow(
+                            road, k - 1, lane.predecessor, True
+                        ):
+                            drop.add((road.id, k, lane.id, "pred", lane.predecessor))
+                            drop.add((road.id, k - 1, lane.predecessor, "succ", lane.id))
+                        continue
+                    link = road.predecessor
+                    if link is not None and link.element_type == "road":
+                        other = by_id.get(link.element_id)
+                        if other is not None:
+                            j, j_end = end_section(other, link.contact_point)
+                            if narrow(road, 0, lane.id, False) or narrow(
+                                other, j, lane.predecessor, j_end
+                            ):
+                                drop.add((road.id, 0, lane.id, "pred", lane.predecessor))
+    new_junctions = []
+    for junction in junctions:
+        conns = []
+        for conn in junction.connections:
+            inc, tgt = by_id.get(conn.incoming_road), by_id.get(conn.connecting_road)
+            if inc is None or tgt is None:
+                conns.append(conn)
+                continue
+            ends_here = inc.successor is not None and inc.successor.element_id == junction.id
+            i_sec, i_end = (len(inc.lane_sections) - 1, True) if ends_here else (0, False)
+            t_sec, t_end = end_section(tgt, conn.contact_point)
+            keep = tuple(
+                ll
+                for ll in conn.lane_links
+                if not (
+                    narrow(inc, i_sec, ll.from_lane, i_end) or narrow(tgt, t_sec, ll.to_lane, t_end)
+                )
+            )
+            conns.append(replace(conn, lane_links=keep) if keep != conn.lane_links else conn)
+        new_junctions.append(replace(junction, connections=tuple(conns)))
+
+    def prune(road: Road) -> Road:
+        secs = list(road.lane_sections)
+        changed = False
+        for k, sec in enumerate(secs):
+
+            def one(lane: Lane, k: int = k) -> Lane:
+                nonlocal changed
+                out = lane
+                if (road.id, k, lane.id, "succ", lane.successor) in drop or (
+                    lane.successor is not None
+                    and k == len(secs) - 1
+                    and narrow(road, k, lane.id, True)
+                ):
+                    out = replace(out, successor=None)
+                if (road.id, k, lane.id, "pred", lane.predecessor) in drop or (
+                    lane.predecessor is not None and k == 0 and narrow(road, 0, lane.id, False)
+                ):
+                    out = replace(out, predecessor=None)
+                changed |= out is not lane
+                return out
+
+            secs[k] = replace(
+                sec, left=tuple(one(x) for x in sec.left), right=tuple(one(x) for x in sec.right)
+            )
+        return replace(road, lane_sections=tuple(secs)) if changed else road
+
+    pruned = tuple(prune(r) for r in roads)
+    # a road whose zero-width lane lost its link also loses the partner's link back
+    by_id = {r.id: r for r in pruned}
+    final = []
+    for road in pruned:
+        secs = list(road.lane_sections)
+        changed = False
+        for k in (0, len(secs) - 1):
+            link = road.predecessor if k == 0 else road.successor
+            if link is None or link.element_type != "road" or link.element_id not in by_id:
+                continue
+            other = by_id[link.element_id]
+            other_link = other.successor if link.contact_point == "end" else other.predecessor
+            if other_link is None or other_link.element_type != "road":
+                continue  # linked through a junction: its laneLinks say who continues
+            if other_link.element_id != road.id:
+                continue
+            j, _ = end_section(other, link.contact_point)
+            back = {
+                ln.id: (ln.successor if link.contact_point == "end" else ln.predecessor)
+                for ln in (*other.lane_sections[j].left, *other.lane_sections[j].right)
+            }
+
+            def mutual(lane: Lane, k: int = k, back=back) -> Lane:
+                nonlocal changed
+                attr = "predecessor" if k == 0 else "successor"
+                target = getattr(lane, attr)
+                if target is not None and back.get(target) != lane.id:
+                    changed = True
+                    return replace(lane, **{attr: None})
+                return lane
+
+            sec = secs[k]
+            secs[k] = replace(
+                sec,
+                left=tuple(mutual(x) for x in sec.left),
+                right=tuple(mutual(x) for x in sec.right),
+            )
+        final.append(replace(road, lane_sections=tuple(secs)) if changed else road)
+    return tuple(final), tuple(new_junctions)
 
 
 def build_topology(
@@ -573,10 +753,11 @@ def build_topology(
                 0.0,
             )
             through_road = _set_lane_links(
-                through_road,
+                _continue_widths(through_road, up, into, at_start=True),
                 predecessors={v: u for u, v in into.items()},
                 successors=out_of,
             )
+            down = _continue_widths(down, through_road, out_of, at_start=True)
             conns = [
                 Connection(
                     "0",
@@ -608,7 +789,9 @@ def build_topology(
         ramp_roads.append(road)
 
     main_roads = [unlink_width_jumps(r) for r in main_roads]
-    roads = tuple(true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors))
+    roads, junctions_out = prune_zero_width_links(
+        [true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors)], junctions
+    )
     log.info(
         "topology: %d mainline roads, %d ramps, %d connecting roads, %d %s junctions",
         len(main_roads),
@@ -619,7 +802,7 @@ def build_topology(
     )
     return Topology(
         roads=roads,
-        junctions=tuple(junctions),
+        junctions=junctions_out,
         ramp_road_ids=tuple(ramp_ids),
         ramps=tuple(z.ramp for z in zones),
         skipped=tuple(skipped),
@@ -723,58 +906,69 @@ def _ramp_connecting_road(
     return road, conn_road, connection
 
 
-def lane_graph(network: RoadNetwork, *, lane_changes: bool = False) -> nx.DiGraph:
-    """Directed graph of lanes a car can drive from one to the next.
+def lane_graph(
+    network: RoadNetwork, *, traffic_side: TrafficSide = "right", lane_changes: bool = False
+) -> nx.DiGraph:
+    """Directed graph of the lanes a car can drive from one to the next.
 
-    Nodes are ``(road_id, section_index, lane_id)``; edges follow lane successors inside a
-    road and across road links, and junction lane links (default: into the connecting
-    road; direct: into the linked road). Travel is along increasing s (every road of a
-    roadtwin map runs in its driving direction). With ``lane_changes``, neighbouring
+    Nodes are ``(road_id, section_index, lane_id)`` (attribute ``type``); edges follow lane
+    successor / predecessor links inside a road, road links, and junction connection lane
+    links (default: into the connecting road; direct: into the linked road), each in the
+    lane's direction of travel: with right-hand traffic right lanes (negative ids) drive
+    towards +s and left lanes towards -s, mirrored for left-hand traffic (so other tools'
+    maps with both carriageways on one road work too). With ``lane_changes``, neighbouring
     driving lanes of one section are connected both ways (``kind="change"``).
     """
-    g = nx.DiGraph()
+    graph = nx.DiGraph()
     roads = network.id_to_road
+
+    def forward(lane_id: int) -> bool:
+        return (lane_id < 0) == (traffic_side == "right")
+
+    def target_node(road_id: str, contact: str | None, lane_id: int):
+        road = roads.get(road_id)
+        if road is None:
+            return None
+        sec = 0 if contact in (None, "start") else len(road.lane_sections) - 1
+        return (road_id, sec, lane_id)
+
     for road in network.roads:
-        secs = road.lane_sections
-        for i, sec in enumerate(secs):
-            for lane in (*sec.left, *sec.right):
-                g.add_node((road.id, i, lane.id))
-                if i + 1 < len(secs) and lane.successor is not None:
-                    g.add_edge((road.id, i, lane.id), (road.id, i + 1, lane.successor))
-                if i > 0 and lane.predecessor is not None:
-                    g.add_edge((road.id, i - 1, lane.predecessor), (road.id, i, lane.id))
+        nsec = len(road.lane_sections)
+        for k, section in enumerate(road.lane_sections):
+            for lane in (*section.left, *section.right):
+                node = (road.id, k, lane.id)
+                graph.add_node(node, type=lane.type)
+                fwd = forward(lane.id)
+                nxt_lane = lane.successor if fwd else lane.predecessor
+                inside = k + 1 < nsec if fwd else k > 0
+                if inside:
+                    if nxt_lane is not None:
+                        graph.add_edge(node, (road.id, k + 1 if fwd else k - 1, nxt_lane))
+                    continue
+                link = road.successor if fwd else road.predecessor
+                if link is None:
+                    continue
+                if link.element_type == "road":
+                    if nxt_lane is not None:
+                        tgt = target_node(link.element_id, link.contact_point, nxt_lane)
+                        if tgt is not None:
+                            graph.add_edge(node, tgt)
+                    continue
+                junction = network.id_to_junction.get(link.element_id)
+                if junction is None:
+                    continue
+                for conn in junction.connections:
+                    if conn.incoming_road != road.id:
+                        continue
+                    for ll in conn.lane_links:
+                        if ll.from_lane == lane.id:
+                            tgt = target_node(conn.connecting_road, conn.contact_point, ll.to_lane)
+                            if tgt is not None:
+                                graph.add_edge(node, tgt)
             if lane_changes:
-                for side in (sec.left, sec.right):
+                for side in (section.left, section.right):
                     for x, y in itertools.pairwise(side):
                         if x.type == "driving" and y.type == "driving":
-                            g.add_edge((road.id, i, x.id), (road.id, i, y.id), kind="change")
-                            g.add_edge((road.id, i, y.id), (road.id, i, x.id), kind="change")
-        last = len(secs) - 1
-        succ = road.successor
-        if succ is not None and succ.element_type == "road" and succ.element_id in roads:
-            other = roads[succ.element_id]
-            j = 0 if succ.contact_point in (None, "start") else len(other.lane_sections) - 1
-            for lane in (*secs[last].left, *secs[last].right):
-                if lane.successor is not None:
-                    g.add_edge((road.id, last, lane.id), (other.id, j, lane.successor))
-        pred = road.predecessor
-        if pred is not None and pred.element_type == "road" and pred.element_id in roads:
-            other = roads[pred.element_id]
-            j = len(other.lane_sections) - 1 if pred.contact_point in (None, "end") else 0
-            for lane in (*secs[0].left, *secs[0].right):
-                if lane.predecessor is not None:
-                    g.add_edge((other.id, j, lane.predecessor), (road.id, 0, lane.id))
-    for junction in network.junctions:
-        for c in junction.connections:
-            inc, tgt = roads.get(c.incoming_road), roads.get(c.connecting_road)
-            if inc is None or tgt is None:
-                continue
-            i_sec = len(inc.lane_sections) - 1
-            ends_here = inc.successor is not None and inc.successor.element_id == junction.id
-            starts_here = inc.predecessor is not None and inc.predecessor.element_id == junction.id
-            if starts_here and not ends_here:
-                i_sec = 0
-            t_sec = 0 if c.contact_point == "start" else len(tgt.lane_sections) - 1
-            for ll in c.lane_links:
-                g.add_edge((inc.id, i_sec, ll.from_lane), (tgt.id, t_sec, ll.to_lane))
-    return g
+                            graph.add_edge((road.id, k, x.id), (road.id, k, y.id), kind="change")
+                            graph.add_edge((road.id, k, y.id), (road.id, k, x.id), kind="change")
+    return graph

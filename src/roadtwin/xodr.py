@@ -14,6 +14,10 @@ superelevation, road links, road type/speed, and junctions (``default`` with
 scenariogeneration cannot express some things exactly, so the element tree it returns is
 post-processed with lxml (:func:`_postprocess`):
 
+* ``<userData>``: the header's ``user_data`` pairs (generator, method, self-consistency)
+  and, on every road built from OpenStreetMap, ``roadtwin:osm_way_ids`` with its source
+  way ids; read back by :func:`read_xodr`.
+
 * ``<header>``: scenariogeneration always writes ``date=datetime.now()`` (not
   deterministic) and zero ``north/south/east/west``; the attributes are rewritten in a
   fixed order (``revMajor``, ``revMinor``, ``name``, ``version``, ``date`` only when
@@ -41,7 +45,8 @@ so it is checked with ``xmlschema.XMLSchema11`` exactly as the ASAM checker does
 
 Reader
 ------
-:func:`read_xodr` parses OpenDRIVE 1.4 to 1.8 with lxml (namespaces are ignored):
+:func:`read_xodr` parses OpenDRIVE 1.4 to 1.8 with lxml (namespaces are ignored; DTDs,
+entities and network access off, see :mod:`roadtwin._xml`):
 planView ``line, arc, spiral, poly3, paramPoly3`` (``pRange`` ``arcLength`` or
 ``normalized``, the default when absent), elevation, superelevation, laneOffset, lane
 sections with width records, road marks, lane and road links, junctions (``default``,
@@ -57,7 +62,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import tempfile
 import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -66,7 +70,10 @@ from pathlib import Path
 
 from lxml import etree
 
-from ._errors import InputError, InputWarning
+from ._errors import InputError, InputWarning, RoadtwinError
+from ._files import atomic_write_bytes
+from ._perf import gc_paused
+from ._xml import parse_xml
 from .model import (
     Arc,
     Connection,
@@ -91,6 +98,10 @@ from .model import (
 log = logging.getLogger(__name__)
 
 __all__ = ["read_xodr", "schema_errors", "to_xodr_bytes", "write_xodr"]
+
+
+OSM_WAY_IDS_CODE = "roadtwin:osm_way_ids"
+"""``<userData code>`` of a road's source OSM way ids (space separated)."""
 
 
 def _f(value: float) -> str:
@@ -281,9 +292,18 @@ def _postprocess(root: etree._Element, network: RoadNetwork) -> None:
             zAbsolute=_f(q.get("z_absolute", math.nan)),
             zRelative=_f(q.get("z_relative", math.nan)),
         )
+    for code, value in hdr.user_data:
+        etree.SubElement(header, "userData", code=code, value=value)
     road_elements = root.findall("road")
     for road, el in zip(network.roads, road_elements, strict=False):
         el.set("length", _f(road.length))
+        if road.osm_way_ids:
+            etree.SubElement(
+                el,
+                "userData",
+                code=OSM_WAY_IDS_CODE,
+                value=" ".join(str(w) for w in road.osm_way_ids),
+            )
         geoms = el.find("planView").findall("geometry")
         for g, gel in zip(road.geometry, geoms, strict=False):
             _set_attrs(
@@ -356,24 +376,21 @@ def to_xodr_bytes(network: RoadNetwork) -> bytes:
 
 def write_xodr(network: RoadNetwork, path: str | os.PathLike) -> Path:
     """Write ``network`` to ``path`` atomically (temporary file in the same folder, then
-    ``os.replace``). Returns the path."""
-    path = Path(path)
-    data = to_xodr_bytes(network)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    ``os.replace``; ordinary file mode). Returns the path."""
+    path = atomic_write_bytes(path, to_xodr_bytes(network))
     log.info("wrote %s: %d roads, %d junctions", path, len(network.roads), len(network.junctions))
     return path
 
 
 def _schema_file(rev_minor: int) -> Path:
-    import qc_opendrive
+    try:
+        import qc_opendrive
+    except ImportError:
+        msg = (
+            "schema validation needs the OpenDRIVE XSD of the ASAM quality checker: "
+            'pip install "roadtwin[validate]"'
+        )
+        raise RoadtwinError(msg) from None
 
     base = Path(qc_opendrive.__file__).parent / "schema"
     candidates = {
@@ -413,7 +430,7 @@ def schema_errors(data: bytes | str | os.PathLike, *, rev_minor: int = 8) -> lis
     list of str
         One ``"line N: reason"`` per violation; empty when valid.
     """
-    doc = etree.fromstring(data) if isinstance(data, bytes) else etree.parse(str(data))
+    doc = parse_xml(data if isinstance(data, bytes) else Path(data))
     schema = _schema(rev_minor)
     if isinstance(schema, etree.XMLSchema):
         schema.validate(doc)
@@ -426,7 +443,27 @@ def schema_errors(data: bytes | str | os.PathLike, *, rev_minor: int = 8) -> lis
 # ---------------------------------------------------------------------------
 
 
-def _num(el: etree._Element, key: str, default: float | None = None, *, where: str = "") -> float:
+_MAX_COORDINATE_M = 1.0e8
+"""Largest absolute station, coordinate or length (metres) a map may hold: no place on
+earth is farther from a projected CRS's origin (as ``pointfiles.MAX_COORDINATE_M``)."""
+
+
+_MAX_COEFFICIENT = 1.0e15
+"""Largest absolute b, c, d of a cubic profile: a 1 mm width piece needs ~1e10; larger values
+overflow when the profile is evaluated over a road's length."""
+
+
+def _num(
+    el: etree._Element,
+    key: str,
+    default: float | None = None,
+    *,
+    where: str = "",
+    finite: bool = True,
+    limit: float | None = None,
+) -> float:
+    """A numeric attribute; refused when missing (without default), not a number,
+    non-finite (unless ``finite=False``) or beyond ``limit`` in absolute value."""
     raw = el.get(key)
     if raw is None:
         if default is None:
@@ -434,20 +471,33 @@ def _num(el: etree._Element, key: str, default: float | None = None, *, where: s
             raise InputError(msg)
         return default
     try:
-        return float(raw)
+        value = float(raw)
     except ValueError:
-        msg = f"{where}: <{el.tag}> line {el.sourceline}: {key}={raw!r} is not a number"
+        msg = f"{where}: <{el.tag}> line {el.sourceline}: attribute {key} is not a number"
         raise InputError(msg) from None
+    if finite and not math.isfinite(value):
+        msg = (
+            f"{where}: <{el.tag}> line {el.sourceline}: attribute {key} is {value} "
+            "(expected a finite number)"
+        )
+        raise InputError(msg)
+    if limit is not None and abs(value) > limit:
+        msg = (
+            f"{where}: <{el.tag}> line {el.sourceline}: attribute {key} = {value:.3g} is beyond "
+            f"{limit:.0e} m (no road is that long or that far from the CRS origin)"
+        )
+        raise InputError(msg)
+    return value
 
 
 def _cubic_pieces(els, s_key: str, *, where: str) -> tuple[CubicPiece, ...]:
     pieces = [
         CubicPiece(
-            _num(e, s_key, 0.0, where=where),
-            _num(e, "a", 0.0, where=where),
-            _num(e, "b", 0.0, where=where),
-            _num(e, "c", 0.0, where=where),
-            _num(e, "d", 0.0, where=where),
+            _num(e, s_key, 0.0, where=where, limit=_MAX_COORDINATE_M),
+            _num(e, "a", 0.0, where=where, limit=_MAX_COORDINATE_M),
+            _num(e, "b", 0.0, where=where, limit=_MAX_COEFFICIENT),
+            _num(e, "c", 0.0, where=where, limit=_MAX_COEFFICIENT),
+            _num(e, "d", 0.0, where=where, limit=_MAX_COEFFICIENT),
         )
         for e in els
     ]
@@ -488,11 +538,14 @@ def _active(profile: CubicProfile, s: float) -> CubicPiece | None:
 
 
 def _read_geometry(gel: etree._Element, *, where: str) -> Geometry | None:
-    s = _num(gel, "s", where=where)
-    x = _num(gel, "x", where=where)
-    y = _num(gel, "y", where=where)
-    hdg = _num(gel, "hdg", where=where)
-    length = _num(gel, "length", where=where)
+    s = _num(gel, "s", where=where, limit=_MAX_COORDINATE_M)
+    x = _num(gel, "x", where=where, limit=_MAX_COORDINATE_M)
+    y = _num(gel, "y", where=where, limit=_MAX_COORDINATE_M)
+    hdg = _num(gel, "hdg", where=where, limit=1e6)
+    length = _num(gel, "length", where=where, limit=_MAX_COORDINATE_M)
+    if length < 0:
+        msg = f"{where}: <geometry> line {gel.sourceline}: attribute length is negative"
+        raise InputError(msg)
     kinds = [c for c in gel if isinstance(c.tag, str)]
     if not kinds:
         msg = f"{where}: <geometry> line {gel.sourceline} has no line/arc/spiral/poly3 child"
@@ -674,6 +727,7 @@ def _read_road(rel: etree._Element, *, where: str) -> Road:
                 speed = float(sp.get("max")) * _SPEED_TO_MPS.get(sp.get("unit", "m/s"), 1.0)
             except ValueError:
                 speed = None
+    _num(rel, "length", 0.0, where=where, limit=_MAX_COORDINATE_M)  # validated, not stored
     return Road(
         id=rid,
         geometry=geometry,
@@ -687,7 +741,19 @@ def _read_road(rel: etree._Element, *, where: str) -> Road:
         junction=rel.get("junction", "-1"),
         road_type=road_type,
         speed_limit_mps=speed,
+        osm_way_ids=_osm_way_ids(rel, where=where),
     )
+
+
+def _osm_way_ids(rel: etree._Element, *, where: str) -> tuple[int, ...]:
+    for u in rel.findall("userData"):
+        if u.get("code") == OSM_WAY_IDS_CODE:
+            try:
+                return tuple(int(w) for w in (u.get("value") or "").split())
+            except ValueError:
+                msg = f"{where}: <userData> line {u.sourceline}: OSM way ids are not integers"
+                raise InputError(msg) from None
+    return ()
 
 
 def _read_junction(jel: etree._Element, *, where: str) -> Junction:
@@ -743,10 +809,12 @@ def _read_header(hel: etree._Element | None, *, where: str) -> Header:
             ("z_absolute", "zAbsolute"),
             ("z_relative", "zRelative"),
         ):
-            v = _num(dq, attr, math.nan, where=where)
+            v = _num(dq, attr, math.nan, where=where, finite=False)
             if not math.isnan(v):
                 quality[key] = v
+    user_data = tuple((u.get("code", ""), u.get("value", "")) for u in hel.findall("userData"))
     return Header(
+        user_data=user_data,
         name=hel.get("name", ""),
         rev_major=int(_num(hel, "revMajor", 1.0, where=where)),
         rev_minor=int(_num(hel, "revMinor", 4.0, where=where)),
@@ -764,7 +832,24 @@ def _strip_namespaces(root: etree._Element) -> None:
             el.tag = etree.QName(el).localname
 
 
-def read_xodr(path: str | os.PathLike) -> RoadNetwork:
+MAX_XODR_BYTES = 32 * 1024 * 1024
+"""Largest map file :func:`read_xodr` reads by default (32 MiB, about 20,000 simple roads;
+the 2 km demo map is 0.1 MiB). Reading, checking and evaluating cost about 0.5, 0.8 and
+1.5 ms and 40 KB of memory per road, linear in size (``benchmarks/bench_limits.py``), so
+``check`` and ``evaluate`` finish a 32 MiB map within a minute on a 2-core machine; larger
+maps are refused with this reason rather than running for minutes (``max_bytes=None``
+lifts the limit in Python)."""
+MAX_GEOMETRIES = 500_000
+"""Largest number of planView pieces :func:`read_xodr` reads by default (a map of
+1 mm pieces can pack more into 32 MiB than any real map has)."""
+
+
+def read_xodr(
+    path: str | os.PathLike,
+    *,
+    max_bytes: int | None = MAX_XODR_BYTES,
+    max_geometries: int | None = MAX_GEOMETRIES,
+) -> RoadNetwork:
     """Read an OpenDRIVE 1.4-1.8 file into a :class:`RoadNetwork`.
 
     Parameters
@@ -781,18 +866,37 @@ def read_xodr(path: str | os.PathLike) -> RoadNetwork:
     Raises
     ------
     InputError
-        The file is missing, not XML, not OpenDRIVE, or lacks required attributes.
+        The file is missing, not XML, not OpenDRIVE, lacks required attributes, holds
+        non-finite or out-of-range numbers, or is larger than ``max_bytes`` /
+        ``max_geometries`` (:data:`MAX_XODR_BYTES`, :data:`MAX_GEOMETRIES`; None: no limit).
     """
     path = Path(path)
     if not path.is_file():
-        msg = f"{path}: file not found"
+        what = "not a file" if path.exists() else "file not found"
+        msg = f"{path}: {what}"
         raise InputError(msg)
-    parser = etree.XMLParser(remove_comments=True, huge_tree=True)
-    try:
-        root = etree.parse(str(path), parser).getroot()
-    except etree.XMLSyntaxError as exc:
-        msg = f"{path}: not well-formed XML: {exc}"
-        raise InputError(msg) from None
+    size = path.stat().st_size
+    if max_bytes is not None and size > max_bytes:
+        msg = (
+            f"{path}: {size / 2**20:.0f} MiB; maps larger than {max_bytes / 2**20:.0f} MiB "
+            "are refused (roadtwin.xodr.MAX_XODR_BYTES: about 20,000 roads, checked and "
+            "evaluated within a minute): split the map"
+        )
+        raise InputError(msg)
+    with gc_paused():
+        root = parse_xml(path).getroot()
+        if max_geometries is not None:
+            pieces = int(root.xpath("count(//*[local-name()='geometry'])"))
+            if pieces > max_geometries:
+                msg = (
+                    f"{path}: {pieces:,} planView pieces; maps with more than "
+                    f"{max_geometries:,} are refused (roadtwin.xodr.MAX_GEOMETRIES)"
+                )
+                raise InputError(msg)
+        return _read_root(root, path)
+
+
+def _read_root(root: etree._Element, path: Path) -> RoadNetwork:
     _strip_namespaces(root)
     if root.tag != "OpenDRIVE":
         msg = f"{path}: root element is <{root.tag}>, expected <OpenDRIVE>"

@@ -234,23 +234,6 @@ def _self_summary(edge: PointErrors, lane: PointErrors, counts: dict[str, Any]) 
     }
 
 
-def data_quality(
-    network: RoadNetwork, run: Any, *, config: EvaluationConfig | None = None
-) -> dict[str, float]:
-    """Relative accuracy of a map for the OpenDRIVE header's ``<dataQuality><error>``.
-
-    Returns
-    -------
-    dict
-        ``xy_relative`` (overall self-consistency RMSE) and ``z_relative`` (height RMSE of
-        the measured points against the map surface), metres; keys of
-        :class:`~roadtwin.model.Header` ``data_quality``. The absolute errors need the
-        GNSS accuracy of the run, which a run folder does not state, so they are absent.
-    """
-    sc = self_consistency(network, run, config=config)
-    return {"xy_relative": sc["overall_rmse_m"], "z_relative": sc["height_rmse_m"]}
-
-
 def self_consistency(
     network: RoadNetwork, run: Any, *, config: EvaluationConfig | None = None
 ) -> dict[str, float]:

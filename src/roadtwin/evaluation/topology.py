@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 
 from ..config import EvaluationConfig
 from ..model import Road, RoadNetwork
+from ..topology import lane_graph
 from .frenet import FloatArray, _section_centre_t, mainline_roads, ramp_roads
 
 
@@ -62,65 +63,6 @@ def _attachment_point(network: RoadNetwork, road: Road, mainline: Sequence[Road]
     )
     d, _ = cKDTree(grid).query(ends)
     return ends[int(np.argmin(d))]
-
-
-def lane_graph(network: RoadNetwork, *, traffic_side: str = "right"):
-    """Directed lane graph in the direction of travel.
-
-    Nodes are ``(road_id, section_index, lane_id)``; edges follow lane successor /
-    predecessor links inside a road, road links, and junction connection lane links.
-    With right-hand traffic, right lanes (negative ids) drive towards +s; with left-hand
-    traffic, left lanes do.
-    """
-    import networkx as nx
-
-    graph = nx.DiGraph()
-    roads = network.id_to_road
-
-    def forward(lane_id: int) -> bool:
-        return (lane_id < 0) == (traffic_side == "right")
-
-    def target_node(road_id: str, contact: str | None, lane_id: int):
-        road = roads.get(road_id)
-        if road is None:
-            return None
-        sec = 0 if contact in (None, "start") else len(road.lane_sections) - 1
-        return (road_id, sec, lane_id)
-
-    for road in network.roads:
-        nsec = len(road.lane_sections)
-        for k, section in enumerate(road.lane_sections):
-            for lane in (*section.left, *section.right):
-                node = (road.id, k, lane.id)
-                graph.add_node(node, type=lane.type)
-                fwd = forward(lane.id)
-                nxt_lane = lane.successor if fwd else lane.predecessor
-                inside = k + 1 < nsec if fwd else k > 0
-                if inside:
-                    if nxt_lane is not None:
-                        graph.add_edge(node, (road.id, k + 1 if fwd else k - 1, nxt_lane))
-                    continue
-                link = road.successor if fwd else road.predecessor
-                if link is None:
-                    continue
-                if link.element_type == "road":
-                    if nxt_lane is not None:
-                        tgt = target_node(link.element_id, link.contact_point, nxt_lane)
-                        if tgt is not None:
-                            graph.add_edge(node, tgt)
-                    continue
-                junction = network.id_to_junction.get(link.element_id)
-                if junction is None:
-                    continue
-                for conn in junction.connections:
-                    if conn.incoming_road != road.id:
-                        continue
-                    for ll in conn.lane_links:
-                        if ll.from_lane == lane.id:
-                            tgt = target_node(conn.connecting_road, conn.contact_point, ll.to_lane)
-                            if tgt is not None:
-                                graph.add_edge(node, tgt)
-    return graph
 
 
 def ramp_connectivity(network: RoadNetwork, *, traffic_side: str = "right") -> list[dict]:

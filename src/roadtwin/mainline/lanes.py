@@ -21,6 +21,7 @@ from ..model import (
     Lane,
     LaneSection,
     RoadMark,
+    continue_width,
 )
 from ._common import (
     BoundaryTrack,
@@ -1201,29 +1202,13 @@ def _link_sections(
             prev_len = sec.s0 - sections[n - 1].s0
             by_id = {ln.id: ln for ln in _side_lanes(out[n - 1])}
             lanes = tuple(
-                _continue_width(ln, float(by_id[ln.predecessor].width.value(prev_len)))
+                continue_width(ln, float(by_id[ln.predecessor].width.value(prev_len)))
                 if ln.predecessor in by_id
                 else ln
                 for ln in lanes
             )
         out.append(replace(sec, right=lanes) if sec.right else replace(sec, left=lanes))
     return out
-
-
-def _continue_width(lane: Lane, w_start: float) -> Lane:
-    """``lane`` with its first width piece corrected to start at ``w_start`` (metres); the
-    correction fades out linearly over that piece."""
-    pieces = lane.width.pieces
-    if not pieces:
-        return lane
-    p0 = pieces[0]
-    delta = w_start - p0.a
-    if abs(delta) < 1e-7:
-        return lane
-    span = (pieces[1].s0 if len(pieces) > 1 else p0.s0 + 1e9) - p0.s0
-    slope = -delta / span if len(pieces) > 1 else 0.0
-    first = replace(p0, a=p0.a + delta, b=p0.b + slope)
-    return replace(lane, width=replace(lane.width, pieces=(first, *pieces[1:])))
 
 
 def _events(

@@ -79,7 +79,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     poses = run.trajectory.xyz.copy()
     poses[:, 2] -= run.pose_height_m
     elevation, superelevation = fit_elevation(
-        frame, np.vstack([ref_pts, outer_pts[used], poses]), config=cfg
+        frame, np.vstack([ref_pts, outer_pts[used]]), poses=poses, config=cfg
     )
     timings["elevation"] = time.perf_counter() - t0
     road = replace(
@@ -140,13 +140,22 @@ def fit_reference_edge(
 
 
 def fit_elevation(
-    frame: PolylineFrame, points: FloatArray, *, config: MainlineConfig | None = None
+    frame: PolylineFrame,
+    points: FloatArray,
+    *,
+    poses: FloatArray | None = None,
+    config: MainlineConfig | None = None,
 ) -> tuple[CubicProfile, CubicProfile | None]:
     """Elevation and (if significant) superelevation of the reference line.
 
     Per station bin a weighted plane ``z = e + g t`` is fitted to the height points
-    (road-edge points, poses minus the pose height; mapping frame z), with one round of
-    robust (MAD) rejection; ``e`` and ``g`` are smoothed along s and bridged over gaps.
+    (road-edge points and the road surface under the car: ``poses`` minus the pose
+    height; mapping frame z), with one round of robust (MAD) rejection; ``e`` and ``g``
+    are smoothed along s and bridged over gaps. With ``poses``, edge points that cannot
+    lie on the driven road's surface are left out first: farther above or below the
+    surface under the car than ``elevation_gate_m`` plus the largest plausible cross slope
+    (``superelevation_max_rad``) over their lateral distance from the car (a ramp passing
+    over or under, a bridge beside the road).
 
     Returns
     -------
@@ -155,6 +164,8 @@ def fit_elevation(
         or None if ``|g|`` stays below ``config.superelevation_min_rad``.
     """
     cfg = config or MainlineConfig()
+    if poses is not None and len(poses):
+        points = np.vstack([_on_driven_surface(frame, points, poses, cfg), poses])
     s, t = frame.project(points)
     z = points[:, 2]
     ok = (s >= 0) & (s <= frame.length) & np.isfinite(z)
@@ -203,6 +214,22 @@ def fit_elevation(
     return elevation, superelevation
 
 
+def _on_driven_surface(
+    frame: PolylineFrame, points: FloatArray, poses: FloatArray, cfg: MainlineConfig
+) -> FloatArray:
+    """The points whose height fits the surface under the car (see :func:`fit_elevation`)."""
+    if points.shape[0] == 0:
+        return points
+    s_p, t_p = frame.project(poses)
+    order = np.argsort(s_p)
+    s_p, t_p, z_p = s_p[order], t_p[order], poses[order, 2]
+    s, t = frame.project(points)
+    z_car = np.interp(s, s_p, z_p)
+    lateral = np.abs(t - np.interp(s, s_p, t_p))
+    bound = cfg.elevation_gate_m + np.tan(cfg.superelevation_max_rad) * lateral
+    return points[np.abs(points[:, 2] - z_car) <= bound]
+
+
 def _significant_cross_slope(
     grid: FloatArray,
     g_smooth: FloatArray,
@@ -247,4 +274,5 @@ def _significant_cross_slope(
         float(np.count_nonzero(cover)) * step,
         float(np.max(np.abs(value))),
     )
+    value = np.clip(value, -cfg.superelevation_max_rad, cfg.superelevation_max_rad)
     return fit_cubic_profile(grid, value, tolerance=cfg.superelevation_tolerance_rad)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
+from threadpoolctl import threadpool_limits
 
 from ..config import RampConfig
 from ..fitting import arc_length
@@ -239,6 +240,34 @@ def fit_ramp_shape(
     -------
     RampShape
     """
+    # the solves are small dense problems: BLAS threads only contend (a loaded 2-core
+    # machine took 20x longer with them)
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _fit_ramp_shape(
+            target_xy,
+            sigma_m,
+            anchor=anchor,
+            curvature0=curvature0,
+            lane_side=lane_side,
+            lanes=lanes,
+            widths=widths,
+            points=points,
+            config=config,
+        )
+
+
+def _fit_ramp_shape(
+    target_xy: FloatArray,
+    sigma_m: FloatArray,
+    *,
+    anchor: tuple[float, float, float],
+    curvature0: float,
+    lane_side: float,
+    lanes: int,
+    widths: tuple[float, float, float],
+    points: tuple[FloatArray, NDArrayBool] | None,
+    config: RampConfig | None,
+) -> RampShape:
     cfg = config or RampConfig()
     target = np.asarray(target_xy, dtype=float)[:, :2]
     sigma = np.asarray(sigma_m, dtype=float)
@@ -329,7 +358,8 @@ def fit_ramp_shape(
                 rows.append(np.hstack([lane_side * j_lat, j_w]) / _POINT_SIGMA_M)
             return np.vstack(rows)
 
-        lower = np.concatenate([np.full(n_k, lo), [0.0, 2.5, 0.0]])
+        # narrower than 0.3 m is an edge line, not a shoulder (and no lane of zero width)
+        lower = np.concatenate([np.full(n_k, lo), [0.3, 2.5, 0.3]])
         upper = np.concatenate([np.full(n_k, hi), [3.0, 5.0, 4.0]])
         res = least_squares(
             residuals,

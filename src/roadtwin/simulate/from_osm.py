@@ -16,6 +16,7 @@ from lxml import etree
 from numpy.typing import NDArray
 from scipy.signal import savgol_filter
 
+from .._xml import parse_xml
 from .alignment import build_pieces
 
 
@@ -97,7 +98,7 @@ def crop_osm(src: str | Path, dst: str | Path, *, bbox: tuple[float, float, floa
     src = Path(src)
     opener = gzip.open if src.suffix == ".gz" else open
     with opener(src, "rb") as fh:
-        root = etree.parse(fh).getroot()
+        root = parse_xml(fh, name=src).getroot()
     nodes = {n.get("id"): n for n in root.iter("node")}
     lo_lon, lo_lat, hi_lon, hi_lat = bbox
 

@@ -22,6 +22,7 @@ from scipy.signal import lfilter
 from scipy.spatial import cKDTree
 
 from ..model import Road
+from .scenario import Noise, Sensor
 from .truth import Truth, marking_lines, outer_edge_id
 
 SIDE_LEFT = 1
@@ -72,9 +73,14 @@ def _gauss_markov(rng: np.random.Generator, n: int, std: float, corr_steps: floa
 
 def measured_poses(poses: Poses, truth: Truth, rng: np.random.Generator) -> Poses:
     """Poses with GNSS/INS errors: correlated drift plus white jitter (scenario [noise])."""
-    noise = truth.scenario.noise
+    return noisy_poses(poses, truth.scenario.noise, truth.scenario.car.rate_hz, rng)
+
+
+def noisy_poses(poses: Poses, noise: Noise, rate_hz: float, rng: np.random.Generator) -> Poses:
+    """Poses with GNSS/INS errors ``noise`` at a pose rate of ``rate_hz`` (Gauss-Markov
+    drift of position, height and yaw plus white position jitter)."""
     n = poses.frame.size
-    corr = noise.correlation_s * truth.scenario.car.rate_hz
+    corr = noise.correlation_s * rate_hz
     err = np.column_stack(
         [
             _gauss_markov(rng, n, noise.position_std_m, corr),
@@ -144,7 +150,7 @@ def true_edges(truth: Truth, spacing_m: float, rng: np.random.Generator):
     return xyz, side, normal, station
 
 
-def _observing_frame(
+def observing_frame(
     station: NDArray, xyz: NDArray, true: Poses, tree: cKDTree
 ) -> NDArray[np.int64]:
     """Frame whose true pose is nearest: by station on the mainline, by distance elsewhere."""
@@ -167,8 +173,43 @@ def edge_points(
     """
     sensor = truth.scenario.sensor
     xyz, side, normal, station = true_edges(truth, sensor.edge_spacing_m, rng)
+    return observe_edges(
+        xyz, side, normal, station, true, meas, sensor, rng, length_m=truth.mainline.length
+    )
+
+
+def observe_edges(
+    xyz: NDArray,
+    side: NDArray,
+    normal: NDArray,
+    station: NDArray,
+    true: Poses,
+    meas: Poses,
+    sensor: Sensor,
+    rng: np.random.Generator,
+    *,
+    length_m: float,
+) -> tuple[NDArray[np.float64], NDArray[np.uint8], dict[str, int]]:
+    """The extraction pipeline's view of true road-edge points.
+
+    Parameters
+    ----------
+    xyz, side, normal, station
+        True edge points ``(N, 3)`` (mapping frame), side codes, outward unit normals
+        ``(N, 2)`` and the mainline station of each point (NaN off the mainline: the
+        observing frame is then the nearest pose).
+    true, meas
+        True and measured poses (stations uniformly spaced from 0).
+    length_m
+        Mainline length (metres), for the number of trucks.
+
+    Returns
+    -------
+    Measured points ``(M, 3)`` and side codes sorted by frame, and counts of what was
+    out of range, dropped, occluded by trucks or turned into outliers.
+    """
     tree = cKDTree(true.xyz[:, :2])
-    frame_idx = _observing_frame(station, xyz, true, tree)
+    frame_idx = observing_frame(station, xyz, true, tree)
     dist = np.hypot(*(xyz[:, :2] - true.xyz[frame_idx, :2]).T)
     keep = dist <= sensor.edge_range_m
     counts = {"out_of_range": int((~keep).sum())}
@@ -177,7 +218,7 @@ def edge_points(
     keep &= ~drop
     # trucks passing on one side hide that side's edge for a few seconds
     duration = float(true.t[-1] - true.t[0]) if true.t.size > 1 else 0.0
-    n_trucks = rng.poisson(sensor.trucks_per_km * truth.mainline.length / 1000.0)
+    n_trucks = rng.poisson(sensor.trucks_per_km * length_m / 1000.0)
     starts = rng.uniform(true.t[0], true.t[0] + duration, n_trucks)
     lengths = rng.uniform(*sensor.truck_duration_s, n_trucks)
     sides = rng.choice(np.array([SIDE_LEFT, SIDE_RIGHT], np.uint8), n_trucks)
@@ -243,8 +284,22 @@ def lane_samples(
     """
     sensor = truth.scenario.sensor
     xyz, station = painted_points(truth, sensor.lane_spacing_m, rng)
+    return observe_markings(xyz, station, true, sensor, rng)
+
+
+def observe_markings(
+    xyz: NDArray, station: NDArray, true: Poses, sensor: Sensor, rng: np.random.Generator
+) -> tuple[NDArray[np.int64], NDArray[np.float64], dict[str, int]]:
+    """The lane-marking detector's view of true paint points.
+
+    ``xyz`` (N, 3) are paint points (mapping frame) and ``station`` their mainline
+    station (NaN off the mainline). Each point is seen from a frame a random look-ahead
+    (``sensor.lane_range_m``) before it, within the lateral range, unless missed; noise and
+    false positives are added. Returns the frame index of each sample, ``(M, 3)`` ego
+    coordinates (relative to the TRUE pose) and counts, sorted by frame, then x.
+    """
     tree = cKDTree(true.xyz[:, :2])
-    nearest = _observing_frame(station, xyz, true, tree)
+    nearest = observing_frame(station, xyz, true, tree)
     step = true.station[1] - true.station[0] if true.station.size > 1 else 1.0
     lo, hi = sensor.lane_range_m
     look = rng.uniform(lo, hi, station.size)

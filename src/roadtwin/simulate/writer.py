@@ -16,11 +16,14 @@ import logging
 import os
 import shutil
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from .._errors import InputError
+from ..frames import Origin
+from ..xodr import write_xodr
 from .osm_writer import write_osm
 from .scenario import Scenario, load_scenario
 from .sensor import (
@@ -114,23 +117,99 @@ def _write_edges(xyz: np.ndarray, side: np.ndarray, path: Path, fmt: str) -> Non
         raise InputError(f"unknown road-edge format {fmt!r}")
 
 
-def _run_toml(sc: Scenario, edges_name: str, osm_name: str) -> str:
-    o = sc.origin
+def run_toml_text(
+    *,
+    comment: str,
+    origin: Origin,
+    crs: str,
+    traffic_side: str,
+    edges_name: str,
+    osm_name: str,
+) -> str:
+    """The run manifest (DESIGN.md section 3); ``comment`` is its first line's text."""
+    o = origin
     return (
-        f"# Simulated mapping run: roadtwin scenario {sc.name!r}, seed {sc.seed}.\n"
+        f"# {comment}\n"
         "# Ground truth (not part of the run contract): truth.xodr, truth.json,\n"
         "# truth_trajectory.csv.\n"
         "[origin]\n"
         f"lat = {o.lat_deg:.9f}\nlon = {o.lon_deg:.9f}\nalt = {o.alt_m:.3f}\n"
-        '[frame]\ncrs = "local"\n'
+        f"[frame]\ncrs = {json.dumps(crs)}\n"
         "[vehicle]\npose_height = 0.0\n"
         "[files]\n"
         'trajectory = "trajectory.csv"\n'
         f'road_edges = "{edges_name}"\n'
         'lane_samples = "lane_samples.csv"\n'
         f'osm = "{osm_name}"\n'
-        f'[traffic]\nside = "{sc.traffic_side}"\n'
+        f'[traffic]\nside = "{traffic_side}"\n'
     )
+
+
+def _run_toml(sc: Scenario, edges_name: str, osm_name: str) -> str:
+    return run_toml_text(
+        comment=f"Simulated mapping run: roadtwin scenario {sc.name!r}, seed {sc.seed}.",
+        origin=sc.origin,
+        crs="local",
+        traffic_side=sc.traffic_side,
+        edges_name=edges_name,
+        osm_name=osm_name,
+    )
+
+
+def copy_osm(src: str | os.PathLike, folder: Path) -> str:
+    """Copy an OSM file into ``folder`` as ``map`` plus its (compound) suffix, which
+    :func:`roadtwin.io.load_run` needs (``.osm.gz``, ``.osm.bz2``, ``.osm.pbf``, ``.osm``);
+    returns the new file name."""
+    real = Path(src)
+    name = real.name.lower()
+    osm_name = "map" + next(
+        (ext for ext in (".osm.gz", ".osm.bz2", ".osm.pbf", ".osm") if name.endswith(ext)),
+        ".osm.pbf" if name.endswith(".pbf") else ".osm",
+    )
+    shutil.copyfile(real, folder / osm_name)
+    return osm_name
+
+
+def write_sensor_files(
+    folder: Path,
+    meas: Poses,
+    poses: Poses,
+    edges: np.ndarray,
+    side: np.ndarray,
+    edges_name: str,
+    frames: np.ndarray,
+    ego: np.ndarray,
+) -> None:
+    """Write the measured and true poses, the road-edge points (format from the suffix of
+    ``edges_name``) and the lane samples (ego frame) of a run into ``folder``."""
+    _write_poses(meas, folder / "trajectory.csv")
+    _write_poses(poses, folder / "truth_trajectory.csv")
+    _write_edges(edges, side, folder / edges_name, edges_name.rsplit(".", 1)[-1])
+    _write_csv(
+        folder / "lane_samples.csv",
+        {"frame": frames, "x": ego[:, 0], "y": ego[:, 1], "z": ego[:, 2]},
+    )
+
+
+def write_truth_files(folder: Path, doc: dict, network) -> None:
+    """Write ``truth.json`` (``doc``) and ``truth.xodr`` (the true ``network``)."""
+    (folder / "truth.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
+    write_xodr(network, folder / "truth.xodr")
+
+
+def write_run_folder(out_dir: Path, fill: Callable[[Path], None]) -> None:
+    """Let ``fill`` write every file into a temporary folder next to ``out_dir``, then
+    move them in (so a failure leaves no partial run); files become mode 644."""
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        fill(tmp)
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for f in sorted(tmp.iterdir()):
+            f.chmod(0o644)
+            os.replace(f, out_dir / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _aux_lane_ids(truth: Truth, station_m: float, kind: str) -> list[int]:
@@ -138,6 +217,20 @@ def _aux_lane_ids(truth: Truth, station_m: float, kind: str) -> list[int]:
     probe = station_m - 1e-3 if kind == "exit" else station_m + 1e-3
     spec = section_at(truth.sections, probe)
     return [v for k, v in _lane_ids(spec, truth.sign).items() if k[0] == "aux"]
+
+
+def section_record(road_id: str, s0: float, start: float, lanes, kinds: list[str]) -> dict:
+    """truth.json entry of a mainline lane section: ``kinds`` are ``inner``, ``driving``,
+    ``aux``, ``hard`` (or a lane type) per lane, median side first."""
+    return {
+        "road_id": road_id,
+        "s0_m": round(s0, 6),
+        "station_m": round(start + s0, 6),
+        "driving_lanes": kinds.count("driving"),
+        "aux_lanes": kinds.count("aux"),
+        "lane_ids": [lane.id for lane in lanes],
+        "lane_kinds": kinds,
+    }
 
 
 def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> dict:
@@ -150,17 +243,7 @@ def _truth_json(truth: Truth, ramp_ways: dict[int, list[int]], counts: dict) -> 
             lanes = ls.right if truth.sign < 0 else ls.left
             spec = next(x for x in truth.sections if abs(x.s0 - (start + ls.s0)) < 1e-6)
             kinds = [lane.kind for lane in spec.lanes]
-            sections.append(
-                {
-                    "road_id": road.id,
-                    "s0_m": round(ls.s0, 6),
-                    "station_m": round(start + ls.s0, 6),
-                    "driving_lanes": kinds.count("driving"),
-                    "aux_lanes": kinds.count("aux"),
-                    "lane_ids": [lane.id for lane in lanes],
-                    "lane_kinds": kinds,
-                }
-            )
+            sections.append(section_record(road.id, ls.s0, start, lanes, kinds))
     ramps = []
     for i, rt in enumerate(truth.ramps):
         ramps.append(
@@ -224,34 +307,20 @@ def simulate_run(
     if seed is not None:
         sc = dataclasses.replace(sc, seed=int(seed))
     out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
     truth = build_truth(sc)
     poses = true_poses(truth)
     meas = measured_poses(poses, truth, _rng(sc.seed, "poses"))
     edges, side, edge_counts = edge_points(truth, poses, meas, _rng(sc.seed, "edges"))
     frames, ego, lane_counts = lane_samples(truth, poses, _rng(sc.seed, "lanes"))
     edges_name = f"road_edges.{sc.road_edges_format}"
-    osm_name = "map.osm"
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
-        _write_poses(meas, tmp / "trajectory.csv")
-        _write_poses(poses, tmp / "truth_trajectory.csv")
-        _write_edges(edges, side, tmp / edges_name, sc.road_edges_format)
-        _write_csv(
-            tmp / "lane_samples.csv",
-            {"frame": frames, "x": ego[:, 0], "y": ego[:, 1], "z": ego[:, 2]},
-        )
+
+    def fill(tmp: Path) -> None:
+        write_sensor_files(tmp, meas, poses, edges, side, edges_name, frames, ego)
         if sc.real_osm:
-            real = Path(sc.real_osm)
-            # keep the compound suffix (.osm.gz, .osm.bz2, .osm.pbf) that load_run needs
-            name = real.name.lower()
-            osm_name = "map" + next(
-                (ext for ext in (".osm.gz", ".osm.bz2", ".osm.pbf", ".osm") if name.endswith(ext)),
-                ".osm.pbf" if name.endswith(".pbf") else ".osm",
-            )
-            shutil.copyfile(sc.real_osm, tmp / osm_name)
+            osm_name = copy_osm(sc.real_osm, tmp)
             ramp_ways = {i: list(r.osm_way_ids) for i, r in enumerate(sc.ramps)}
         else:
+            osm_name = "map.osm"
             ramp_ways = write_osm(truth, tmp / osm_name, _rng(sc.seed, "osm"))
         (tmp / "run.toml").write_text(_run_toml(sc, edges_name, osm_name), encoding="utf-8")
         counts = {
@@ -261,20 +330,9 @@ def simulate_run(
             "edges": edge_counts,
             "lanes": lane_counts,
         }
-        doc = _truth_json(truth, ramp_ways, counts)
-        (tmp / "truth.json").write_text(json.dumps(doc, indent=2) + "\n", encoding="utf-8")
-        try:
-            from ..xodr import write_xodr
-        except ImportError:  # pragma: no cover - the xodr module lands in parallel
-            log.warning("roadtwin.xodr not available: truth.xodr not written")
-        else:
-            write_xodr(truth.network, tmp / "truth.xodr")
-        out.mkdir(parents=True, exist_ok=True)
-        for f in sorted(tmp.iterdir()):
-            f.chmod(0o644)
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+        write_truth_files(tmp, _truth_json(truth, ramp_ways, counts), truth.network)
+
+    write_run_folder(out, fill)
     log.info(
         "simulated %s (seed %d): %.0f m, %d frames, %d edge points, %d lane samples, "
         "%d ramps -> %s",

@@ -1,0 +1,366 @@
+"""Real-layout benchmark (issue 11): runs simulated along real road layouts, built and judged.
+
+The bundled scenarios only contain what our simulator was designed to make. This benchmark
+drives the virtual mapping car along real layouts instead:
+
+* real OSM motorway / trunk chains of every extract in ``--osm-dir`` (default
+  ``/work/shared/data/osm``), turned into a lane-level truth with what real roads have
+  (:func:`roadtwin.simulate.osm_truth.truth_from_osm`: lane gains and drops, weaving lanes,
+  2-lane ramps, loops, varying widths, national markings, OSM drawn metres off), the real
+  extract as the run's OSM;
+* other tools' OpenDRIVE maps (``--xodr-dir``, default ``/work/shared/data/xodr``: CARLA
+  Town06, esmini's soderleden) along their through-routes, the map as truth
+  (:func:`roadtwin.simulate.simulate_xodr_run`);
+* the bundled ``real_a9`` scenario.
+
+Every run is simulated once into ``--workdir`` (kept between invocations; ``--fresh``
+re-simulates), then built with each method, checked (own checks; ``--external`` adds SUMO
+and the ASAM checker), evaluated against its truth and, with ``--drive`` and esmini
+available, driven route by route. Part of the runs is held out (``split = holdout``):
+develop on ``--split dev``, report on all.
+
+Run::
+
+    python benchmarks/bench_real.py [--split dev|holdout|all] [--only NAME ...]
+        [--methods default paper] [--external] [--drive] [--jobs 2] [--json FILE]
+
+Prints one row per run and method (lateral RMSE of edges and lane boundaries against truth,
+lane count right, ramps found / typed / spurious, check errors, drive result, build time)
+and a summary over the runs (median and worst).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import shutil
+import sys
+import time
+import traceback
+import warnings
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+OSM_DIR = Path("/work/shared/data/osm")
+XODR_DIR = Path("/work/shared/data/xodr")
+
+
+@dataclass(frozen=True)
+class RealRun:
+    """One run of the benchmark.
+
+    ``source`` is ``"osm"`` (``path`` an extract, ``chain`` a way id / ref selecting the
+    carriageway), ``"xodr"`` (``path`` a map, ``route`` road ids or empty for the map's
+    longest through-route) or ``"scenario"`` (``path`` a bundled scenario name).
+    """
+
+    name: str
+    source: str
+    path: str
+    seed: int = 1
+    chain: int | str | None = None
+    route: tuple[str, ...] = ()
+    holdout: bool = False
+    settings: dict = field(default_factory=dict)
+
+
+RUNS: tuple[RealRun, ...] = (
+    # A9 / A70 around Bayreuth (DE): two carriageways, several seeds
+    RealRun("a9-206615404-s1", "osm", "north-bayreuth-a9.osm.gz", 1, 206615404),
+    RealRun("a9-206615404-s2", "osm", "north-bayreuth-a9.osm.gz", 2, 206615404, holdout=True),
+    RealRun("a9-10959882-s1", "osm", "north-bayreuth-a9.osm.gz", 1, 10959882),
+    # I-880 / I-980, West Oakland (US): 4-5 lanes, a 3-lane left exit
+    RealRun("oakland-11197879-s1", "osm", "west-oakland-i880.osm.bz2", 1, 11197879),
+    RealRun("oakland-28393854-s1", "osm", "west-oakland-i880.osm.bz2", 1, 28393854, holdout=True),
+    # E18 Kotka (FI): no lane tags on the motorway, a weaving lane
+    RealRun("kotka-37952515-s1", "osm", "kotka-e18.osm.pbf", 1, 37952515),
+    RealRun("kotka-33042885-s3", "osm", "kotka-e18.osm.pbf", 3, 33042885),
+    # S5 Krems (AT): trunk with trunk_link ramps, loops, a ramp crossing the mainline
+    RealRun("krems-46762523-s1", "osm", "krems-s5-trunk.osm.gz", 1, 46762523),
+    RealRun("krems-102561705-s2", "osm", "krems-s5-trunk.osm.gz", 2, 102561705, holdout=True),
+    # Melbourne (AU): left-hand traffic
+    RealRun("melbourne-408-s1", "osm", "melbourne-lht.osm.pbf", 1, 408),
+    RealRun("melbourne-921-s2", "osm", "melbourne-lht.osm.pbf", 2, 921, holdout=True),
+    # other tools' maps along their through-routes (the map is the truth)
+    RealRun("town06-auto-s1", "xodr", "Town06.xodr", 1),
+    RealRun("town06-auto-s2", "xodr", "Town06.xodr", 2, holdout=True),
+    RealRun("soderleden-s1", "xodr", "soderleden.xodr", 1),
+    # our own real-geometry scenario
+    RealRun("real_a9", "scenario", "real_a9", 9),
+)
+
+
+# ---------------------------------------------------------------------------
+# simulating the runs
+# ---------------------------------------------------------------------------
+
+
+def simulate(spec: RealRun, out: Path, *, osm_dir: Path, xodr_dir: Path) -> Path:
+    """Simulate ``spec`` into ``out`` (a run folder with truth)."""
+    from roadtwin import simulate as sim
+
+    if spec.source == "scenario":
+        return sim.simulate_run(spec.path, out, seed=spec.seed)
+    if spec.source == "xodr":
+        return sim.simulate_xodr_run(
+            xodr_dir / spec.path, out, route=list(spec.route) or None, seed=spec.seed
+        )
+    return sim.simulate_osm_run(osm_dir / spec.path, out, chain=spec.chain, seed=spec.seed)
+
+
+# ---------------------------------------------------------------------------
+# building and judging one run
+# ---------------------------------------------------------------------------
+
+
+def _drive(map_path: Path, out_dir: Path) -> dict | None:
+    """Drive every route of the map in esmini; None without esmini or the drive module."""
+    try:
+        from roadtwin.drive import drive_map, find_esmini
+    except ImportError:
+        return None
+    esmini = find_esmini(None)
+    if esmini is None:
+        return None
+    report = drive_map(map_path, out_dir, esmini=esmini)
+    failed = [r for r in report.results if r.status != "passed"]
+    return {
+        "routes": len(report.results),
+        "passed": report.count("passed"),
+        "failed": [f.message[:200] for r in failed for f in r.faults][:5],
+        "esmini_warnings": report.warnings,
+    }
+
+
+def build_and_judge(
+    run_dir: Path, out_dir: Path, *, method: str, external: bool, drive: bool
+) -> dict:
+    """Build ``run_dir`` with ``method`` into ``out_dir``, check, evaluate, drive: a row."""
+    from roadtwin.check import check_file
+    from roadtwin.config import PipelineConfig
+    from roadtwin.evaluation import evaluate_paths
+    from roadtwin.io import load_run
+    from roadtwin.osm import load_osm
+    from roadtwin.pipeline import build_map
+    from roadtwin.xodr import write_xodr
+
+    row: dict = {"method": method, "ok": False, "error": ""}
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            run = load_run(run_dir)
+            graph = None
+            if run.osm_path is not None:
+                graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+            result = build_map(run, graph, config=PipelineConfig().with_method(method))
+        row["build_s"] = time.perf_counter() - t0
+        out_dir.mkdir(parents=True, exist_ok=True)
+        map_path = out_dir / "map.xodr"
+        write_xodr(result.network, map_path)
+        report = check_file(map_path, external=external)
+        row["check_errors"] = len([f for f in report.findings if f.severity == "error"])
+        row["check_codes"] = sorted({f.code for f in report.findings if f.severity == "error"})
+        row["consumers"] = {
+            c.name: {"status": c.status, "errors": c.errors} for c in report.consumers
+        }
+        row["stretch_warnings"] = sum("poorly determined" in w or "wide" in w or "off every" in w
+                                      for w in result.warnings)  # fmt: skip
+        rep = evaluate_paths(map_path, [run_dir]).runs[0]
+        t = rep.truth or {}
+        topo = rep.topology or {}
+        widest = _widest_lane(result.network)
+        row.update(
+            ok=True,
+            km=sum(r.length for r in result.network.roads if r.name == "mainline") / 1000.0,
+            edge_rmse=(t.get("road_edge") or {}).get("rmse_m"),
+            lane_rmse=(t.get("lane_boundary") or {}).get("rmse_m"),
+            edge_p95=(t.get("road_edge") or {}).get("p95_m"),
+            lane_p95=(t.get("lane_boundary") or {}).get("p95_m"),
+            lane_count=(t.get("lane_count") or {}).get("matched_fraction"),
+            ramp_centre=(t.get("ramp_centre") or {}).get("rmse_m"),
+            true_ramps=topo.get("true_ramps"),
+            matched=topo.get("matched"),
+            typed=topo.get("type_correct"),
+            spurious=len(topo.get("spurious") or []),
+            connected=topo.get("connected"),
+            widest_lane_m=widest,
+        )
+        if drive:
+            row["drive"] = _drive(map_path, out_dir / "drive")
+    except Exception as exc:  # a benchmark row, not a crash: the error is the result
+        row["error"] = f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
+        row["trace"] = traceback.format_exc(limit=8)
+    row["time_s"] = time.perf_counter() - t0
+    return row
+
+
+def _widest_lane(network) -> float:
+    """Widest driving lane of the mainline roads anywhere (metres, every 1 m)."""
+    widest = 0.0
+    for road in network.roads:
+        if road.name != "mainline":
+            continue
+        for k, sec in enumerate(road.lane_sections):
+            hi = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+            ds = np.arange(0.0, max(hi - sec.s0, 0.0), 1.0)
+            for lane in (*sec.left, *sec.right):
+                if lane.type == "driving" and ds.size:
+                    widest = max(widest, float(np.max(lane.width.value(ds))))
+    return widest
+
+
+def one(args: tuple) -> tuple[str, str, list[dict]]:
+    """Simulate (if needed), then build and judge one run with every method (a worker)."""
+    spec, workdir, methods, external, drive, fresh, osm_dir, xodr_dir = args
+    run_dir = workdir / spec.name / "run"
+    rows: list[dict] = []
+    sim_error = ""
+    try:
+        if fresh and run_dir.exists():
+            shutil.rmtree(run_dir)
+        if not (run_dir / "truth.xodr").exists():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                simulate(spec, run_dir, osm_dir=osm_dir, xodr_dir=xodr_dir)
+    except Exception as exc:
+        sim_error = f"simulate: {type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
+        rows = [{"method": m, "ok": False, "error": sim_error,
+                 "trace": traceback.format_exc(limit=8)} for m in methods]  # fmt: skip
+        return spec.name, "holdout" if spec.holdout else "dev", rows
+    for method in methods:
+        out = workdir / spec.name / method
+        rows.append(build_and_judge(run_dir, out, method=method, external=external, drive=drive))
+    return spec.name, "holdout" if spec.holdout else "dev", rows
+
+
+# ---------------------------------------------------------------------------
+# the table
+# ---------------------------------------------------------------------------
+
+
+def _f(value, digits: int = 3) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    return f"{value:.{digits}f}"
+
+
+def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
+    head = (
+        "| run | split | method | km | edge RMSE | lane RMSE | lane count | ramps found/true "
+        "| typed | spurious | widest lane | check errors | SUMO | ASAM | drive | build s |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    )
+    lines = [head]
+    for name, split, rows in results:
+        for r in rows:
+            if not r.get("ok"):
+                lines.append(f"| {name} | {split} | {r['method']} | FAILED: {r['error']} |")
+                continue
+            cons = r.get("consumers", {})
+
+            def status(key: str, cons=cons) -> str:
+                c = next((v for k, v in cons.items() if key in k.lower()), None)
+                if c is None:
+                    return "-"
+                return "ok" if c["status"] == "passed" else f"{c['status']} ({c['errors']})"
+
+            drive = r.get("drive")
+            drive_txt = "-" if not drive else f"{drive['passed']}/{drive['routes']}"
+            count = r["lane_count"]
+            count_txt = "-" if count is None else f"{100 * count:.1f} %"
+            lines.append(
+                f"| {name} | {split} | {r['method']} | {_f(r['km'], 1)} | {_f(r['edge_rmse'])} "
+                f"| {_f(r['lane_rmse'])} | {count_txt} | {r['matched']}/{r['true_ramps']} "
+                f"| {r['typed']} | {r['spurious']} | {_f(r['widest_lane_m'], 1)} "
+                f"| {r['check_errors']} | {status('sumo')} | {status('asam')} | {drive_txt} "
+                f"| {_f(r['build_s'], 1)} |"
+            )
+    return "\n".join(lines)
+
+
+def summary(results: list[tuple[str, str, list[dict]]], method: str) -> str:
+    """Median and worst over the runs of one method, and what misses a target."""
+    rows = [r for _, _, rs in results for r in rs if r["method"] == method and r.get("ok")]
+    failed = [n for n, _, rs in results for r in rs if r["method"] == method and not r.get("ok")]
+    if not rows:
+        return f"{method}: no run built ({len(failed)} failed)"
+
+    def col(key: str) -> np.ndarray:
+        return np.array([r[key] for r in rows if r.get(key) is not None], dtype=float)
+
+    edge, lane, count = col("edge_rmse"), col("lane_rmse"), col("lane_count")
+    missed = sum((r["true_ramps"] or 0) - (r["matched"] or 0) for r in rows)
+    return (
+        f"{method}: {len(rows)} runs built, {len(failed)} failed; "
+        f"edge RMSE median {np.median(edge):.3f} max {edge.max():.3f} m; "
+        f"lane RMSE median {np.median(lane):.3f} max {lane.max():.3f} m; "
+        f"lane count min {100 * count.min():.1f} %; ramps missed {missed}, "
+        f"spurious {sum(r['spurious'] for r in rows)}, "
+        f"mistyped {sum((r['matched'] or 0) - (r['typed'] or 0) for r in rows)}; "
+        f"maps with check errors {sum(r['check_errors'] > 0 for r in rows)}; "
+        f"widest lane {col('widest_lane_m').max():.1f} m"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--workdir", type=Path, default=Path("/tmp/roadtwin-bench-real"))
+    ap.add_argument("--split", choices=("dev", "holdout", "all"), default="all")
+    ap.add_argument("--only", nargs="*", default=None, help="run names (prefix match)")
+    ap.add_argument("--methods", nargs="+", default=["default", "paper"])
+    ap.add_argument("--external", action="store_true", help="also SUMO and the ASAM checker")
+    ap.add_argument("--drive", action="store_true", help="drive every route in esmini")
+    ap.add_argument("--fresh", action="store_true", help="simulate the runs again")
+    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--osm-dir", type=Path, default=OSM_DIR)
+    ap.add_argument("--xodr-dir", type=Path, default=XODR_DIR)
+    ap.add_argument("--json", type=Path, default=None, help="write every row as JSON")
+    args = ap.parse_args(argv)
+    specs = [
+        s
+        for s in RUNS
+        if (args.split == "all" or (s.holdout == (args.split == "holdout")))
+        and (not args.only or any(s.name.startswith(p) for p in args.only))
+    ]
+    args.workdir.mkdir(parents=True, exist_ok=True)
+    work = [
+        (s, args.workdir, args.methods, args.external, args.drive, args.fresh, args.osm_dir,
+         args.xodr_dir)
+        for s in specs
+    ]  # fmt: skip
+    t0 = time.perf_counter()
+    if args.jobs > 1 and len(work) > 1:
+        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+            results = list(pool.map(one, work))
+    else:
+        results = [one(w) for w in work]
+    print(format_rows(results))
+    print()
+    for method in args.methods:
+        print(summary(results, method))
+    print(f"\n{len(specs)} runs in {time.perf_counter() - t0:.0f} s (jobs={args.jobs})")
+    for name, _, rows in results:
+        for r in rows:
+            if r.get("trace"):
+                print(f"\n--- {name} [{r['method']}]\n{r['trace']}", file=sys.stderr)
+    if args.json:
+        clean = [
+            {
+                "run": n,
+                "split": sp,
+                "rows": [{k: v for k, v in r.items() if k != "trace"} for r in rs],
+            }
+            for n, sp, rs in results
+        ]
+        args.json.write_text(json.dumps(clean, indent=1, default=str) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
