@@ -1165,23 +1165,36 @@ def run_command(args: argparse.Namespace) -> int:
         _close_bars()
 
 
+class _StageBar:
+    """A stage of :mod:`roadtwin.progress`: a tqdm bar (see :func:`progress`) and, when the
+    stage ends, one log line with its seconds and count (shown with ``-v``). A message
+    printed meanwhile may close the tqdm bar early (:func:`_close_bars`); the stage still
+    ends, and logs, when the library says so."""
+
+    def __init__(self, args: argparse.Namespace, name: str, total: float | None, unit: str):
+        import time
+
+        self.name, self.unit, self.count = name, unit, 0.0
+        self.started = time.perf_counter()
+        self.bar = progress(args, total=total, desc=name, unit=unit, unit_scale=True, leave=False)
+
+    def update(self, n: float = 1) -> None:
+        self.count += n
+        self.bar.update(n)
+
+    def close(self) -> None:
+        import time
+
+        self.bar.close()
+        done = f" ({self.count:,.0f} {self.unit})" if self.count else ""
+        log.info("stage %s: %.2f s%s", self.name, time.perf_counter() - self.started, done)
+
+
 def _progress_listener(args: argparse.Namespace):
-    """Listener for :mod:`roadtwin.progress`: a bar per long stage inside a command (drawn
-    like every bar, see :func:`progress`), a log line per stage with ``-v``."""
-    import time
+    """Listener for :mod:`roadtwin.progress`: a :class:`_StageBar` per long stage."""
 
-    def listener(name: str, total: float | None, unit: str):
-        bar = progress(args, total=total, desc=name, unit=unit, unit_scale=True, leave=False)
-        started = time.perf_counter()
-        close = bar.close
-
-        def closing() -> None:
-            close()
-            done = f" ({bar.n:,.0f} {unit})" if bar.n else ""
-            log.info("stage %s: %.2f s%s", name, time.perf_counter() - started, done)
-
-        bar.close = closing  # type: ignore[method-assign]
-        return bar
+    def listener(name: str, total: float | None, unit: str) -> _StageBar:
+        return _StageBar(args, name, total, unit)
 
     return listener
 

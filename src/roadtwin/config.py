@@ -101,10 +101,11 @@ class LoadConfig:
     (metres)."""
     cell_lateral_m: float = 0.05
     """Density reduction: cell width across the trajectory (metres)."""
-    edge_points_per_m: float = 10.0
-    """Rows per metre of each road edge after the density reduction (about twice what the
-    simulator's default sensor gives)."""
-    lane_samples_per_m: float = 5.0
+    edge_points_per_m: float = 4.0
+    """Rows per metre of each road edge after the density reduction: one per station cell,
+    each the mean of the edge's points in it (the simulator's default sensor gives ~4.6
+    points per metre; more rows would repeat the same means)."""
+    lane_samples_per_m: float = 4.0
     """Rows per metre of each lane marking after the density reduction."""
     reduce_factor: float = 2.0
     """Points are reduced only where a line is denser than this times its target
