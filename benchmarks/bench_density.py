@@ -1,7 +1,7 @@
 """Density benchmark: build cost and accuracy from 0.1 M to 50 M road-edge points.
 
 Run: ``python benchmarks/bench_density.py [--cases 2km-0.1M 2km-1M 2km-10M 2km-sim10x 10km
-100km] [--workdir DIR] [--json FILE] [--src DIR] [--no-cli] [--no-startup]``.
+100km] [--workdir DIR] [--json FILE] [--src DIR] [--no-cli] [--no-startup] [--seeds 1 2 ...]``.
 
 Cases (runs are cached in ``--workdir``):
 
@@ -34,7 +34,10 @@ Every case runs in fresh child processes:
 ``--src DIR`` measures another checkout's ``src`` (e.g. ``git archive main | tar -x -C
 DIR``) with the same harness: the "before" columns of ``benchmarks/RESULTS.md``.
 The start-up section times ``roadtwin --help`` and the time from launching
-``roadtwin build`` to the start of its first stage.
+``roadtwin build`` to the start of its first stage. ``--seeds`` compares the truth RMSE
+over simulator seeds: the 2 km run at the default sensor, at ten times its density (every
+point, and reduced to rows) and repeated to 1 M points (one seed is no measure: a gore
+placed a metre off puts one 6 m error into the RMSE of a whole run).
 """
 
 from __future__ import annotations
@@ -444,6 +447,83 @@ def startup(run_dir: Path, src: Path | None, repeat: int = 5) -> dict[str, float
 
 
 # ---------------------------------------------------------------------------
+# accuracy over seeds
+# ---------------------------------------------------------------------------
+
+
+def _truth_rmse(run_dir: Path, *, reduce: bool) -> tuple[float, float, float]:
+    """Mainline edge, lane-boundary and elevation RMSE (metres) of a default build."""
+    import logging
+    import warnings
+
+    from roadtwin.config import PipelineConfig
+    from roadtwin.evaluation import load_truth
+    from roadtwin.evaluation.metrics import _truth_mainline
+    from roadtwin.io import load_run
+    from roadtwin.osm import load_osm
+    from roadtwin.pipeline import build_map
+
+    logging.disable(logging.WARNING)
+    warnings.simplefilter("ignore")
+    cfg = PipelineConfig()
+    run = load_run(run_dir, config=cfg.load, reduce=reduce)
+    osm = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy, config=cfg.load)
+    built = build_map(run, osm, config=cfg)
+    truth, _ = load_truth(run_dir / "truth.xodr")
+    acc, _ = _truth_mainline(built.network, truth, cfg.evaluation)
+    return tuple(acc[k]["rmse_m"] for k in ("road_edge", "lane_boundary", "elevation"))
+
+
+def accuracy_seeds(workdir: Path, seeds: list[int]) -> dict[int, dict[str, tuple]]:
+    """Per seed: the 2 km scenario at the default sensor (sparse), at ten times the density
+    with every point and reduced to rows, and the sparse run repeated to 1 M points."""
+    from roadtwin.simulate import simulate_run
+    from roadtwin.simulate.scenario import scenario_from_dict
+
+    out: dict[int, dict[str, tuple]] = {}
+    for seed in seeds:
+        root = workdir / f"seed_{seed}"
+        sparse, dense, rep = root / "sparse", root / "sim10x", root / "rep1M"
+        if not _stamped(root, {"seed": seed, "block": BLOCK}):
+            doc = _scenario_doc()
+            simulate_run(scenario_from_dict(doc, name="straight_curve_2km"), sparse, seed=seed)
+            doc = _scenario_doc(edge_spacing_m=0.02, lane_spacing_m=0.05)
+            simulate_run(scenario_from_dict(doc, name="straight_curve_2km"), dense, seed=seed)
+            densify_run(sparse, rep, edge_points=1_000_000, lane_samples=200_000, seed=seed)
+            _stamp(root, {"seed": seed, "block": BLOCK})
+        out[seed] = {
+            "sparse": _truth_rmse(sparse, reduce=True),
+            "sim10x points": _truth_rmse(dense, reduce=False),
+            "sim10x rows": _truth_rmse(dense, reduce=True),
+            "repeated 1M rows": _truth_rmse(rep, reduce=True),
+        }
+        print(
+            f"seed {seed}: "
+            + ", ".join(
+                f"{k} {_f(v[0] * 1e3, 1)}/{_f(v[1] * 1e3, 1)}/{_f(v[2] * 1e3, 1)} mm"
+                for k, v in out[seed].items()
+            ),
+            flush=True,
+        )
+    return out
+
+
+def seeds_table(out: dict[int, dict[str, tuple]]) -> str:
+    """Markdown: per variant, mean and median over seeds of edge / lane / elevation RMSE."""
+    variants = list(next(iter(out.values())))
+    lines = [
+        "| run (2 km, per seed) | edge RMSE mean / median mm | lane RMSE mean / median mm "
+        "| elevation RMSE mean / median mm |",
+        "|---|---:|---:|---:|",
+    ]
+    for v in variants:
+        vals = np.array([out[s][v] for s in out]) * 1e3
+        cells = [f"{np.mean(vals[:, k]):.1f} / {np.median(vals[:, k]):.1f}" for k in range(3)]
+        lines.append(f"| {v} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------
 # report
 # ---------------------------------------------------------------------------
 
@@ -512,13 +592,20 @@ def tables(results: dict[str, dict[str, Any]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--cases", nargs="+", default=list(CASES), help=f"of {', '.join(CASES)}")
+    p.add_argument("--cases", nargs="*", default=list(CASES), help=f"of {', '.join(CASES)}")
     p.add_argument("--workdir", type=Path, default=Path("/tmp/roadtwin-bench-density"))
     p.add_argument("--src", type=Path, default=None, help="measure this checkout's src folder")
     p.add_argument("--json", type=Path, default=None, help="write the raw numbers here")
     p.add_argument("--no-cli", action="store_true", help="skip the roadtwin build runs")
     p.add_argument("--no-startup", action="store_true", help="skip the start-up timings")
     p.add_argument("--timeout", type=float, default=3600.0, help="seconds per child")
+    p.add_argument(
+        "--seeds",
+        type=int,
+        nargs="*",
+        default=[],
+        help="also compare truth RMSE over these seeds (sparse / 10x sensor / repeated)",
+    )
     p.add_argument("--child-floor", type=Path, default=None, help=argparse.SUPPRESS)
     p.add_argument("--child-build", type=Path, default=None, help=argparse.SUPPRESS)
     p.add_argument("--child-out", type=Path, default=None, help=argparse.SUPPRESS)
@@ -565,8 +652,14 @@ def main(argv: list[str] | None = None) -> int:
             f"\nstart-up: roadtwin --help {start['help_s']:.3f} s, first stage of a build "
             f"{start['first_stage_s']:.3f} s after launch (best of 5)"
         )
+    seeds = {}
+    if args.seeds:
+        seeds = accuracy_seeds(args.workdir, args.seeds)
+        print()
+        print(seeds_table(seeds))
     if args.json:
-        args.json.write_text(json.dumps({"machine": info, "results": results}, indent=1), "utf-8")
+        payload = {"machine": info, "results": results, "seeds": seeds}
+        args.json.write_text(json.dumps(payload, indent=1), "utf-8")
     return 0
 
 

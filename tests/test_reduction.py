@@ -289,3 +289,22 @@ def test_load_reports_progress_to_a_listener(sparse_dir):
     n = run.edges.shape[0]
     assert seen["load road edges"] == [n, "points", n, True]
     assert seen["load lane samples"][2] == run.lane_samples.shape[0]
+
+
+def test_a_run_built_in_memory_is_reduced_by_the_pipeline_like_by_the_loader(sparse_dir, tmp_path):
+    """build_map reduces a dense run that never went through load_run's reduction: the
+    same rows as loading with the reduction (the cells do not depend on the chunks or
+    the distance limit)."""
+    _repeat_edges(sparse_dir, tmp_path / "x", 30)
+    loaded = load_run(tmp_path / "x")
+    raw = load_run(tmp_path / "x", reduce=False)
+    bare = dataclasses.replace(raw, edge_reduction=None, lane_reduction=None)
+    reduced = reduce_run(bare)
+    assert reduced.edge_reduction.reduced
+    assert reduced.edge_reduction.points == loaded.edge_reduction.points
+    assert reduced.edges.shape == loaded.edges.shape
+    np.testing.assert_allclose(reduced.edges, loaded.edges, atol=1e-6, rtol=0)
+    np.testing.assert_array_equal(reduced.edge_side, loaded.edge_side)
+    # the sparse lane samples of that run are not reduced: the same arrays come back
+    assert not reduced.lane_reduction.reduced
+    np.testing.assert_array_equal(reduced.lane_samples, raw.lane_samples)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -81,14 +82,8 @@ def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.Data
     pandas.DataFrame
         At least one row; column names stripped and lower-cased.
     """
-    if path.stat().st_size == 0:
-        msg = f"{path}: file is empty (expected {what})"
-        raise InputError(msg)
-    nul = _first_nul(path)
-    if nul is not None:  # pandas would silently cut the field at the NUL
-        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
-        raise InputError(msg)
-    try:
+    _check_text_file(path, what)
+    with _csv_errors(path, what):
         df = pd.read_csv(
             path,
             skipinitialspace=True,
@@ -96,6 +91,33 @@ def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.Data
             encoding="utf-8-sig",
             nrows=None if max_rows is None else max_rows + 1,
         )
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    if df.shape[0] == 0:
+        msg = f"{path}: file has a header but no data rows (expected {what})"
+        raise InputError(msg)
+    _check_row_count(path, df.shape[0], max_rows)
+    return df
+
+
+def _check_text_file(path: Path, what: str) -> None:
+    """Refuse an empty file, or one with NUL bytes (pandas would silently cut the field at
+    the NUL)."""
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg)
+    nul = _first_nul(path)
+    if nul is not None:
+        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
+        raise InputError(msg)
+
+
+@contextmanager
+def _csv_errors(path: Path, what: str) -> Iterator[None]:
+    """pandas' parse errors as one-line :class:`InputError` that quote no file content."""
+    try:
+        yield
+    except InputError:
+        raise
     except pd.errors.EmptyDataError:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg) from None
@@ -105,17 +127,15 @@ def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.Data
     except (pd.errors.ParserError, ValueError) as exc:
         msg = f"{path}: not a readable CSV file ({reason(exc)}); expected {what}"
         raise InputError(msg) from None
-    df.columns = [str(c).strip().lower() for c in df.columns]
-    if df.shape[0] == 0:
-        msg = f"{path}: file has a header but no data rows (expected {what})"
-        raise InputError(msg)
-    if max_rows is not None and df.shape[0] > max_rows:
+
+
+def _check_row_count(path: Path, rows: int, max_rows: int | None) -> None:
+    if max_rows is not None and rows > max_rows:
         msg = (
             f"{path}: more than {max_rows:,} data rows; larger files are refused "
             "([load] max_poses / max_points): thin or split them"
         )
         raise InputError(msg)
-    return df
 
 
 def _first_nul(path: Path, chunk: int = 1 << 22) -> int | None:
@@ -139,15 +159,9 @@ def iter_table(
     rows, more than ``max_rows`` data rows); column names stripped and lower-cased in every
     chunk. Yields at least one chunk.
     """
-    if path.stat().st_size == 0:
-        msg = f"{path}: file is empty (expected {what})"
-        raise InputError(msg)
-    nul = _first_nul(path)
-    if nul is not None:  # pandas would silently cut the field at the NUL
-        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
-        raise InputError(msg)
+    _check_text_file(path, what)
     rows = 0
-    try:
+    with _csv_errors(path, what):
         reader = pd.read_csv(
             path, skipinitialspace=True, encoding="utf-8-sig", chunksize=max(1, chunk_rows)
         )
@@ -157,24 +171,8 @@ def iter_table(
                 if rows == 0 and df.shape[0] == 0:
                     break
                 rows += df.shape[0]
-                if max_rows is not None and rows > max_rows:
-                    msg = (
-                        f"{path}: more than {max_rows:,} data rows; larger files are refused "
-                        "([load] max_poses / max_points): thin or split them"
-                    )
-                    raise InputError(msg)
+                _check_row_count(path, rows, max_rows)
                 yield df
-    except pd.errors.EmptyDataError:
-        msg = f"{path}: file is empty (expected {what})"
-        raise InputError(msg) from None
-    except UnicodeDecodeError:
-        msg = f"{path}: not a UTF-8 text file; expected a CSV table with {what}"
-        raise InputError(msg) from None
-    except (pd.errors.ParserError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        msg = f"{path}: not a readable CSV file ({reason(exc)}); expected {what}"
-        raise InputError(msg) from None
     if rows == 0:
         msg = f"{path}: file has a header but no data rows (expected {what})"
         raise InputError(msg)

@@ -349,9 +349,11 @@ class CellAccumulator:
         self.ds = float(station_bin_m)
         self.dt = float(lateral_bin_m)
         self.limit = float(max_lateral_m)
-        self.s0 = -self.limit - self.ds  # station of the first bin's lower border
-        self.n_s = math.ceil((line.length + 2.0 * self.limit + 2.0 * self.ds) / self.ds) + 1
-        self.n_t = math.ceil(2.0 * self.limit / self.dt) + 1
+        # cell borders on multiples of the cell size (the same cells whatever the limit)
+        self.s0 = -(math.ceil(self.limit / self.ds) + 1) * self.ds
+        self.t0 = -math.ceil(self.limit / self.dt) * self.dt
+        self.n_s = math.ceil((line.length - 2.0 * self.s0) / self.ds) + 1
+        self.n_t = math.ceil(-2.0 * self.t0 / self.dt) + 1
         self.ref = line.xy[0]
         self.keep_raw_points = float(keep_raw_points)
         self.points = 0
@@ -391,7 +393,7 @@ class CellAccumulator:
         # truncation is the floor (the clip only guards rounding at the far borders)
         i_s = ((s - self.s0) * (1.0 / self.ds)).astype(np.int64)
         np.clip(i_s, 0, self.n_s - 1, out=i_s)
-        t_lo = -self.limit
+        t_lo = self.t0
         i_t = ((t - t_lo) * (1.0 / self.dt)).astype(np.int64)
         np.clip(i_t, 0, self.n_t - 1, out=i_t)
         u = t - (t_lo + i_t * self.dt)  # offset inside the cell, [0, dt)
@@ -458,6 +460,7 @@ class CellAccumulator:
             ds=self.ds,
             w=max(1, round(_LINE_WINDOW_M / self.dt)),
             block=max(1, round(_DENSITY_BLOCK_M / self.ds)),
+            first_bin=round(self.s0 / self.ds),
         )
         peak = float(np.nanmax(density)) if np.isfinite(density).any() else 0.0
         reduce = peak > reduce_factor * target_per_m or self._raw is None
@@ -572,6 +575,7 @@ def _line_density(
     ds: float,
     w: int,
     block: int,
+    first_bin: int = 0,
 ) -> tuple[FloatArray, Callable[[IntArray, IntArray], FloatArray]]:
     """Points per metre of one line: per group (NaN for an empty group), and a function
     ``(group, station bin) -> density`` of the stretch around an occupied bin.
@@ -605,8 +609,12 @@ def _line_density(
     log_peak = np.log(np.maximum(peak / ds, 1e-9))
     best = fallback
     best_gap = np.full(bins.size, np.inf)
+    # stretches start at multiples of ``block`` bins from station 0 (``first_bin``: the
+    # absolute index of bin 0), whatever the accumulator's margins
+    at = i_s + first_bin
     for shift in (0, block // 2):
-        stretch = group * (n_s // block + 2) + (i_s + shift) // block
+        part = (at + shift) // block
+        stretch = group * (n_s // block + 3) + (part - part.min())
         order = np.lexsort((peak, stretch))
         st, pk = stretch[order], peak[order]
         starts = np.flatnonzero(np.concatenate([[True], st[1:] != st[:-1]]))
