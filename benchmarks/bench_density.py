@@ -643,8 +643,9 @@ def main(argv: list[str] | None = None) -> int:
             f"{rec['load_after']})",
             flush=True,
         )
-    print()
-    print(tables(results))
+    if results:
+        print()
+        print(tables(results))
     if not args.no_startup:
         start = startup(ensure_case(args.workdir, "2km-sparse"), args.src)
         info.update({k: f"{v:.3f}" for k, v in start.items()})
