@@ -261,9 +261,9 @@ def test_far_points_counted_across_chunks(tmp_path):
     write_run(tmp_path, edge_format="csv")
     df = pd.read_csv(tmp_path / "road_edges.csv")
     far = df.iloc[:3].assign(x=df["x"].iloc[:3] + 5000.0)
-    pd.concat([df.iloc[:40], far, df.iloc[40:]]).to_csv(tmp_path / "road_edges.csv", index=False)
-    cfg = dataclasses.replace(CFG, chunk_points=7)
-    with pytest.warns(InputWarning, match=r"dropped 3 of \d+ road-edge points .* data row 41\)"):
+    pd.concat([df.iloc[:130], far, df.iloc[130:]]).to_csv(tmp_path / "road_edges.csv", index=False)
+    cfg = dataclasses.replace(CFG, chunk_points=50)  # the far points are in the third chunk
+    with pytest.warns(InputWarning, match=r"dropped 3 of \d+ road-edge points .* data row 131\)"):
         run = load_run(tmp_path, config=cfg)
     assert run.dropped_edge_points == 3
     assert run.edges.shape[0] == df.shape[0]
