@@ -126,7 +126,7 @@ def test_no_progress_bars_when_not_a_terminal(tmp_path):
     simulate_run(load_scenario("straight_curve_2km"), run)
     exe = Path(sys.executable).parent / "roadtwin"
     proc = subprocess.run(
-        [str(exe), "build", str(run), "-o", str(tmp_path / "out"), "--no-check"],
+        [str(exe), "build", str(run), "-o", str(tmp_path / "out"), "--no-check", "--no-drive"],
         capture_output=True,
         text=True,
         timeout=300,

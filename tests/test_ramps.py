@@ -128,8 +128,9 @@ def _check_attached(ramp, road: Road, side: str) -> None:
     assert t[0] == pytest.approx(t_inner, abs=0.01)
     dh = (h[0] - road.heading(np.array([ramp.station_m]))[0] + math.pi) % (2 * math.pi) - math.pi
     assert abs(math.degrees(dh)) <= 0.5
-    # 150 m away from the mainline the ramp lies on the traffic side
-    sign = -1.0 if side == "right" else 1.0
+    # 150 m away from the mainline the ramp lies on its side: the traffic side for an
+    # outer ramp, the median side for an inner one
+    sign = (-1.0 if side == "right" else 1.0) * (1.0 if ramp.side == "outer" else -1.0)
     s_far = min(150.0, ramp.road.length)
     s_far = s_far if ramp.type == "exit" else ramp.road.length - s_far
     _, t_far = road.project(ramp.road.xy(np.array([s_far])))
@@ -260,15 +261,17 @@ def test_direction_check_rejects_the_opposite_direction(oakland):
     assert rejected
 
 
-def test_side_check(oakland):
+def test_ramp_side_outer_or_median(oakland):
+    """A link on the traffic side of the drive is an outer ramp; the same link seen from a
+    left-hand-traffic drive lies on the median side: an inner ramp (a left exit/entry), not
+    rejected."""
     graph, traj, _ = oakland
     chains_r, _ = extract_ramp_chains(graph, traj, traffic_side="right")
-    chains_l, rej_l = extract_ramp_chains(graph, traj, traffic_side="left")
-    ways_r = {w for c in chains_r for w in c.osm_way_ids}
-    ways_l = {w for c in chains_l for w in c.osm_way_ids}
-    assert 28413786 in ways_r
-    assert 28413786 not in ways_l  # it lies right of the drive
-    assert any("left" in why or "right" in why for _, why in rej_l)
+    chains_l, _ = extract_ramp_chains(graph, traj, traffic_side="left")
+    side_r = {w: c.side for c in chains_r for w in c.osm_way_ids}
+    side_l = {w: c.side for c in chains_l for w in c.osm_way_ids}
+    assert side_r[28413786] == "outer"
+    assert side_l[28413786] == "inner"  # it lies right of the drive
 
 
 # ---------------------------------------------------------------------------
@@ -308,7 +311,7 @@ def test_kotka_fallback_reported():
 
 def test_melbourne_left_hand_candidates():
     graph = _load("melbourne-lht.osm.pbf", -37.63, 145.37)
-    n_chains = n_runs = 0
+    n_chains = n_runs = n_outer = 0
     for node in _attach_nodes(graph):
         centre = motorway_path(graph, node, back_m=600.0, ahead_m=600.0)
         if LineString(centre).length < 400.0 or n_runs == 3:
@@ -323,12 +326,16 @@ def test_melbourne_left_hand_candidates():
             assert r.road.lane_sections[0].left
             assert not r.road.lane_sections[0].right
             _check_attached(r, road, "left")
-        # the same links are on the wrong side for right-hand traffic
+        # left-hand traffic: they are outer ramps; seen as right-hand traffic the same
+        # links lie on the median side
         chains_rht, _ = extract_ramp_chains(graph, traj, traffic_side="right", candidates=cands)
-        lht = {c.edges for c in chains}
-        assert not lht & {c.edges for c in chains_rht}
+        sides = {c.edges: c.side for c in chains_rht}
+        flip = {"outer": "inner", "inner": "outer"}
+        assert all(sides[c.edges] == flip[c.side] for c in chains if c.edges in sides)
+        n_outer += sum(c.side == "outer" for c in chains)
         n_chains += len(chains)
     assert n_chains >= 2
+    assert n_outer >= 2
 
 
 # ---------------------------------------------------------------------------

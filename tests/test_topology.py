@@ -32,7 +32,7 @@ from roadtwin.model import (
     RoadNetwork,
 )
 from roadtwin.ramps import Ramp, build_ramp_road, gore_events
-from roadtwin.topology import build_topology, hermite_road, lane_graph, match_lanes
+from roadtwin.topology import build_topology, hermite_road, lane_graph, match_lanes_at
 
 W = 3.75
 LINK_CODES = {
@@ -385,15 +385,47 @@ def test_too_close_ramps_are_skipped(mainline, ramps, side):
     assert len(topo.junctions) == 1
 
 
-def test_match_lanes_by_role(mainline, side):
+def test_match_lanes_by_geometry(mainline, side):
+    """Across a gore the lanes whose borders meet continue: shoulders and through lanes;
+    not the deceleration lane, not the hard shoulder beside the gore."""
     sign = -1 if side == "right" else 1
-    before, gore_next = mainline.lane_sections[1], mainline.lane_sections[2]
-    m = match_lanes(before, gore_next, traffic_side=side)
-    # shoulders and through lanes continue; the deceleration lane and the hard shoulder
-    # beside the gore do not
+    m = match_lanes_at(mainline, 500.0 - 1e-9, mainline, 500.0, traffic_side=side)
     assert m == {sign * i: sign * i for i in (1, 2, 3, 4)}
-    same = match_lanes(mainline.lane_sections[0], mainline.lane_sections[2], traffic_side=side)
-    assert same[sign * 5] == sign * 5
+    # where the acceleration lane has closed to zero width the hard shoulder goes on
+    closed = match_lanes_at(mainline, 1000.0 - 1e-9, mainline, 1000.0, traffic_side=side)
+    assert closed == {**{sign * i: sign * i for i in (1, 2, 3, 4)}, sign * 6: sign * 5}
+
+
+def test_match_lanes_by_geometry_when_lanes_leave_on_the_median_side():
+    """A left exit (right-hand traffic): the innermost driving lane ends at the gore and
+    the centre lane moves out by its width (lane offset); counting would link lane 2 to
+    lane 2 -- geometry links each through lane to the one it really continues as."""
+    from roadtwin.model import Line
+
+    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
+    before = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid"),
+            _lane(-2, W),
+            _lane(-3, W),
+            _lane(-4, W),
+            _lane(-5, 2.5, "shoulder", "none"),
+        ),
+    )
+    after = LaneSection(
+        500.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid"),
+            _lane(-2, W),
+            _lane(-3, W),
+            _lane(-4, 2.5, "shoulder", "none"),
+        ),
+    )
+    offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
+    road = Road("1", line, (before, after), lane_offset=offset)
+    m = match_lanes_at(road, 500.0 - 1e-9, road, 500.0)
+    assert m == {-3: -2, -4: -3, -5: -4}
 
 
 def test_hermite_road_meets_both_poses():

@@ -139,6 +139,19 @@ class MainlineConfig:
     edge_outlier_mad: float = 4.0
     """Edge points farther than this many robust sigmas (1.4826 MAD, local) from the
     running fit are outliers."""
+    edge_rank_cost: float = 3.0
+    """Outer edge path (:mod:`roadtwin.mainline.edge_levels`): cost of each level of edge
+    points inside the chosen one in a bin (the mainline's edge is the innermost level)."""
+    edge_skip_cost: float = 0.6
+    """... cost of skipping a bin that holds edge points (the mainline's edge unseen there,
+    another road's edge seen instead)."""
+    edge_level_sigma_m: float = 0.15
+    """... lateral change of the edge between neighbouring 2 m bins that costs 1."""
+    edge_step_m: float = 2.0
+    """... a level change larger than this is a step (a gore: about a lane width); smaller
+    changes pay the continuity cost (a change of a metre between bins is neither)."""
+    edge_step_cost: float = 6.0
+    """... cost of a step."""
     edge_outlier_min_m: float = 0.08
     """Outlier threshold never below this (metres), so clean data keeps all points."""
     elevation_bin_m: float = 5.0
@@ -198,6 +211,15 @@ class MainlineConfig:
     hidden_gore_slope: float = 0.004
     """Where the outer edge is occluded, a marking that starts (ends) converging (diverging)
     faster than this (m/m) is a ramp line up to the gore."""
+    edge_line_m: float = 0.35
+    """A marking closer than this to a road edge (metres) is the edge line along it, not
+    the border of a lane."""
+    shoulder_max_m: float = 2.2
+    """A lane between a road edge and the nearest marking narrower than this is a shoulder
+    (metres)."""
+    edge_lane_min_m: float = 3.3
+    """... one at least this wide is a driving lane (roads without shoulders); in between a
+    shoulder unless the car drove in it (hard shoulders are 2.5-3.0 m)."""
     hidden_lane_min_m: float = 2.0
     """An outer shoulder wider than the run's typical one by more than this hides a lane
     whose outer marking was not observed (metres)."""

@@ -52,6 +52,7 @@ from .model import (
     continue_width,
 )
 from .ramps import Ramp, hermite_piece
+from .ramps.records import FloatArray
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +63,7 @@ __all__ = [
     "build_topology",
     "hermite_road",
     "lane_graph",
-    "match_lanes",
+    "match_lanes_at",
     "true_lengths",
 ]
 
@@ -96,34 +97,56 @@ def _traffic_lanes(section: LaneSection, side: TrafficSide) -> tuple[Lane, ...]:
     return section.right if side == "right" else section.left
 
 
-def _roles(lanes: tuple[Lane, ...]) -> tuple[list[Lane], list[Lane], list[Lane]]:
-    """Split lanes (inner to outer) into leading non-driving, driving, trailing others."""
-    driving_idx = [i for i, lane in enumerate(lanes) if lane.type == "driving"]
-    if not driving_idx:
-        return list(lanes), [], []
-    lo, hi = driving_idx[0], driving_idx[-1]
-    return list(lanes[:lo]), list(lanes[lo : hi + 1]), list(lanes[hi + 1 :])
+def _border_xy(road: Road, s: float, side: TrafficSide) -> dict[int, tuple[FloatArray, FloatArray]]:
+    """Inner and outer border points (mapping frame) of each traffic-side lane at ``s``."""
+    s_arr = np.array([min(max(s, 0.0), road.length)])
+    section = road.lane_sections[int(road.section_index(s_arr)[0])]
+    out = {}
+    for lane in _traffic_lanes(section, side):
+        inner_id = lane.id + (1 if lane.id < 0 else -1)
+        t_in = road.lane_border_t(s_arr, inner_id)
+        t_out = road.lane_border_t(s_arr, lane.id)
+        out[lane.id] = (road.to_xy(s_arr, t_in)[0], road.to_xy(s_arr, t_out)[0])
+    return out
 
 
-def match_lanes(
-    a: LaneSection, b: LaneSection, *, traffic_side: TrafficSide = "right"
+def match_lanes_at(
+    a: Road,
+    s_a: float,
+    b: Road,
+    s_b: float,
+    *,
+    traffic_side: TrafficSide = "right",
+    tolerance_m: float = 0.25,
+    min_width_m: float = 0.01,
 ) -> dict[int, int]:
-    """Lane ids of section ``a`` -> lane ids of section ``b`` for lanes that continue.
+    """Lanes of ``a`` at ``s_a`` -> lanes of ``b`` at ``s_b`` whose borders meet.
 
-    Lanes are matched by role, inner to outer: inner non-driving lanes (shoulder) with
-    each other, driving lanes with each other (surplus outer driving lanes -- deceleration
-    or acceleration lanes -- stay unmatched), outer non-driving lanes (hard shoulder) with
-    each other only where the driving-lane count is the same (beside a gore the hard
-    shoulder ends on one side and starts again on the other).
+    Chosen by geometry, never by counting: a lane continues into the lane of the other
+    road whose inner and outer border points both lie within ``tolerance_m`` of its own
+    (metres, mapping frame), one partner each, nearest first. Lanes narrower than
+    ``min_width_m`` at the contact are not linked (a lane that opens or closes there).
+    Where lanes leave or join on either side (a gore on the outer or the median side),
+    the ones that go on are found wherever they sit.
     """
+    ba, bb = _border_xy(a, s_a, traffic_side), _border_xy(b, s_b, traffic_side)
+    pairs = []
+    for ia, (pa_in, pa_out) in ba.items():
+        if float(np.hypot(*(pa_out - pa_in))) < min_width_m:
+            continue
+        for ib, (pb_in, pb_out) in bb.items():
+            if float(np.hypot(*(pb_out - pb_in))) < min_width_m:
+                continue
+            d = max(float(np.hypot(*(pa_in - pb_in))), float(np.hypot(*(pa_out - pb_out))))
+            if d <= tolerance_m:
+                pairs.append((d, ia, ib))
     out: dict[int, int] = {}
-    ra, rb = _roles(_traffic_lanes(a, traffic_side)), _roles(_traffic_lanes(b, traffic_side))
-    same_driving = len(ra[1]) == len(rb[1])
-    for k, (la, lb) in enumerate(zip(ra, rb, strict=True)):
-        if k == 2 and not same_driving:
-            break  # the hard shoulder beside a gore ends/starts there
-        for x, y in zip(la, lb, strict=False):
-            out[x.id] = y.id
+    used: set[int] = set()
+    for _, ia, ib in sorted(pairs):
+        if ia in out or ib in used:
+            continue
+        out[ia] = ib
+        used.add(ib)
     return out
 
 
@@ -356,12 +379,15 @@ def _ramp_pairs(
     return pairs
 
 
-def _valid_sources(section: LaneSection, wanted: Sequence[int], side: TrafficSide) -> list[int]:
+def _valid_sources(
+    section: LaneSection, wanted: Sequence[int], side: TrafficSide, ramp_side: str = "outer"
+) -> list[int]:
     """The wanted mainline lanes that are driving lanes of ``section`` (a ramp is fed by
-    driving lanes only); else the outermost driving lane."""
+    driving lanes only); else the driving lane on the ramp's side (the outermost, or the
+    innermost for a ramp on the median side)."""
     driving = [lane.id for lane in _traffic_lanes(section, side) if lane.type == "driving"]
     got = [i for i in wanted if i in driving]
-    return got or driving[-1:]
+    return got or (driving[-1:] if ramp_side == "outer" else driving[:1])
 
 
 def _driving_pairs(
@@ -678,12 +704,12 @@ def build_topology(
         rtypes = _ramp_lane_types(road, traffic_side)
         shoulder = getattr(ramp, "shoulder_lane_id", None)
         if ramp.type == "exit":
-            sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side)
+            sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side, ramp.side)
             pairs = _ramp_pairs(
                 road, up_sec, sources, shoulder, traffic_side, main=up, s_main=up.length
             )
         else:
-            sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side)
+            sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side, ramp.side)
             pairs = _ramp_pairs(road, down_sec, sources, shoulder, traffic_side, main=down)
         # ramp driving lane k <-> mainline source lane k, hard shoulder <-> hard shoulder at
         # a gore (widths only, not linked); the other ramp lanes open from (entry: close to)
@@ -700,7 +726,11 @@ def build_topology(
         down = replace(down, predecessor=RoadLink("junction", jid))
         if direct:
             through = _continuous(
-                match_lanes(up_sec, down_sec, traffic_side=traffic_side), up, up.length, down, 0.0
+                match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side),
+                up,
+                up.length,
+                down,
+                0.0,
             )
             conns = [
                 Connection(
@@ -739,14 +769,16 @@ def build_topology(
                 successor=RoadLink("road", down.id, "start"),
             )
             into = _continuous(
-                match_lanes(up_sec, through_road.lane_sections[0], traffic_side=traffic_side),
+                match_lanes_at(up, up.length, through_road, 0.0, traffic_side=traffic_side),
                 up,
                 up.length,
                 through_road,
                 0.0,
             )
             out_of = _continuous(
-                match_lanes(through_road.lane_sections[-1], down_sec, traffic_side=traffic_side),
+                match_lanes_at(
+                    through_road, through_road.length, down, 0.0, traffic_side=traffic_side
+                ),
                 through_road,
                 through_road.length,
                 down,

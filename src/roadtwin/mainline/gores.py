@@ -1,7 +1,7 @@
 """Gore stations hidden from the outer-edge points, from two independent cues.
 
 Where a vehicle hides the outer road edge at an entry or exit gore, the edge step that
-normally pins the gore (:func:`roadtwin.mainline.lanes.fit_outer_edge`) is not seen, and a
+normally pins the gore (:func:`roadtwin.mainline.outer_edge.fit_outer_edge`) is not seen, and a
 ramp line that joins or leaves the mainline tangentially only bounds it from one side. Two
 other observations place it:
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,6 +20,7 @@ from ..fitting import (
 )
 from ..io import MappingRun
 from ..model import (
+    CubicPiece,
     CubicProfile,
     LaneSection,
     Road,
@@ -34,6 +35,7 @@ from ._common import (
     _trajectory_frame,
     robust_offset_fit,
 )
+from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
 
 log = logging.getLogger(__name__)
@@ -53,8 +55,8 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     timings["frame"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    ref_xy = fit_reference_edge(ref_pts, traj, config=cfg)
-    geometry = fit_parampoly3_chain(ref_xy, tolerance_m=cfg.fit_tolerance_m)
+    median = fit_median_edge(ref_pts, traj, config=cfg)
+    geometry = fit_parampoly3_chain(median.xy, tolerance_m=cfg.fit_tolerance_m)
     timings["reference_line"] = time.perf_counter() - t0
 
     base = Road("1", geometry, (LaneSection(0.0),), name="mainline")
@@ -64,6 +66,8 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     t0 = time.perf_counter()
     s_out, t_out = frame.project(outer_pts)
     s_lane, t_lane = frame.project(run.lane_samples)
+    s_car, t_car = frame.project(run.trajectory.xy)
+    order = np.argsort(s_car)
     sections, events, tracks, used = fit_lanes(
         s_lane,
         -sign * t_lane,
@@ -72,6 +76,8 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         length=length,
         sign=sign,
         config=cfg,
+        car=(s_car[order], -sign * t_car[order]),
+        median=median.steps,
     )
     timings["lanes"] = time.perf_counter() - t0
 
@@ -87,23 +93,81 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         elevation=elevation,
         superelevation=superelevation,
         lane_sections=sections,
-        lane_offset=CubicProfile.constant(0.0),
+        lane_offset=_lane_offset(median.steps, sign),
     )
     return _Partial(road, events, "default", tracks)
+
+
+@dataclass(frozen=True)
+class MedianEdge:
+    """The median-side road edge: a smooth reference line and the steps of the edge.
+
+    Attributes
+    ----------
+    xy : ``(G, 2)`` the reference line (mapping frame, ~1 m spacing): the median-side edge
+        at the level the longest stretch of the road has, continued smoothly through
+        stretches where the edge lies elsewhere.
+    steps : stations (along ``xy``) where the median-side edge steps (a gore on the median
+        side: lanes beginning or ending at full width there) and, per segment, how far
+        the edge lies from the reference line (metres, towards the median): the lane
+        offset of the centre lane.
+    """
+
+    xy: FloatArray
+    steps: EdgeSteps
+
+
+def _lane_offset(steps: EdgeSteps, sign: float) -> CubicProfile:
+    """The centre lane's offset (metres, t left positive): zero where the median-side edge
+    is the reference line, the edge's offset (towards the median) on segments between its
+    steps; it changes exactly at the steps, where lane sections change too."""
+    towards_median = 1.0 if sign > 0 else -1.0  # the median is left for right-hand traffic
+    starts = np.concatenate([[0.0], steps.stations])
+    return CubicProfile(
+        tuple(
+            CubicPiece(float(s0), float(towards_median * off))
+            for s0, off in zip(starts, steps.offsets, strict=True)
+        )
+    )
 
 
 def fit_reference_edge(
     ref_pts: FloatArray, traj: PolylineFrame, *, config: MainlineConfig | None = None
 ) -> FloatArray:
-    """Smooth reference-edge polyline ``(G, 2)`` (mapping frame, ~1 m spacing).
+    """Smooth reference-edge polyline ``(G, 2)`` (mapping frame, ~1 m spacing); see
+    :func:`fit_median_edge` (this is its ``xy``)."""
+    return fit_median_edge(ref_pts, traj, config=config).xy
+
+
+def _median_levels(
+    s: FloatArray, t: FloatArray, side: float, lo: float, hi: float, cfg: MainlineConfig
+):
+    """Level path and steps of the median-side edge points (``t`` signed, left positive;
+    ``side`` +1 when the median lies left), with ``u`` = offset towards the median."""
+    u = side * t
+    edges = np.arange(lo - 1.0, hi + 3.0, 2.0)
+    level = edge_level_path(s, u, edges, config=cfg)
+    return side, u, edges, level, edge_steps(s, u, edges, level, config=cfg)
+
+
+def fit_median_edge(
+    ref_pts: FloatArray, traj: PolylineFrame, *, config: MainlineConfig | None = None
+) -> MedianEdge:
+    """The median-side road edge: a smooth reference line and the edge's steps.
 
     Edge points are fitted as a robust smooth offset from a frame, first the smoothed
     trajectory, then twice the previous fit itself (so the final smoothing acts on small
-    residuals only and does not flatten lane changes of the vehicle).
+    residuals only and does not flatten lane changes of the vehicle). On the median side
+    the edge steps where lanes leave or join there (a left exit on a right-hand road): the
+    points form levels (:func:`~.edge_levels.edge_level_path`, the level nearest the
+    carriageway is the road's edge, ramp edges and the median lie beyond it); segments
+    between steps are shifted onto the level of the longest stretch before the fit, so
+    the reference line stays smooth and the steps become the centre lane's offset.
     """
     cfg = config or MainlineConfig()
     step = cfg.grid_step_m
     frame = traj
+    side, has_steps = 1.0, False
     for it in range(3):
         s_all, t_all = frame.project(ref_pts)
         inside = (s_all >= -5.0) & (s_all <= frame.length + 5.0)
@@ -119,6 +183,19 @@ def fit_reference_edge(
             # at least the extent of the first pass: an occlusion of the edge at the end of
             # the run is bridged by the fit, not cut off with the road
             lo, hi = min(float(np.min(s)), 0.0), max(float(np.max(s)), frame.length)
+        if it == 0:
+            # the median lies on the side of the trajectory the points are on; later frames
+            # are the edge itself, with points on both sides of it
+            side = 1.0 if np.median(t) >= 0.0 else -1.0
+        if it == 0 or has_steps:
+            side, u, edges, level, steps = _median_levels(s, t, side, lo, hi, cfg)
+            has_steps = bool(steps.stations.size)
+        if has_steps:
+            # points on the edge's own level, each segment moved onto the base level
+            centres = 0.5 * (edges[1:] + edges[:-1])
+            path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
+            near = np.abs(u - path) < 0.8
+            s, t = s[near], t[near] - side * steps.at(s[near])
         grid = _grid(lo, hi, step)
         grid = grid[grid <= hi + 1e-9] if grid[-1] > hi + 0.5 * step else grid
         cutoff = cfg.edge_smoothing_m if it > 0 else max(cfg.edge_smoothing_m, 60.0)
@@ -136,7 +213,13 @@ def fit_reference_edge(
         nrm = np.stack([-tg[:, 1], tg[:, 0]], axis=1)
         pts = xy + off[:, None] * nrm
         frame = PolylineFrame.from_points(resample_polyline(pts, step))
-    return frame.xy
+    if not has_steps:
+        return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)))
+    # the steps in the final line's own stations
+    s_f, t_f = frame.project(ref_pts)
+    ok = (s_f >= 0.0) & (s_f <= frame.length)
+    *_, steps = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
+    return MedianEdge(frame.xy, steps)
 
 
 def fit_elevation(

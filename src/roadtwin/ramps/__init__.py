@@ -10,8 +10,8 @@ attach to the measured road (DESIGN.md section 4):
 2. :func:`extract_ramp_chains` -- consecutive link edges merged into one chain from the
    attachment on the driven carriageway up to ``max_ramp_length_m`` or the next OSM
    junction; links of the opposite carriageway and of unrelated roads are rejected by a
-   direction check (heading at the attachment vs the driven direction) and a side check
-   (the ramp lies on the traffic side of the trajectory). Merge/exit from directed
+   direction check (heading at the attachment vs the driven direction); a chain on the
+   median side is an inner ramp (a left exit on a right-hand road). Merge/exit from directed
    connectivity (the paper's rule), cross-checked with geometry.
 3. :func:`infer_lane_count` -- Algorithm 2 (``lanes:forward`` > ``lanes`` > ``turn:lanes``
    > highway class); the measured mainline lane-count change at the gore
@@ -48,7 +48,7 @@ split with one concern per module; everything is imported from ``roadtwin.ramps`
 - :mod:`.records` -- data records (``RampCandidate``, ``RampChain``, ``GoreEvent``,
   ``RampEvidence``, ``Ramp``, ``RampSet``), type aliases and shared thresholds.
 - :mod:`.lanes` -- Algorithm 2, lane count from OSM tags.
-- :mod:`.candidates` -- Algorithm 1, ramp chains, direction and side checks.
+- :mod:`.candidates` -- Algorithm 1, ramp chains, direction check and side.
 - :mod:`.gores` -- measured gores and the mainline borders a ramp attaches to.
 - :mod:`.geometry` -- Hermite pieces, smoothing, mainline boundary distances.
 - :mod:`.shape` -- the curvature-bounded reference line and the evidence fit

@@ -14,7 +14,7 @@ from .._errors import FitError
 from ..config import RampConfig
 from ..model import Road
 from .candidates import extract_ramp_chains, find_candidates
-from .gores import _outer_shoulder, gore_events, outer_driving_lane
+from .gores import _outer_shoulder, edge_driving_lane, gore_events
 from .lanes import infer_lane_count
 from .records import (
     _EVIDENCE_LATERAL_M,
@@ -44,7 +44,7 @@ def _match_gores(
     pairs = []
     for i, (chain, s_osm) in enumerate(zip(chains, stations, strict=False)):
         for j, ev in enumerate(events):
-            if ev.kind != chain.type:
+            if ev.kind != chain.type or ev.side != chain.side:
                 continue
             d = ev.station_m - s_osm
             if chain.type == "entry":
@@ -170,14 +170,16 @@ def build_ramps(
             lanes, rule = max(1, osm_lanes), osm_rule
             s_src = station - 1e-6 if chain.type == "exit" else station + 1e-6
             try:
-                through = outer_driving_lane(mainline_road, s_src, traffic_side=traffic_side)
+                through = edge_driving_lane(
+                    mainline_road, s_src, traffic_side=traffic_side, side=chain.side
+                )
             except FitError as exc:
                 skipped.append((what, str(exc)))
                 warnings.append(f"skipped {what}: {exc}")
                 continue
             mainline_lanes = (through,)
         shoulder = None
-        if source == "lidar gore":
+        if source == "lidar gore" and chain.side == "outer":
             shoulder = _outer_shoulder(
                 mainline_road, station, chain.type, mainline_lanes, traffic_side
             )
@@ -190,6 +192,7 @@ def build_ramps(
                 station_m=station,
                 source_lane_ids=tuple(mainline_lanes),
                 traffic_side=traffic_side,
+                side=chain.side,
                 road_id=f"ramp{i}",
                 shoulder_lane_id=shoulder,
                 edge_xy=near_gore("edge", station),
@@ -221,6 +224,7 @@ def build_ramps(
                 warnings=tuple(notes),
                 shoulder_lane_id=shoulder,
                 evidence=evidence,
+                side=chain.side,
             )
         )
     ramps.sort(key=lambda r: (r.station_m, r.type))

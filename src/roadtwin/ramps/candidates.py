@@ -1,5 +1,5 @@
 """Algorithm 1 of the paper and ramp chains: directed OSM ``*_link`` edges near the
-trajectory, merged into chains, with the direction and side checks.
+trajectory, merged into chains, with the direction check and the side they lie on.
 
 All coordinates are in the mapping frame (metres, radians CCW from +x).
 """
@@ -197,9 +197,15 @@ def _follow(
     forward: bool,
     stop_nodes: dict[Any, EdgeKey],
     max_length_m: float,
+    any_class: bool = False,
 ) -> list[EdgeKey]:
     """Link edges from ``first`` onward (or backward) until a junction, the carriageway or
-    ``max_length_m``."""
+    ``max_length_m``; with ``any_class`` (a carriageway branch) edges of its own class."""
+    same = _highway(osm_graph.edges[first]) if any_class else None
+
+    def ramp_edge(data: dict[str, Any]) -> bool:
+        return _is_link(data) or (same is not None and _highway(data) == same)
+
     chain = [first]
     length = float(arc_length(_edge_xy(osm_graph, *first))[-1])
     seen = {first[0], first[1]}
@@ -207,13 +213,13 @@ def _follow(
         node = chain[-1][1] if forward else chain[-1][0]
         if node in stop_nodes:
             break
-        outs = [e for e in osm_graph.out_edges(node, keys=True) if _is_link(osm_graph.edges[e])]
-        ins = [e for e in osm_graph.in_edges(node, keys=True) if _is_link(osm_graph.edges[e])]
+        outs = [e for e in osm_graph.out_edges(node, keys=True) if ramp_edge(osm_graph.edges[e])]
+        ins = [e for e in osm_graph.in_edges(node, keys=True) if ramp_edge(osm_graph.edges[e])]
         # a junction: any non-link road meets here, or the link forks/joins
         others = [
             e
             for e in (*osm_graph.out_edges(node, keys=True), *osm_graph.in_edges(node, keys=True))
-            if not _is_link(osm_graph.edges[e])
+            if not ramp_edge(osm_graph.edges[e])
         ]
         if others or len(outs) != 1 or len(ins) != 1:
             break
@@ -234,6 +240,83 @@ def _chain_xy(osm_graph: nx.MultiDiGraph, edges: list[EdgeKey]) -> FloatArray:
     return xy[keep]
 
 
+_BRANCH_CLASSES = ("motorway", "trunk")
+_BRANCH_PROBE_M = 120.0  # how far along a fork it is looked at
+_BRANCH_AWAY_M = 12.0  # ... and how far from the drive it must be there to be a branch
+
+
+def _highway(data: dict[str, Any]) -> str:
+    hw = data.get("highway", "")
+    return " ".join(hw) if isinstance(hw, (list, tuple)) else str(hw)
+
+
+def _reach_xy(osm_graph: nx.MultiDiGraph, edge: EdgeKey, *, forward: bool) -> FloatArray:
+    """The polyline of ``edge`` continued along single successors (forward) or
+    predecessors up to ``_BRANCH_PROBE_M``, starting at the fork node."""
+    parts = [_edge_xy(osm_graph, *edge)]
+    if not forward:
+        parts = [parts[0][::-1]]
+    length = float(arc_length(parts[0])[-1])
+    node = edge[1] if forward else edge[0]
+    seen = {edge[0], edge[1]}
+    while length < _BRANCH_PROBE_M:
+        nxt = list(
+            osm_graph.out_edges(node, keys=True) if forward else osm_graph.in_edges(node, keys=True)
+        )
+        if len(nxt) != 1:
+            break
+        e = nxt[0]
+        far = e[1] if forward else e[0]
+        if far in seen:
+            break
+        seen.add(far)
+        xy = _edge_xy(osm_graph, *e)
+        parts.append(xy if forward else xy[::-1])
+        length += float(arc_length(xy)[-1])
+        node = far
+    return np.vstack(parts)
+
+
+def branch_candidates(
+    osm_graph: nx.MultiDiGraph,
+    track: _Track,
+    on_carriageway: dict[Any, EdgeKey],
+) -> tuple[RampCandidate, ...]:
+    """Carriageway forks that are not ``*_link`` ways: a motorway or trunk way leaving
+    (or joining) the driven carriageway at one of its nodes and ``_BRANCH_AWAY_M`` away
+    from the drive ``_BRANCH_PROBE_M`` further on (a motorway splitting in two, a
+    motorway merging into another). Links cover ordinary ramps (Algorithm 1); these are
+    the interchanges' carriageway branches, which OSM tags as the road class itself.
+    Forks within ``_BRANCH_PROBE_M`` of the drive's ends are left out (the carriageway
+    itself runs on beyond them)."""
+    out = []
+    for n in on_carriageway:
+        xy_n = np.array([[osm_graph.nodes[n]["x"], osm_graph.nodes[n]["y"]]])
+        s_n, _ = track.project(xy_n)
+        if not _BRANCH_PROBE_M <= float(s_n[0]) <= track.length - _BRANCH_PROBE_M:
+            continue
+        edges = [(e, True) for e in osm_graph.out_edges(n, keys=True)]
+        edges += [(e, False) for e in osm_graph.in_edges(n, keys=True)]
+        for e, forward in edges:
+            data = osm_graph.edges[e]
+            if _is_link(data) or not any(c in _highway(data) for c in _BRANCH_CLASSES):
+                continue
+            xy = _reach_xy(osm_graph, e, forward=forward)
+            a = arc_length(xy)
+            if a[-1] < 0.5 * _BRANCH_PROBE_M:
+                continue
+            probe = xy[min(int(np.searchsorted(a, _BRANCH_PROBE_M)), len(xy) - 1)]
+            _, t = track.project(probe[None, :])
+            if abs(float(t[0])) < _BRANCH_AWAY_M:
+                continue  # the carriageway itself (or a parallel one close by)
+            d = float(shapely.distance(shapely.LineString(_edge_xy(osm_graph, *e)),
+                                       shapely.Point(xy_n[0])))  # fmt: skip
+            out.append(
+                RampCandidate(e[0], e[1], e[2], _highway(data), _first_value(data.get("osmid")), d)
+            )
+    return tuple(sorted(out, key=lambda c: (str(c.osm_way_id), str(c.u), str(c.v))))
+
+
 def extract_ramp_chains(
     osm_graph: nx.MultiDiGraph,
     trajectory_xy: FloatArray,
@@ -250,8 +333,8 @@ def extract_ramp_chains(
     ``{u_m, v_m}``), else an exit. The chain is followed away from the carriageway along
     link edges up to ``max_ramp_length_m`` or the next junction. Chains are rejected when
     the ramp's heading at the attachment differs from the driven direction by more than
-    ``max_heading_diff_deg`` or when the ramp lies on the wrong side of the trajectory
-    (left for right-hand traffic).
+    ``max_heading_diff_deg``. A chain on the median side of the trajectory (left for
+    right-hand traffic) is an inner ramp (``side="inner"``): a left exit or entry.
 
     Returns
     -------
@@ -263,6 +346,10 @@ def extract_ramp_chains(
         candidates = find_candidates(osm_graph, trajectory_xy, config=cfg)
     track = _Track(trajectory_xy)
     on_carriageway = _mainline_nodes(osm_graph, track, cfg)
+    branches = branch_candidates(osm_graph, track, on_carriageway)
+    branch_edges = {(c.u, c.v, c.key) for c in branches}
+    known = {(x.u, x.v, x.key) for x in candidates}
+    candidates = (*candidates, *(c for c in branches if (c.u, c.v, c.key) not in known))
     side_sign = -1.0 if traffic_side == "right" else 1.0
     max_dh = math.radians(cfg.max_heading_diff_deg)
 
@@ -289,6 +376,7 @@ def extract_ramp_chains(
             forward=ramp_type == "exit",
             stop_nodes=on_carriageway,
             max_length_m=cfg.max_ramp_length_m,
+            any_class=e in branch_edges,
         )
         covered.update(edges)
         xy = _chain_xy(osm_graph, edges)
@@ -305,16 +393,16 @@ def extract_ramp_chains(
                 (what, f"heading at the attachment {math.degrees(dh):.0f} deg off the drive")
             )
             continue
-        # side check on the part away from the attachment
+        # which side of the drive the ramp lies on, away from the attachment
         s_pts, t_pts = track.project(xy)
         along = arc_length(xy)
         dist_from_attach = along if ramp_type == "exit" else along[-1] - along
         away = dist_from_attach > min(20.0, 0.5 * along[-1])
         t_away = t_pts[away] if np.any(away) else t_pts
-        if float(np.median(t_away)) * side_sign <= 0.0:
-            side = "left" if side_sign < 0 else "right"
-            rejected.append((what, f"lies {side} of the drive (opposite carriageway side)"))
-            continue
+        # a ramp on the traffic side is an outer ramp; one on the median side (a left exit
+        # on a right-hand road) an inner one -- the opposite carriageway's links never
+        # attach to a node of the driven carriageway with its heading
+        ramp_side = "outer" if float(np.median(t_away)) * side_sign > 0.0 else "inner"
         # geometry cross-check: which end lies nearer the trajectory
         d_start, d_end = abs(float(t_pts[0])), abs(float(t_pts[-1]))
         in_start = -5.0 <= s_pts[0] <= track.length + 5.0
@@ -335,6 +423,7 @@ def extract_ramp_chains(
             type_geometry=type_geometry,
             xy=xy,
             tags=tags,
+            side=ramp_side,  # type: ignore[arg-type]
         )
         chains.append((float(s_att[0]), chain))
     for cand in candidates:

@@ -18,6 +18,7 @@ from .records import (
     _MIN_LINK_WIDTH_M,
     FloatArray,
     GoreEvent,
+    RampSide,
     RampType,
     TrafficSide,
 )
@@ -35,15 +36,29 @@ def _driving(lanes: tuple[Lane, ...]) -> list[Lane]:
     return [lane for lane in lanes if lane.type == "driving"]
 
 
+def _gore_side(driving: list[Lane], changed: list[int]) -> tuple[RampSide, int] | None:
+    """Side of the driving lanes ``changed`` (ids) among ``driving`` (inner to outer) and
+    the driving lane next to them that goes on, or None if they are not at one end."""
+    ids = [lane.id for lane in driving]
+    k = len(changed)
+    if k == 0 or k >= len(ids):
+        return None
+    if ids[-k:] == changed:
+        return "outer", ids[-k - 1]
+    if ids[:k] == changed:
+        return "inner", ids[k]
+    return None
+
+
 def gore_events(road: Road, *, traffic_side: TrafficSide = "right") -> tuple[GoreEvent, ...]:
     """Gores the LiDAR saw: driving lanes that end or start at full width.
 
-    Scans the mainline's lane sections (DESIGN.md lane layout: deceleration and
-    acceleration lanes are the outermost driving lanes of their sections). Where the
-    driving-lane count drops and the ending lanes are wider than 1 m at the boundary,
-    lanes leave through an exit; where it rises with lanes starting wider than 1 m,
-    lanes enter from a merge (the paper's lane-count-change rule). Tapers (width from or
-    to zero) are not gores.
+    Scans the mainline's lane sections (DESIGN.md lane layout). Where driving lanes wider
+    than 1 m end at a section boundary without a successor, lanes leave through an exit;
+    where they start wider than 1 m without a predecessor, lanes enter from a merge (the
+    paper's lane-count-change rule). The lanes are the outermost driving lanes (an outer
+    gore: deceleration/acceleration lanes) or the innermost (a gore on the median side).
+    Tapers (width from or to zero) are not gores.
     """
     out: list[GoreEvent] = []
     sections = road.lane_sections
@@ -53,16 +68,26 @@ def gore_events(road: Road, *, traffic_side: TrafficSide = "right") -> tuple[Gor
         s_b = nxt.s0
         if len(dp) > len(dn) and dn:
             k = len(dp) - len(dn)
-            ending = dp[-k:]
-            widths = [float(lane.width.value(s_b - prev.s0)) for lane in ending]
-            if min(widths) > _MIN_GORE_WIDTH_M:
-                out.append(GoreEvent(s_b, "exit", tuple(x.id for x in ending), dp[-k - 1].id))
+            for ending in (dp[-k:], dp[:k]):  # outer lanes first, then the median side
+                widths = [float(lane.width.value(s_b - prev.s0)) for lane in ending]
+                linked = any(lane.successor is not None for lane in ending)
+                found = _gore_side(dp, [x.id for x in ending])
+                if min(widths) > _MIN_GORE_WIDTH_M and found and not linked:
+                    side, through = found
+                    out.append(GoreEvent(s_b, "exit", tuple(x.id for x in ending), through, side))
+                    break
         elif len(dn) > len(dp) and dp:
             k = len(dn) - len(dp)
-            starting = dn[-k:]
-            widths = [float(lane.width.value(0.0)) for lane in starting]
-            if min(widths) > _MIN_GORE_WIDTH_M:
-                out.append(GoreEvent(s_b, "entry", tuple(x.id for x in starting), dn[-k - 1].id))
+            for starting in (dn[-k:], dn[:k]):
+                widths = [float(lane.width.value(0.0)) for lane in starting]
+                linked = any(lane.predecessor is not None for lane in starting)
+                found = _gore_side(dn, [x.id for x in starting])
+                if min(widths) > _MIN_GORE_WIDTH_M and found and not linked:
+                    side, through = found
+                    out.append(
+                        GoreEvent(s_b, "entry", tuple(x.id for x in starting), through, side)
+                    )
+                    break
     return tuple(out)
 
 
@@ -73,7 +98,8 @@ def gores_from_lane_events(
 
     A lane that ends without a taper (``kind="end"``, ``taper_m`` below ``max_taper_m``)
     ends at an exit gore; one that is born without a taper starts at an entry gore.
-    Events at the same station and kind are one gore with several lanes.
+    Events at the same station and kind are one gore with several lanes, on the outer
+    side or on the median side (the innermost driving lanes).
 
     Parameters
     ----------
@@ -94,25 +120,30 @@ def gores_from_lane_events(
         ids = sorted(ids, key=abs)
         s_sec = s - 1e-6 if kind == "exit" else s + 1e-6
         section = road.lane_sections[int(road.section_index(np.array([s_sec]))[0])]
-        inner = [
-            lane.id
-            for lane in _driving(_traffic_lanes(section, traffic_side))
-            if abs(lane.id) < abs(ids[0])
-        ]
-        if not inner:
+        found = _gore_side(_driving(_traffic_lanes(section, traffic_side)), ids)
+        if found is None:
             continue
-        out.append(GoreEvent(s, kind, tuple(ids), inner[-1]))  # type: ignore[arg-type]
+        side, through = found
+        out.append(GoreEvent(s, kind, tuple(ids), through, side))  # type: ignore[arg-type]
     return tuple(out)
 
 
-def outer_driving_lane(road: Road, s: float, *, traffic_side: TrafficSide = "right") -> int:
-    """Id of the outermost driving lane of the section containing station ``s``."""
+def edge_driving_lane(
+    road: Road, s: float, *, traffic_side: TrafficSide = "right", side: RampSide = "outer"
+) -> int:
+    """Id of the outermost (``side="outer"``) or innermost driving lane of the section
+    containing station ``s``."""
     section = road.lane_sections[int(road.section_index(np.array([s]))[0])]
     driving = _driving(_traffic_lanes(section, traffic_side))
     if not driving:
         msg = f"mainline road {road.id}: no driving lane at s={s:.1f} m"
         raise FitError(msg)
-    return driving[-1].id
+    return driving[-1].id if side == "outer" else driving[0].id
+
+
+def outer_driving_lane(road: Road, s: float, *, traffic_side: TrafficSide = "right") -> int:
+    """Id of the outermost driving lane of the section containing station ``s``."""
+    return edge_driving_lane(road, s, traffic_side=traffic_side, side="outer")
 
 
 def _outer_shoulder(
@@ -141,6 +172,16 @@ def _outer_shoulder(
         # a shoulder of (near) zero width at the gore is opening/closing there: no link
         return lane_id if math.isfinite(w) and w > _MIN_LINK_WIDTH_M else None
     return None
+
+
+def _carriageway_border_t(
+    road: Road, s: FloatArray, traffic_side: TrafficSide, side: RampSide = "outer"
+) -> FloatArray:
+    """Lateral offset of the carriageway's border a ramp leaves from on ``side``: the outer
+    border of the outermost driving lane, or the median-side edge (the centre lane)."""
+    if side == "inner":
+        return road.lane_border_t(s, 0)
+    return _outer_border_t(road, s, traffic_side)
 
 
 def _outer_border_t(road: Road, s: FloatArray, traffic_side: TrafficSide) -> FloatArray:

@@ -16,6 +16,9 @@ from ..model import Road
 FloatArray = NDArray[np.float64]
 RampType = Literal["exit", "entry"]
 TrafficSide = Literal["right", "left"]
+RampSide = Literal["outer", "inner"]
+"""Side of the carriageway a ramp leaves or joins: ``outer`` (the traffic side: right for
+right-hand traffic) or ``inner`` (the median side: a left exit on a right-hand road)."""
 EdgeKey = tuple[Any, Any, int]
 
 
@@ -61,6 +64,7 @@ class RampChain:
     type_geometry : the same decided from geometry (which end lies nearer the trajectory).
     xy : ``(N, 2)`` chain polyline in driving order, mapping frame, metres.
     tags : OSM tags of the link edge at the attachment.
+    side : ``outer`` or ``inner`` (the median side) of the driven carriageway.
     """
 
     edges: tuple[EdgeKey, ...]
@@ -71,6 +75,7 @@ class RampChain:
     type_geometry: RampType
     xy: FloatArray = field(repr=False, compare=False)
     tags: dict[str, Any] = field(default_factory=dict, repr=False)
+    side: RampSide = "outer"
 
 
 @dataclass(frozen=True)
@@ -85,13 +90,16 @@ class GoreEvent:
         acceleration lanes).
     lane_ids : mainline lane ids of the ending/starting lanes, inner to outer (in the
         section before the gore for exits, after it for entries).
-    through_lane_id : the outermost driving lane that continues through the gore.
+    through_lane_id : the driving lane that continues through the gore next to them (the
+        outermost one for an outer gore, the innermost for a gore on the median side).
+    side : ``outer`` or ``inner``: the side of the carriageway the lanes leave or join.
     """
 
     station_m: float
     kind: RampType
     lane_ids: tuple[int, ...]
     through_lane_id: int
+    side: RampSide = "outer"
 
 
 @dataclass(frozen=True)
@@ -149,6 +157,7 @@ class Ramp:
     warnings : human-readable notes (disagreements, fallbacks).
     shoulder_lane_id : mainline hard shoulder the ramp's hard shoulder continues/feeds at
         a measured gore (``None``: it opens from zero width).
+    side : ``outer`` or ``inner`` (a ramp on the median side of the carriageway).
     evidence : the measured points past the gore fitted to the ramp (``None``: none or
         too few; OSM shape and default widths).
     """
@@ -170,6 +179,7 @@ class Ramp:
     warnings: tuple[str, ...] = ()
     shoulder_lane_id: int | None = None
     evidence: RampEvidence | None = field(default=None, repr=False)
+    side: RampSide = "outer"
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,8 @@ from ..fitting import PolylineFrame, arc_length, fit_parampoly3_chain, resample_
 from ..model import CubicPiece, CubicProfile, Lane, LaneSection, Road, RoadMark, chain_geometry
 from .candidates import _wrap
 from .geometry import _mainline_boundary_distance, _smooth_polyline, hermite_piece
-from .gores import _outer_border_t
-from .records import FloatArray, RampEvidence, RampType, TrafficSide
+from .gores import _carriageway_border_t
+from .records import FloatArray, RampEvidence, RampSide, RampType, TrafficSide
 from .shape import fit_ramp_shape
 
 log = logging.getLogger(__name__)
@@ -37,6 +37,7 @@ def _build_ramp_road(
     station_m: float,
     source_lane_ids: tuple[int, ...],
     traffic_side: TrafficSide = "right",
+    side: RampSide = "outer",
     road_id: str = "ramp",
     shoulder_lane_id: int | None = None,
     edge_xy: FloatArray | None = None,
@@ -68,6 +69,9 @@ def _build_ramp_road(
     traffic_side
         ``"right"``: reference line = ramp's left edge, lanes ``-1`` (inner shoulder),
         ``-2 .. -(n+1)`` (driving), ``-(n+2)`` (hard shoulder); ``"left"`` mirrored.
+    side
+        ``"outer"`` (the ramp leaves/joins on the traffic side) or ``"inner"`` (on the
+        median side): which carriageway border it must stay clear of near the gore.
     shoulder_lane_id
         Mainline hard shoulder the ramp's hard shoulder continues (exit) or feeds (entry)
         at a measured gore; its width there is the ramp hard shoulder's start width.
@@ -93,7 +97,9 @@ def _build_ramp_road(
     lanes = max(1, int(lanes))
     width = cfg.lane_width_m
     left = 1.0 if traffic_side == "right" else -1.0  # reference line side of the centre
-    outward = -left  # lateral direction away from the mainline's reference line
+    # lateral direction in which the ramp leaves the carriageway: away from the median on
+    # the outer side, towards it on the median side
+    outward = -left if side == "outer" else left
     pts = np.asarray(chain_xy, dtype=float)[:, :2]
     if ramp_type == "entry":
         pts = pts[::-1]  # work attachment-first
@@ -143,12 +149,14 @@ def _build_ramp_road(
     if gap_s > cfg.resample_step_m:
         n = max(2, math.ceil(gap_s / cfg.resample_step_m))
         s_ext = s_att + direction * np.linspace(0.0, gap_s, n, endpoint=False)
-        t_ext = _outer_border_t(mainline_road, s_ext, traffic_side)
+        t_ext = _carriageway_border_t(mainline_road, s_ext, traffic_side, side)
         ref = np.vstack([mainline_road.to_xy(s_ext, t_ext), ref])
         s_i = np.concatenate([s_ext, s_i])
         t_i = np.concatenate([t_ext, t_i])
     # keep the ramp outside the measured carriageway until it has clearly left it
-    t_edge = _outer_border_t(mainline_road, np.clip(s_i, 0.0, mainline_road.length), traffic_side)
+    t_edge = _carriageway_border_t(
+        mainline_road, np.clip(s_i, 0.0, mainline_road.length), traffic_side, side
+    )
     t_edge = np.where(np.isfinite(t_edge), t_edge, t_i)
     separation = (t_i - t_edge) * outward
     # points near the carriageway on the wrong side of the gore before the ramp has left
@@ -181,7 +189,7 @@ def _build_ramp_road(
     hdg = h_main + (math.pi if backwards else 0.0)
     k_main = float(mainline_road.curvature(np.array([s_att]))[0])
     k_border = k_main / max(1.0 - t_att * k_main, 0.1)
-    lane_side = outward * (-1.0 if backwards else 1.0)
+    lane_side = -left * (-1.0 if backwards else 1.0)  # the ramp's lanes: right of it (RHT)
     w_hs = cfg.hard_shoulder_width_m
 
     anchor = (float(target[0]), float(target[1]), hdg)

@@ -17,6 +17,7 @@ whose coordinates are the network's.
 from __future__ import annotations
 
 import dataclasses
+import gzip
 import logging
 import os
 from collections.abc import Sequence
@@ -24,10 +25,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from lxml import etree
 from pyproj.exceptions import CRSError
 
 from .._errors import InputError
+from .._xml import parse_xml
 from ..frames import MappingFrame, Origin
 from ..model import RoadNetwork
 from ..xodr import read_xodr
@@ -392,7 +393,12 @@ def simulate_network_run(
 def traffic_rule_of_xodr(path: str | os.PathLike) -> TrafficSide | None:
     """``"left"`` / ``"right"`` from the ``rule`` attribute of an OpenDRIVE file's roads
     (the majority of those that have one), None when no road says."""
-    root = etree.parse(str(path), etree.XMLParser(huge_tree=True)).getroot()
+    path = Path(path)
+    if path.name.lower().endswith(".gz"):
+        with gzip.open(path, "rb") as fh:
+            root = parse_xml(fh, name=path).getroot()
+    else:
+        root = parse_xml(path).getroot()
     rules = [el.get("rule") for el in root.iter("{*}road") if el.get("rule") in ("LHT", "RHT")]
     if not rules:
         return None

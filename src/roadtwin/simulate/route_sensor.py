@@ -181,7 +181,14 @@ def drive(
         old = _key_centre(truth, u[seg], int(keys[i - 1]))
         old = np.where(np.isfinite(old), old, t[seg])
         t[seg] = (1.0 - w) * old + w * t[seg]
-    t = np.where(np.isfinite(t), t, 0.0)
+    # where the chosen lane has no centre (a section without it) the car holds its line:
+    # interpolate, never fall back to the reference line (a jump of several metres made
+    # the arc-length resampling run the car backwards)
+    ok = np.isfinite(t)
+    t = np.interp(u, u[ok], t[ok]) if np.any(ok) else np.zeros_like(u)
+    # a driver steers: no lateral rate above ~1:10 even where lane centres jump (a lane
+    # ending at full width at a gore)
+    t = _limit_lateral_rate(t, PATH_STEP_M, max_slope=0.1)
     path = road.to_xy(u, t)
     arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
     step = car.speed_kmh / 3.6 / car.rate_hz
@@ -194,6 +201,20 @@ def drive(
     z = road.elevation.value(u_pose)
     frame = np.arange(u_pose.size, dtype=np.int64)
     return Poses(frame, car.t0_s + frame / car.rate_hz, np.column_stack([xy, z]), yaw, u_pose)
+
+
+def _limit_lateral_rate(t: FloatArray, step_m: float, *, max_slope: float) -> FloatArray:
+    """``t`` (metres on a regular grid ``step_m`` apart) with its slope limited to
+    ``max_slope``: forward and backward passes that keep each value within the slope of
+    its neighbour, averaged (a jump becomes a ramp centred on it)."""
+    lim = max_slope * step_m
+    fwd = t.copy()
+    for i in range(1, fwd.size):  # a running clamp; loops over path samples, not points
+        fwd[i] = min(max(fwd[i], fwd[i - 1] - lim), fwd[i - 1] + lim)
+    bwd = t.copy()
+    for i in range(bwd.size - 2, -1, -1):
+        bwd[i] = min(max(bwd[i], bwd[i + 1] - lim), bwd[i + 1] + lim)
+    return 0.5 * (fwd + bwd)
 
 
 def sensor_view(poses: Poses, station: FloatArray, step_m: float) -> tuple[Poses, FloatArray]:

@@ -24,7 +24,11 @@ from ...osm import _read_highway_ways
 from .settings import ChainSelection
 
 CARRIAGEWAY = frozenset({"motorway", "trunk"})
-LINKS = frozenset({"motorway_link", "trunk_link"})
+# every link class: a ramp between a motorway and a secondary road is often tagged with
+# the lower road's class (Krems: a secondary_link exit off the B37 trunk)
+LINKS = frozenset(
+    {"motorway_link", "trunk_link", "primary_link", "secondary_link", "tertiary_link"}
+)
 EXTRA_TAGS = ("layer", "bridge", "tunnel", "destination")
 _COMPASS = {
     "N": 0.0,

@@ -1,0 +1,276 @@
+"""The outer road edge as one path through the levels the edge points form.
+
+On the outer side the LiDAR's edge extraction returns more than the mainline's edge:
+ramps leaving and joining (their edges run on beside and beyond it), guardrails and
+vegetation (outward outliers), other roads seen through a gap. Per station bin the points
+form a few levels (dense clusters of lateral offset). The mainline's edge is the
+continuous path through them that stays on the innermost supported level, changes level
+only at a few steps (gores, where a lane begins or ends at full width), and may go on
+unseen through bins where its own edge was hidden (a truck beside the car) rather than
+jump to another road's edge and back. That is a shortest path over (bin, level) states,
+found by a beam Viterbi pass along the bins with costs for:
+
+* support: ``-log`` of the level's share of the bin's points, relative to the bin's best
+  supported level (so two equally supported levels both cost nothing);
+* rank: each level inside the chosen one (nearer the carriageway) costs
+  ``edge_rank_cost``;
+* continuity: a level change between bins costs ``(change / sigma)^2`` (``sigma`` grows
+  with the bins since the state was last seen), a change beyond ``edge_step_m`` costs
+  ``edge_step_cost`` (a gore step);
+* unseen: a state that carries its level through a bin holding points but none at its
+  level costs ``edge_skip_cost`` per bin (empty bins cost nothing).
+
+Offsets ``d`` are metres from the reference edge towards the carriageway (positive).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.ndimage import gaussian_filter1d, uniform_filter1d
+
+from ..config import MainlineConfig
+
+FloatArray = NDArray[np.float64]
+
+_CELL_M = 0.25  # lateral cell of the level histogram
+_MAX_LEVELS = 6  # observed levels kept per bin (innermost first)
+_MAX_CARRIED = 6  # unseen (carried) states kept per bin
+_AFTER_STEP_AGE = 3.0  # a state that just stepped is as uncertain as one unseen for 3 bins
+_MIN_LEVEL_POINTS = 3.0  # points (over three bins) that make a level: fewer are noise
+
+
+def bin_levels(
+    s: FloatArray, d: FloatArray, edges_s: FloatArray, *, config: MainlineConfig | None = None
+) -> list[tuple[FloatArray, FloatArray]]:
+    """Per station bin: the levels of the edge points (metres, innermost first) and their
+    emission costs (support and rank); empty arrays for bins without points."""
+    cfg = config or MainlineConfig()
+    n_bins = edges_s.size - 1
+    empty = (np.zeros(0), np.zeros(0))
+    if s.size == 0 or n_bins < 1:
+        return [empty] * max(n_bins, 0)
+    b = np.clip(np.searchsorted(edges_s, s, side="right") - 1, 0, n_bins - 1)
+    d_lo = float(np.min(d)) - _CELL_M
+    d_hi = float(np.percentile(d, 99.5)) + 1.0
+    n_cell = max(3, math.ceil((d_hi - d_lo) / _CELL_M))
+    c = np.clip(((d - d_lo) / _CELL_M).astype(np.int64), 0, n_cell - 1)
+    hist = np.zeros((n_bins, n_cell), dtype=np.float32)
+    np.add.at(hist, (b, c), 1.0)
+    count = hist.sum(axis=1)
+    dens = gaussian_filter1d(hist, 1.0, axis=1, mode="constant")
+    dens = uniform_filter1d(dens, 3, axis=0, mode="nearest")
+    left = np.concatenate([np.full((n_bins, 1), -1.0), dens[:, :-1]], axis=1)
+    right = np.concatenate([dens[:, 1:], np.full((n_bins, 1), -1.0)], axis=1)
+    floor = np.maximum(_MIN_LEVEL_POINTS * 0.4, 0.08 * dens.max(axis=1, keepdims=True))
+    peak = (dens >= left) & (dens > right) & (dens >= floor)
+    # sub-cell level: centroid of the raw points within +-2 cells of each peak, for all
+    # peaks at once (box sums along d); the first _MAX_LEVELS peaks of a bin, innermost first
+    mass_all = 5.0 * uniform_filter1d(hist, 5, axis=1, mode="constant")
+    first_all = 5.0 * uniform_filter1d(
+        hist * np.arange(n_cell, dtype=np.float32), 5, axis=1, mode="constant"
+    )
+    peak &= (count > 0)[:, None]
+    rank_all = np.cumsum(peak, axis=1) - 1
+    peak &= rank_all < _MAX_LEVELS
+    rows, cols = np.nonzero(peak)
+    mass = np.maximum(mass_all[rows, cols].astype(float), 0.5)
+    level = d_lo + (first_all[rows, cols] / mass + 0.5) * _CELL_M
+    best = np.zeros(n_bins)
+    np.maximum.at(best, rows, mass)
+    emit = -np.log(mass / best[rows]) + cfg.edge_rank_cost * rank_all[rows, cols]
+    split = np.searchsorted(rows, np.arange(1, n_bins))
+    return list(zip(np.split(level, split), np.split(emit, split), strict=True))
+
+
+def edge_level_path(
+    s: FloatArray, d: FloatArray, edges_s: FloatArray, *, config: MainlineConfig | None = None
+) -> FloatArray:
+    """Level (metres) of the mainline's outer edge in each station bin, NaN where unseen.
+
+    Parameters
+    ----------
+    s, d
+        Stations and offsets of the outer-side edge points (metres).
+    edges_s
+        Bin edges along the station (``n + 1`` values, metres).
+
+    Returns
+    -------
+    FloatArray
+        ``(n,)`` offsets of the chosen level per bin (NaN: no points there, or the path
+        went on unseen).
+    """
+    cfg = config or MainlineConfig()
+    return _beam_viterbi(bin_levels(s, d, edges_s, config=cfg), cfg)
+
+
+def _beam_viterbi(bins: list[tuple[FloatArray, FloatArray]], cfg: MainlineConfig) -> FloatArray:
+    """Shortest path over the bins' observed and carried states (module docstring).
+
+    A state also carries its slope (level change per bin, smoothed along the path), so a
+    tapering edge (a shoulder opening over 80 m) is predicted, not penalised: the
+    continuity cost applies to the change against the predicted level.
+    """
+    n_bins = len(bins)
+    out = np.full(n_bins, np.nan)
+    hist_level: list[FloatArray] = []
+    hist_seen: list[NDArray[np.bool_]] = []
+    hist_back: list[NDArray[np.int64]] = []
+    level = np.zeros(0)
+    slope = np.zeros(0)
+    cost = np.zeros(0)
+    age = np.zeros(0)
+    for i in range(n_bins):
+        obs, emit = bins[i]
+        has_points = obs.size > 0
+        if obs.size and level.size:
+            pred = level + slope
+            change = np.abs(obs[None, :] - pred[:, None])
+            sigma = cfg.edge_level_sigma_m * (1.0 + 0.25 * age[:, None])
+            trans = np.where(change > cfg.edge_step_m, cfg.edge_step_cost, (change / sigma) ** 2)
+            total = cost[:, None] + trans
+            k = np.argmin(total, axis=0)
+            o_cost = total[k, np.arange(obs.size)] + emit
+            o_back = k.astype(np.int64)
+            stepped = np.abs(obs - level[k]) > cfg.edge_step_m
+            new_slope = (obs - level[k]) / (age[k] + 1.0)
+            o_slope = np.where(stepped, 0.0, 0.5 * slope[k] + 0.5 * new_slope)
+            # where a step lands is known to a metre, not to centimetres
+            o_age = np.where(stepped, _AFTER_STEP_AGE, 0.0)
+        elif obs.size:
+            o_cost = emit + cfg.edge_skip_cost * i
+            o_back = np.full(obs.size, -1, dtype=np.int64)
+            o_slope = np.zeros(obs.size)
+            o_age = np.zeros(obs.size)
+        else:
+            o_cost, o_back, o_slope = np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0)
+            o_age = np.zeros(0)
+        # carried states: every previous state going on unseen (not onto an observed level)
+        c_level = level + slope
+        c_slope = 0.9 * slope
+        c_cost = cost + (cfg.edge_skip_cost if has_points else 0.0)
+        c_age = age + 1
+        c_back = np.arange(level.size, dtype=np.int64)
+        if obs.size and level.size:
+            # a state passing within three of its sigmas of a seen level takes that level
+            near = 3.0 * cfg.edge_level_sigma_m * (1.0 + 0.25 * c_age)
+            keep = np.min(np.abs(c_level[:, None] - obs[None, :]), axis=1) >= near
+            c_level, c_slope, c_cost = c_level[keep], c_slope[keep], c_cost[keep]
+            c_age, c_back = c_age[keep], c_back[keep]
+        if c_level.size > _MAX_CARRIED:
+            best = np.argsort(c_cost, kind="stable")[:_MAX_CARRIED]
+            c_level, c_slope, c_cost = c_level[best], c_slope[best], c_cost[best]
+            c_age, c_back = c_age[best], c_back[best]
+        level = np.concatenate([obs, c_level])
+        slope = np.concatenate([o_slope, c_slope])
+        cost = np.concatenate([o_cost, c_cost])
+        age = np.concatenate([o_age, c_age])
+        hist_level.append(level)
+        hist_seen.append(np.concatenate([np.ones(obs.size, bool), np.zeros(c_level.size, bool)]))
+        hist_back.append(np.concatenate([o_back, c_back]))
+    if not level.size:
+        return out
+    k = int(np.argmin(cost))
+    for i in range(n_bins - 1, -1, -1):
+        if k < 0 or k >= hist_level[i].size:
+            break
+        if hist_seen[i][k]:
+            out[i] = hist_level[i][k]
+        k = int(hist_back[i][k])
+    return out
+
+
+def refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, starts: bool) -> float:
+    """Station (metres, sub-metre) where the low level of an edge step starts
+    (``starts``: exit gore) or ends (entry gore), from the points within 10 m; ``d`` is
+    measured so that the low level lies nearer the carriageway.
+
+    The step lies half a mean point spacing before the first (after the last) point of
+    the low level; an isolated first (last) point more than 5 m from the next one is an
+    outlier.
+    """
+    win = (np.abs(s - s_step) < 10.0) & (np.abs(d - low) < 0.5)
+    if np.count_nonzero(win) < 4:
+        return s_step
+    ss = np.sort(s[win])
+    if not starts:
+        ss = -ss[::-1]  # mirror: the last point of the low level becomes the first
+    if ss[1] - ss[0] > 5.0:
+        ss = ss[1:]
+    spacing = (ss[-1] - ss[0]) / (ss.size - 1)
+    edge = float(ss[0] - 0.5 * spacing)
+    return edge if starts else -edge
+
+
+@dataclass(frozen=True)
+class EdgeSteps:
+    """Steps of an edge level path (gores where lanes begin or end at full width).
+
+    Attributes
+    ----------
+    stations : ``(n,)`` refined step stations, metres, increasing.
+    offsets : ``(n + 1,)`` level of each segment between steps relative to the base level
+        (the level the longest stretch of the road has), metres, in the offsets' own
+        direction (positive: farther from the carriageway).
+    """
+
+    stations: FloatArray
+    offsets: FloatArray
+
+    def at(self, s: FloatArray) -> FloatArray:
+        """Offset (metres) of the segment each station lies in."""
+        return self.offsets[np.searchsorted(self.stations, np.asarray(s, dtype=float))]
+
+
+def edge_steps(
+    s: FloatArray,
+    u: FloatArray,
+    edges_s: FloatArray,
+    level: FloatArray,
+    *,
+    config: MainlineConfig | None = None,
+) -> EdgeSteps:
+    """The steps of a level path (:func:`edge_level_path`) and each segment's offset.
+
+    ``s``, ``u``: the edge points (stations, offsets, metres, larger ``u`` farther from the
+    carriageway); ``level`` the path on the bins ``edges_s``. A step is a change of more
+    than ``edge_step_m`` between neighbouring seen bins with points right before and after
+    it (an occlusion gap has none); its size is the change of the median level over five
+    seen bins on either side, its station where the level nearer the carriageway starts
+    or ends (:func:`refine_step`).
+    """
+    cfg = config or MainlineConfig()
+    centres = 0.5 * (edges_s[1:] + edges_s[:-1])
+    seen = np.flatnonzero(np.isfinite(level))
+    if seen.size < 2:
+        return EdgeSteps(np.zeros(0), np.zeros(1))
+    jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
+    stations, sizes = [], []
+    for j in jumps:
+        before = float(np.median(level[seen[max(j - 4, 0) : j + 1]]))
+        after = float(np.median(level[seen[j + 1 : j + 6]]))
+        guess = 0.5 * (centres[seen[j]] + centres[seen[j + 1]])
+        station = refine_step(s, u, guess, min(before, after), starts=after < before)
+        if np.count_nonzero((s >= station - 5.0) & (s < station)) < 3:
+            continue
+        if np.count_nonzero((s > station) & (s <= station + 5.0)) < 3:
+            continue
+        stations.append(station)
+        sizes.append(after - before)
+    if not stations:
+        return EdgeSteps(np.zeros(0), np.zeros(1))
+    order = np.argsort(stations)
+    st = np.asarray(stations)[order]
+    values = np.concatenate([[0.0], np.cumsum(np.asarray(sizes)[order])])
+    bounds = np.concatenate([[float(edges_s[0])], st, [float(edges_s[-1])]])
+    lengths = np.diff(bounds)
+    # the base level is the one the longest stretch has (levels within 0.5 m are one)
+    rounded = np.round(values / 0.5)
+    totals = {r: float(lengths[rounded == r].sum()) for r in np.unique(rounded)}
+    base_key = max(totals, key=lambda r: (totals[r], -abs(r)))
+    base = float(np.median(values[rounded == base_key]))
+    return EdgeSteps(st, values - base)

@@ -1,0 +1,245 @@
+"""Gores the outer-edge points did not see: snapped to ramp-line evidence or placed from
+the through marking's type change and the shoulder taper (:mod:`.gores`), with the
+marking tracks moved to end there.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from .gores import (
+    ShoulderTaper,
+    fit_shoulder_taper,
+    fuse_gore_estimates,
+    marking_gore_interval,
+)
+from .markings import _last_marking, _Track
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+def _snap_to_hidden_gores(
+    tracks: list[_Track],
+    evidence: list[tuple[float, float]],
+    covered: NDArray[np.bool_],
+    grid: FloatArray,
+    cfg: MainlineConfig,
+) -> tuple[list[_Track], FloatArray]:
+    """Place gores that an occlusion of the outer edge hid.
+
+    A ramp line that meets (entry) or leaves (exit) the outermost mainline marking inside
+    an occlusion gap marks the gore; an outer marking that starts or ends abruptly in the
+    same gap is cut or extended to that station (ramp markings upstream of an entry gore
+    otherwise make the lane start early). Returns the tracks and the gore stations.
+    """
+    gores: list[float] = []
+    out = list(tracks)
+    step = cfg.grid_step_m
+
+    def hidden(s_at: float) -> bool:
+        i = int(np.clip(np.rint((s_at - grid[0]) / step), 0, grid.size - 1))
+        return not covered[max(i - 10, 0) : i + 11].all()
+
+    # a marking that starts (ends) inside such a gap while still converging (diverging)
+    # is a ramp line until it runs parallel: the gore is where it does
+    for k, tr in enumerate(out):
+        if tr.s.size < 20:
+            continue
+        slope = np.gradient(tr.d, tr.s)
+        if tr.lo > grid[0] + step and hidden(tr.lo):
+            par = np.flatnonzero(slope > -cfg.hidden_gore_slope)
+            if par.size and par[0] > 0 and tr.s[par[0]] - tr.lo >= 5.0:
+                i0 = par[0]
+                tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
+                gores.append(tr.lo)
+        if tr.hi < grid[-1] - step and hidden(tr.hi):
+            slope = np.gradient(tr.d, tr.s)
+            par = np.flatnonzero(slope < cfg.hidden_gore_slope)
+            if par.size and par[-1] < tr.s.size - 1 and tr.hi - tr.s[par[-1]] >= 5.0:
+                i1 = par[-1] + 1
+                tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
+                gores.append(tr.hi)
+        out[k] = tr
+    for s_g, d_g in evidence:
+        i_g = int(np.clip(np.rint((s_g - grid[0]) / step), 0, grid.size - 1))
+        # inside (or within 10 m of) a gap of the outer-edge points
+        lo_i, hi_i = max(i_g - 10, 0), min(i_g + 11, grid.size)
+        if covered[lo_i:hi_i].all():
+            continue
+        # it must touch a mainline marking there
+        near = [
+            tr
+            for tr in out
+            if tr.lo - 1 <= s_g <= tr.hi + 1 and abs(np.interp(s_g, tr.s, tr.d) - d_g) < 1.0
+        ]
+        if not near:
+            continue
+        s_gore = float(grid[i_g])
+        if any(abs(g - s_gore) < 30.0 for g in gores):
+            continue
+        gores.append(s_gore)
+        for k, tr in enumerate(out):
+            if abs(tr.lo - s_gore) < 60.0 and tr.lo < s_gore - step and tr.hi > s_gore + 60.0:
+                sel = tr.s >= s_gore
+                out[k] = replace(tr, lo=s_gore, s=tr.s[sel], d=tr.d[sel])
+            elif abs(tr.hi - s_gore) < 60.0 and tr.hi > s_gore + step and tr.lo < s_gore - 60.0:
+                sel = tr.s <= s_gore
+                out[k] = replace(tr, hi=s_gore, s=tr.s[sel], d=tr.d[sel])
+    return out, np.asarray(gores, dtype=float)
+
+
+def _gap_runs(covered: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Index ranges ``[a, b)`` of the grid stations without outer-edge points."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def _place_hidden_gores(
+    tracks: list[_Track],
+    s_out: FloatArray,
+    d_out: FloatArray,
+    covered: NDArray[np.bool_],
+    grid: FloatArray,
+    taper_length_m: float | None = None,
+) -> tuple[list[_Track], list[float], list[ShoulderTaper]]:
+    """Gore stations inside occlusion gaps of the outer edge.
+
+    For an outer marking that starts (entry) or ends (exit) inside a gap while the through
+    lanes' outer marking runs on, the gore is placed by the marking's solid/broken change
+    and the hard-shoulder taper seen before (entry) / after (exit) the gap
+    (:mod:`roadtwin.mainline.gores`), and the marking is cut or extended to it. ``s_out``,
+    ``d_out``: the outer-edge points of the mainline edge (metres, reference frame).
+    Where the taper was not seen at all, the run's own taper length at gores that were
+    seen (``taper_length_m``) shapes it, if the shoulder was seen at full width up to
+    where that taper would begin.
+    Returns the tracks, the gore stations placed and the shoulder tapers.
+    """
+    out = list(tracks)
+    placed: list[float] = []
+    tapers: list[ShoulderTaper] = []
+    step = float(grid[1] - grid[0])
+    # where the sensor saw any marking (a gap of all of them is missing frames)
+    seen = np.sort(np.concatenate([t.s_samples for t in tracks])) if tracks else None
+    for a, b in _gap_runs(covered):
+        if a == 0 or b >= grid.size:
+            continue
+        s_a, s_b = float(grid[a]), float(grid[b - 1])
+        for k in range(len(out)):
+            for entry in (True, False):
+                tr = out[k]
+                s_tip = tr.lo if entry else tr.hi
+                beyond = tr.hi - s_b if entry else s_a - tr.lo
+                if not (s_a - step <= s_tip <= s_b + step) or tr.s.size < 20 or beyond < 20.0:
+                    continue
+                d_tip = float(tr.d[0] if entry else tr.d[-1])
+                through = [
+                    t
+                    for t in out
+                    if t is not tr
+                    and t.lo <= s_tip - 40.0
+                    and t.hi >= s_tip + 40.0
+                    and np.interp(s_tip, t.s, t.d) < d_tip - 1.0
+                ]
+                if not through:
+                    continue
+                nb = max(through, key=lambda t: float(np.interp(s_tip, t.s, t.d)))
+                interval = marking_gore_interval(nb.s_samples, s_tip, entry=entry, seen_s=seen)
+                if entry:
+                    sel = (s_out > max(s_a - 200.0, nb.lo)) & (s_out < s_a)
+                else:
+                    sel = (s_out > s_b) & (s_out < min(s_b + 200.0, nb.hi))
+                width = d_out[sel] - np.interp(s_out[sel], nb.s, nb.d)
+                taper = fit_shoulder_taper(s_out[sel], width, entry=entry)
+                if interval is None and taper is None:
+                    continue
+                s_gore = fuse_gore_estimates(interval, taper, s_tip)
+                if abs(s_gore - s_tip) > 40.0:
+                    continue
+                out[k] = _move_track_end(tr, s_gore, grid, start=entry)
+                placed.append(s_gore)
+                if taper is not None:
+                    tapers.append(replace(taper, s_gore=s_gore))
+                elif taper_length_m is not None and width.size >= 10:
+                    s_w = s_out[sel]
+                    near = np.abs(s_w - (s_a if entry else s_b)) < 30.0
+                    begins = s_gore - taper_length_m if entry else s_gore + taper_length_m
+                    seen_flat = begins >= s_a - 10.0 if entry else begins <= s_b + 10.0
+                    if np.count_nonzero(near) >= 10 and seen_flat:
+                        full = float(np.median(width[near]))
+                        tapers.append(ShoulderTaper(s_gore, taper_length_m, full, entry, math.nan))
+                log.info(
+                    "mainline: %s gore in an occlusion gap at s=%.1f m (marking interval %s, "
+                    "shoulder taper %s)",
+                    "entry" if entry else "exit",
+                    s_gore,
+                    "none" if interval is None else f"{interval[0]:.1f}..{interval[1]:.1f}",
+                    "none" if taper is None else f"{taper.s_gore:.1f}",
+                )
+    return out, placed, tapers
+
+
+def _visible_taper_length(
+    steps: FloatArray,
+    d_edge: FloatArray,
+    tracks: list[_Track],
+    s_out: FloatArray,
+    d_out: FloatArray,
+    grid: FloatArray,
+) -> float | None:
+    """Median length (metres) of the hard-shoulder tapers fitted at the seen edge steps
+    (gores), or None if none could be fitted."""
+    d_last = _last_marking(tracks, grid)
+    lengths = []
+    for b in steps:
+        i = int(np.searchsorted(grid, b))
+        if i < 5 or i + 5 >= grid.size:
+            continue
+        entry = bool(d_edge[i + 3] > d_edge[i - 3])  # the edge steps out: a lane begins
+        sel = (s_out > b - 200.0) & (s_out < b) if entry else (s_out > b) & (s_out < b + 200.0)
+        mark = np.interp(s_out[sel], grid, d_last)
+        ok = np.isfinite(mark)
+        fit = fit_shoulder_taper(s_out[sel][ok], d_out[sel][ok] - mark[ok], entry=entry)
+        if fit is not None and abs(fit.s_gore - b) < 5.0:
+            lengths.append(fit.length_m)
+    return float(np.median(lengths)) if lengths else None
+
+
+def _move_track_end(tr: _Track, s_new: float, grid: FloatArray, *, start: bool) -> _Track:
+    """``tr`` cut or extended (at its end offset) so that it starts/ends at ``s_new``."""
+    if start:
+        if s_new >= tr.lo:
+            sel = tr.s >= s_new
+            new_s, new_d = tr.s[sel], tr.d[sel]
+            if new_s.size == 0 or new_s[0] > s_new:
+                new_s = np.concatenate([[s_new], new_s])
+                new_d = np.concatenate([[np.interp(s_new, tr.s, tr.d)], new_d])
+        else:
+            ext = np.concatenate([[s_new], grid[(grid > s_new) & (grid < tr.s[0])]])
+            new_s = np.concatenate([ext, tr.s])
+            new_d = np.concatenate([np.full(ext.size, tr.d[0]), tr.d])
+        return replace(tr, lo=s_new, s=new_s, d=new_d)
+    if s_new <= tr.hi:
+        sel = tr.s <= s_new
+        new_s, new_d = tr.s[sel], tr.d[sel]
+        if new_s.size == 0 or new_s[-1] < s_new:
+            new_s = np.concatenate([new_s, [s_new]])
+            new_d = np.concatenate([new_d, [np.interp(s_new, tr.s, tr.d)]])
+    else:
+        ext = np.concatenate([grid[(grid < s_new) & (grid > tr.s[-1])], [s_new]])
+        new_s = np.concatenate([tr.s, ext])
+        new_d = np.concatenate([tr.d, np.full(ext.size, tr.d[-1])])
+    return replace(tr, hi=s_new, s=new_s, d=new_d)
+
+
+def _hermite01(x: FloatArray, v0: float, m0: float) -> FloatArray:
+    """Cubic from value ``v0`` with slope ``m0`` (per unit x) at x = 0 to value 0 with
+    slope 0 at x = 1."""
+    return v0 * (1.0 - x * x * (3.0 - 2.0 * x)) + m0 * x * (1.0 - x) ** 2

@@ -1,0 +1,376 @@
+"""Lane-marking tracks: histogram peaks along the station linked into tracks, samples
+assigned to their nearest track, ramp lines cut off at the corridor, collinear pieces
+merged and lanes hidden beyond the sensor's reach added.
+
+Stations ``s`` and offsets ``d`` are metres in the reference line's frame (``d`` from the
+reference edge towards the carriageway).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from ._common import (
+    robust_offset_fit,
+)
+
+log = logging.getLogger(__name__)
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class _RawTrack:
+    cols: list[int]
+    d: list[float]
+    slope: float = 0.0
+
+    def add(self, col: int, value: float) -> None:
+        """Append a column and update the slope (least squares over the last 4 columns,
+        clipped to +-0.5 m per column)."""
+        self.cols.append(col)
+        self.d.append(value)
+        if len(self.d) < 3:
+            return
+        c = self.cols[-4:]
+        v = self.d[-4:]
+        n = len(c)
+        cm, vm = sum(c) / n, sum(v) / n
+        var = 0.0
+        cov = 0.0
+        for ci, vi in zip(c, v, strict=True):
+            var += (ci - cm) * (ci - cm)
+            cov += (ci - cm) * (vi - vm)
+        self.slope = min(max(cov / var, -0.5), 0.5)
+
+    def predict(self, col: int) -> float:
+        """Offset extrapolated linearly from the last few columns to column ``col``."""
+        return self.d[-1] + self.slope * (col - self.cols[-1])
+
+
+def _find_track_peaks(
+    s: FloatArray, d: FloatArray, length: float, cfg: MainlineConfig
+) -> tuple[FloatArray, list[FloatArray]]:
+    """Marking peaks per histogram column: column centres and the peak offsets in each.
+
+    All columns are searched in one ``find_peaks`` call: the columns are laid end to end,
+    separated by zero padding at least as wide as the peak distance, so that neither the
+    distance nor the prominence test reaches across columns.
+    """
+    from scipy.ndimage import gaussian_filter1d, uniform_filter1d
+    from scipy.signal import find_peaks
+
+    col = cfg.lane_column_m
+    n_col = max(1, math.ceil(length / col))
+    d_lo, d_hi = -1.0, float(np.nanmax(d)) + 1.0 if d.size else 1.0
+    n_bin = max(4, math.ceil((d_hi - d_lo) / cfg.lane_bin_m))
+    hist, _, _ = np.histogram2d(
+        s, d, bins=(n_col, n_bin), range=((0.0, n_col * col), (d_lo, d_lo + n_bin * cfg.lane_bin_m))
+    )
+    hist = uniform_filter1d(hist, cfg.lane_window_columns, axis=0, mode="nearest")
+    hist = gaussian_filter1d(hist, 1.5, axis=1, mode="constant")
+    # height threshold: a fraction of the typical strong peak
+    strong = np.percentile(hist.max(axis=1), 75) if hist.size else 0.0
+    thr = max(0.15 * strong, 1e-9)
+    min_dist = max(1, int(cfg.lane_min_separation_m / cfg.lane_bin_m))
+    centres = (np.arange(n_col) + 0.5) * col
+    bin_c = d_lo + (np.arange(n_bin) + 0.5) * cfg.lane_bin_m
+    pad = min_dist + 1
+    stride = n_bin + pad
+    flat = np.zeros((n_col, stride))
+    flat[:, :n_bin] = hist
+    idx, _ = find_peaks(flat.ravel(), height=thr, distance=min_dist, prominence=0.5 * thr)
+    row, j = np.divmod(idx, stride)
+    # a column's first/last bin is never a peak (as for a search per column)
+    inner = (j > 0) & (j < n_bin - 1)
+    row, j = row[inner], j[inner]
+    ks = np.arange(-2, 3)
+    jj = np.clip(j[:, None] + ks[None, :], 0, n_bin - 1)
+    wts = hist[row[:, None], jj]
+    # centroid refinement over +-2 bins
+    ref = (wts * bin_c[jj]).sum(axis=1) / np.maximum(wts.sum(axis=1), 1e-12)
+    split = np.searchsorted(row, np.arange(1, n_col))
+    peaks = np.split(ref, split)
+    return centres, peaks
+
+
+def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack]:
+    """Greedy nearest-neighbour linking of column peaks into tracks."""
+    max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
+    tracks: list[_RawTrack] = []
+    active: list[int] = []
+    for c, pk in enumerate(peaks):
+        active = [i for i in active if c - tracks[i].cols[-1] <= max_gap]
+        used_p: set[int] = set()
+        if active and pk.size:
+            used_t: set[int] = set()
+            pred = np.array([tracks[i].predict(c) for i in active])
+            cost = np.abs(pk[:, None] - pred[None, :])
+            n_ok = int(np.count_nonzero(cost <= cfg.lane_link_m))
+            if n_ok:
+                order = np.argsort(cost, axis=None, kind="stable")[:n_ok]
+                for flat in order.tolist():
+                    pi, ti = divmod(flat, len(active))
+                    if pi in used_p or ti in used_t:
+                        continue
+                    used_p.add(pi)
+                    used_t.add(ti)
+                    tracks[active[ti]].add(c, float(pk[pi]))
+        for pi in range(pk.size):
+            if pi not in used_p:
+                tracks.append(_RawTrack([c], [float(pk[pi])]))
+                active.append(len(tracks) - 1)
+    return tracks
+
+
+def _mark_type(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig) -> str:
+    """``broken`` if long gaps between samples cover a large part of [lo, hi]."""
+    ss = np.sort(s_samples[(s_samples >= lo) & (s_samples <= hi)])
+    if ss.size < 3 or hi - lo <= 0:
+        return "solid"
+    gaps = np.diff(np.concatenate([[lo], ss, [hi]]))
+    spacing = float(np.median(np.diff(ss))) if ss.size > 1 else 0.0
+    limit = max(cfg.broken_gap_m, 3.0 * spacing)
+    frac = float(np.sum(gaps[gaps > limit])) / (hi - lo)
+    return "broken" if frac > cfg.broken_gap_fraction else "solid"
+
+
+@dataclass
+class _Track:
+    id: int
+    lo: float
+    hi: float
+    s: FloatArray  # stations of d (grid or column centres)
+    d: FloatArray
+    mark: str
+    n: int
+    s_samples: FloatArray  # stations of the inlier samples, sorted
+    d_samples: FloatArray = field(default_factory=lambda: np.zeros(0))  # their offsets
+
+
+def _tracks_from_samples(
+    s: FloatArray,
+    d: FloatArray,
+    grid: FloatArray,
+    length: float,
+    cfg: MainlineConfig,
+    d_edge: FloatArray | None = None,
+) -> tuple[list[_Track], list[tuple[float, float]]]:
+    """Marking tracks: histogram peaks linked along s, false positives removed, samples
+    assigned exclusively to the nearest track, each track smoothed robustly.
+
+    Also returns ``(s, d)`` where ramp lines crossing the corridor were cut off (they meet
+    or leave a mainline marking there: gore evidence)."""
+    if s.size < 10:
+        return [], []
+    centres, peaks = _find_track_peaks(s, d, length, cfg)
+    raw = _link_tracks(peaks, cfg)
+    col = cfg.lane_column_m
+    s_first, s_last = float(np.min(s)), float(np.max(s))
+
+    def too_short(lo: float, hi: float) -> bool:
+        """Shorter than ``lane_min_track_m``, unless the run's start or end cuts it (then
+        it only has to be ``lane_min_cut_track_m`` long)."""
+        if hi - lo >= cfg.lane_min_track_m:
+            return False
+        cut = lo <= s_first + 2.0 * col or hi >= s_last - 2.0 * col
+        return not (cut and hi - lo >= cfg.lane_min_cut_track_m)
+
+    cand: list[_Track] = []
+    for tr in raw:
+        lo = centres[tr.cols[0]] - 0.5 * col
+        hi = centres[tr.cols[-1]] + 0.5 * col
+        if too_short(lo, hi):
+            continue
+        cand.append(
+            _Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0])
+        )
+    if not cand:
+        return [], []
+    # each sample belongs to the nearest candidate track (the first one on ties); the
+    # samples are sorted by station so that a track only looks at its own window
+    order = np.argsort(s, kind="stable")
+    s, d = s[order], d[order]
+    best = np.full(s.size, np.inf)
+    owner = np.full(s.size, -1, dtype=np.int64)
+    windows: list[tuple[int, int]] = []
+    for k, tr in enumerate(cand):
+        i0 = int(np.searchsorted(s, tr.lo - col, side="left"))
+        i1 = int(np.searchsorted(s, tr.hi + col, side="right"))
+        windows.append((i0, i1))
+        dk = np.abs(d[i0:i1] - np.interp(s[i0:i1], tr.s, tr.d))
+        better = dk < best[i0:i1]
+        best[i0:i1][better] = dk[better]
+        owner[i0:i1][better] = k
+    final: list[_Track] = []
+    evidence: list[tuple[float, float]] = []
+    for k, (i0, i1) in enumerate(windows):
+        sel = i0 + np.flatnonzero((owner[i0:i1] == k) & (best[i0:i1] < cfg.lane_assign_m))
+        if sel.size < 10:
+            continue
+        ss_all = s[sel]
+        lo, hi = float(np.min(ss_all)), float(np.max(ss_all))
+        if too_short(lo, hi):
+            continue
+        g = grid[(grid >= lo) & (grid <= hi)]
+        if g.size < 4:
+            continue
+        fit, inl, _ = robust_offset_fit(
+            ss_all,
+            d[sel],
+            g,
+            cutoff_m=cfg.lane_smoothing_m,
+            mad_k=cfg.edge_outlier_mad,
+            min_threshold_m=cfg.edge_outlier_min_m,
+            local_sigma_ends_m=2.0 * cfg.lane_smoothing_m,
+        )
+        keep_g = _trim_ramp_lines(g, fit, cfg)
+        if not keep_g[-1] or not keep_g[0]:
+            # a ramp line: where it meets / leaves the corridor's marking is a gore
+            if keep_g.any():
+                i_in = np.flatnonzero(keep_g)
+                i_g = i_in[0] - 1 if not keep_g[0] else i_in[-1] + 1
+            else:
+                i_g = g.size - 1 if fit[-1] < fit[0] else 0
+            evidence.append((float(g[i_g]), float(fit[i_g])))
+        if not keep_g.any():
+            continue
+        g_in = g[keep_g]
+        if too_short(float(g_in[0]), float(g_in[-1]) + cfg.grid_step_m):
+            continue
+        g, fit = g[keep_g], fit[keep_g]
+        lo, hi = float(g[0]), float(g[-1])
+        ss, dd = ss_all[inl], d[sel][inl]
+        within = (ss >= lo - 1.0) & (ss <= hi + 1.0)
+        ss, dd = ss[within], dd[within]  # sorted by station already
+        mark = _mark_type(ss, lo, hi, cfg)
+        final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
+    return _merge_collinear(final, cfg, grid, d_edge), evidence
+
+
+def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
+    """Mask of the part of a marking track that belongs to the mainline.
+
+    Ramp markings cross the mainline corridor near a gore: before an entry gore they come
+    in from outside, converging steeply (d decreasing), after an exit gore they leave
+    (d increasing). A track's leading part that converges steeply and its trailing part
+    that diverges steeply are cut off. (Lane tapers of the mainline itself open outward at
+    their start and close inward at their end, so they are kept.)
+    """
+    keep = np.ones(g.size, dtype=bool)
+    if g.size < 5:
+        return keep
+    slope = np.gradient(d, g)
+    steep = cfg.ramp_line_slope
+    # leading part: converging inward steeply
+    flat = np.flatnonzero(slope > -steep)
+    if flat.size == 0:
+        return np.zeros(g.size, dtype=bool)  # converging all along: a ramp line
+    if flat[0] > 0 and (g[flat[0]] - g[0]) >= 10.0:
+        keep[: flat[0]] = False
+    flat = np.flatnonzero(slope < steep)
+    if flat.size == 0:
+        return np.zeros(g.size, dtype=bool)
+    if flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
+        keep[flat[-1] + 1 :] = False
+    return keep
+
+
+def _merge_collinear(
+    tracks: list[_Track],
+    cfg: MainlineConfig,
+    grid: FloatArray | None = None,
+    d_edge: FloatArray | None = None,
+) -> list[_Track]:
+    """Join a track that ends and another that starts at the same offset (occlusion).
+
+    With the outer edge ``d_edge`` on ``grid``: never across a stretch where the road is
+    too narrow to hold the marking (the edge comes within half a metre of the bridged
+    line): there the marking really ended and another began (an exit and a later entry at
+    the same offset), it was not hidden.
+    """
+
+    def road_holds(a: _Track, b: _Track) -> bool:
+        if grid is None or d_edge is None:
+            return True
+        inside = (grid > a.hi) & (grid < b.lo)
+        if not np.any(inside):
+            return True
+        x = (grid[inside] - a.hi) / max(b.lo - a.hi, 1e-9)
+        line = (1.0 - x) * a.d[-1] + x * b.d[0]
+        edge = d_edge[inside]
+        return not np.any(np.isfinite(edge) & (edge < line + 0.5))
+
+    tracks = sorted(tracks, key=lambda tr: tr.lo)
+    merged = True
+    while merged:
+        merged = False
+        for i, a in enumerate(tracks):
+            for j, b in enumerate(tracks):
+                if i == j or b.lo <= a.hi - 1.0 or b.lo - a.hi > 5.0 * cfg.lane_max_gap_m:
+                    continue
+                if abs(a.d[-1] - b.d[0]) > cfg.lane_link_m or not road_holds(a, b):
+                    continue
+                tracks[i] = _Track(
+                    a.id,
+                    a.lo,
+                    b.hi,
+                    np.concatenate([a.s, b.s]),
+                    np.concatenate([a.d, b.d]),
+                    a.mark if a.n >= b.n else b.mark,
+                    a.n + b.n,
+                    np.concatenate([a.s_samples, b.s_samples]),
+                    np.concatenate([a.d_samples, b.d_samples]),
+                )
+                del tracks[j]
+                merged = True
+                break
+            if merged:
+                break
+    return [replace(tr, id=k) for k, tr in enumerate(tracks)]
+
+
+def _add_hidden_lanes(
+    tracks: list[_Track], grid: FloatArray, d_edge: FloatArray, cfg: MainlineConfig
+) -> list[_Track]:
+    """Infer an unobserved outer marking where the outer shoulder is a lane too wide.
+
+    Markings far from the car may not be sampled (e.g. the outer line of a two-lane
+    deceleration lane). Where the outermost marking is more than
+    ``hidden_lane_min_m`` farther from the observed outer edge than the run's typical
+    hard-shoulder width, a marking is placed that typical width inside the edge.
+    """
+    if not tracks:
+        return tracks
+    d_last = _last_marking(tracks, grid)
+    gap = np.where(np.isfinite(d_last), d_edge - d_last, np.nan)
+    if not np.any(np.isfinite(gap)):
+        return tracks
+    hw = float(np.nanmedian(gap))
+    wide = np.isfinite(gap) & (gap > hw + cfg.hidden_lane_min_m)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], wide.astype(np.int8), [0]])))
+    out = list(tracks)
+    for a, b in zip(edges[::2], edges[1::2], strict=True):
+        if (b - a) * cfg.grid_step_m < cfg.lane_min_track_m:
+            continue
+        g = grid[a:b]
+        out.append(
+            _Track(len(out), float(g[0]), float(g[-1]), g, d_edge[a:b] - hw, "solid", 0, g[:0])
+        )
+        log.info("mainline: unobserved marking inferred at s=%.0f..%.0f m", g[0], g[-1])
+    return out
+
+
+def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:
+    """Offset of the outermost marking track at each grid station (-inf where none)."""
+    d_last = np.full(grid.size, -np.inf)
+    for tr in tracks:
+        sel = (grid >= tr.lo) & (grid <= tr.hi)
+        d_last[sel] = np.maximum(d_last[sel], np.interp(grid[sel], tr.s, tr.d))
+    return d_last

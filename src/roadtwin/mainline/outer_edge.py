@@ -1,0 +1,210 @@
+"""The outer road edge of the mainline in the reference line's frame: the edge level
+path smoothed per segment between its gore steps, and bridged where nothing was seen.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from ..fitting import (
+    moving_median,
+)
+from ._common import (
+    _fill_nan,
+    _grid,
+    robust_offset_fit,
+)
+from .edge_levels import edge_level_path, refine_step
+from .gores import (
+    ShoulderTaper,
+)
+from .hidden_gores import _gap_runs, _hermite01
+from .markings import _last_marking, _Track
+
+FloatArray = NDArray[np.float64]
+
+
+def fit_outer_edge(
+    s: FloatArray,
+    d: FloatArray,
+    grid: FloatArray,
+    *,
+    config: MainlineConfig | None = None,
+    hidden_steps: FloatArray | None = None,
+    levels: FloatArray | None = None,
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
+    """Outer road edge ``d_E(s)`` on ``grid`` from the outer-side edge points.
+
+    The outer side also holds ramp edges beyond a gore and outward outliers (guardrails,
+    vegetation), so the mainline edge is taken as the LOWEST cluster of offsets (near the
+    first quartile of each bin). Steps (gores, where the edge jumps by a lane) split the
+    fit into independent segments.
+
+    ``hidden_steps`` (metres) are steps that an occlusion hid (gores placed from other
+    evidence); the fit is split there too, so that it does not bend across them.
+    ``levels``: the level path of the same points on the same bins from an earlier call
+    (it does not depend on ``hidden_steps``).
+
+    Returns
+    -------
+    d_edge : (G,) offsets, metres (NaN only if there are no points at all).
+    breaks : stations of the steps, metres.
+    used : (N,) mask of the points that belong to the mainline edge.
+    covered : (G,) grid stations with edge points within 3 m (False in occlusion gaps).
+    """
+    cfg = config or MainlineConfig()
+    used = np.zeros(s.size, dtype=bool)
+    ok = np.isfinite(s) & np.isfinite(d) & (d > 0.5)
+    if np.count_nonzero(ok) < 10:
+        return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
+    bin_m = 2.0
+    cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
+    cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
+    # the innermost continuous level of the points, not a quantile: ramp edges beside the
+    # mainline's, guardrails and other roads seen through a gap must not pull it out
+    q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg) if levels is None else levels
+    q = q_raw
+    have = np.isfinite(q)
+    if not np.any(have):
+        return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
+    qi = np.nonzero(have)[0]
+    jumps = np.nonzero(np.abs(np.diff(q[qi])) > 1.0)[0]
+    breaks = 0.5 * (cgrid[qi[jumps]] + cgrid[qi[jumps + 1]])
+    # refine each step with the points: the low level starts (step down, an exit gore)
+    # or ends (step up, an entry gore) where the edge jumps (the high level goes on as
+    # the ramp's edge, so only the low level tells)
+    sv, dv = s[ok], d[ok]
+    for n, j in enumerate(jumps):
+        q0, q1 = q[qi[j]], q[qi[j + 1]]
+        breaks[n] = refine_step(sv, dv, float(breaks[n]), min(q0, q1), starts=q1 < q0)
+    # a real step has edge points right before and after it; an occlusion gap has none
+    real = [
+        np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
+        and np.count_nonzero((sv > b) & (sv <= b + 5.0)) >= 3
+        for b in breaks
+    ]
+    breaks = breaks[np.asarray(real, dtype=bool)] if breaks.size else breaks
+    if hidden_steps is not None and len(hidden_steps):
+        breaks = np.sort(np.concatenate([breaks, np.asarray(hidden_steps, dtype=float)]))
+    # kept off the grid: a lane section starts exactly at a step (the first grid station of
+    # its segment is the first one at or after it), as its edge segment does
+    bounds = np.concatenate([[grid[0] - 1.0], breaks, [grid[-1] + 1.0]])
+    # lower-cluster reference per segment (the moving median must not mix the levels of
+    # two sides of a step)
+    qf = np.full(cgrid.size, np.nan)
+    seg_of_bin = np.searchsorted(bounds, cgrid, side="right") - 1
+    for k in range(bounds.size - 1):
+        sel_b = seg_of_bin == k
+        if np.any(sel_b):
+            qf[sel_b] = moving_median(q_raw[sel_b], window=5)
+    qf = _fill_nan(cgrid, qf)
+    ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
+    used = ok & (np.abs(d - ref) < 0.8)
+    out = np.full(grid.size, np.nan)
+    for a, b in itertools.pairwise(bounds):
+        gsel = (grid >= a) & (grid < b)
+        psel = used & (s >= a) & (s < b)
+        if np.count_nonzero(gsel) < 4 or np.count_nonzero(psel) < 10:
+            continue
+        g = grid[gsel]
+        fit, _, _ = robust_offset_fit(
+            s[psel],
+            d[psel],
+            g,
+            cutoff_m=cfg.edge_smoothing_m,
+            mad_k=cfg.edge_outlier_mad,
+            min_threshold_m=cfg.edge_outlier_min_m,
+        )
+        out[gsel] = fit
+    su = np.sort(s[used])
+    if su.size:
+        pos = np.clip(np.searchsorted(su, grid), 1, su.size - 1)
+        near = np.minimum(np.abs(grid - su[pos - 1]), np.abs(su[pos] - grid))
+        covered = near < 3.0
+    else:
+        covered = np.zeros(grid.size, dtype=bool)
+    if np.all(np.isnan(out)):
+        out = _fill_nan(grid, np.interp(grid, cgrid, qf))
+    else:
+        # fill short unfitted segments by nearest value (keeps steps sharp)
+        idx = np.nonzero(np.isfinite(out))[0]
+        nearest = idx[np.clip(np.searchsorted(idx, np.arange(grid.size)), 0, idx.size - 1)]
+        out = np.where(np.isfinite(out), out, out[nearest])
+    return out, breaks, used, covered
+
+
+def _outer_edge_with_levels(s_outer, d_outer, grid, cfg):
+    """:func:`fit_outer_edge` and the level path it used (to reuse it in a refit)."""
+    bin_m = 2.0
+    cgrid = _grid(float(grid[0]), float(grid[-1]), bin_m)
+    cedges = np.concatenate([cgrid - 0.5 * bin_m, [cgrid[-1] + 0.5 * bin_m]])
+    ok = np.isfinite(s_outer) & np.isfinite(d_outer) & (d_outer > 0.5)
+    levels = edge_level_path(s_outer[ok], d_outer[ok], cedges, config=cfg)
+    return (*fit_outer_edge(s_outer, d_outer, grid, config=cfg, levels=levels), levels)
+
+
+def _bridge_edge_gaps(
+    d_edge: FloatArray,
+    covered: NDArray[np.bool_],
+    tracks: list[_Track],
+    grid: FloatArray,
+    tapers: list[ShoulderTaper] | None = None,
+) -> FloatArray:
+    """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
+    outermost marking) linear between the gap ends instead of the edge offset itself, so
+    the edge follows markings that were seen (tapers, gores inside the gap). A shoulder
+    taper fitted at a gore in the gap (``tapers``) gives the width on its side."""
+    d_last = _last_marking(tracks, grid)
+    out = d_edge.copy()
+    for a, b in _gap_runs(covered):
+        if a == 0 or b >= grid.size or b - a < 5:
+            continue
+        i0, i1 = a - 1, b
+        if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
+            continue
+        hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
+        x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
+        inner = d_last[a:b]
+        ok = np.isfinite(inner)
+        hw = (1 - x) * hw0 + x * hw1
+        # a lane that starts/ends inside the gap (a gore): each side keeps its own width,
+        # unless the shoulder was seen narrowing towards the gore (entry) / widening from
+        # it (exit): then it tapers linearly from / to zero width at the gore
+        jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
+        if jump.size == 1:
+            j = int(jump[0])  # grid[a + j] is the first station after the gore
+            k = np.arange(b - a)
+            hw = np.where(k < j, hw0, hw1)
+            s_jump = 0.5 * (grid[i0 + j] + grid[i0 + j + 1])
+            fitted = [tp for tp in tapers or () if abs(tp.s_gore - s_jump) <= grid[1] - grid[0]]
+            for tp in fitted:
+                side = k < j if tp.entry else k >= j
+                hw[side] = tp.width(grid[a:b][side])
+            if fitted:
+                out[a:b][ok] = inner[ok] + hw[ok]
+                continue
+            # the trend over 20 m, 5 m away from the gap (the fit bends at its ends); the
+            # taper continues with the observed slope and reaches zero width flat (cubic)
+            i_a, i_b = i0 - 25, i0 - 5
+            if i_a >= 0 and np.all(np.isfinite(d_last[[i_a, i_b]])) and j > 0:
+                narrowing = (d_edge[i_a] - d_last[i_a]) - (d_edge[i_b] - d_last[i_b])
+                if narrowing > 0.5:
+                    before = k <= j
+                    x = (k[before] + 1) / (j + 1)
+                    m0 = -narrowing / 20.0 * (grid[a + j] - grid[i0])
+                    hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
+            i_a, i_b = i1 + 5, i1 + 25
+            n_after = b - a - (j + 1)
+            if i_b < grid.size and np.all(np.isfinite(d_last[[i_a, i_b]])) and n_after > 0:
+                widening = (d_edge[i_b] - d_last[i_b]) - (d_edge[i_a] - d_last[i_a])
+                if widening > 0.5:
+                    after = k > j
+                    x = (n_after - (k[after] - j - 1)) / (n_after + 1)  # 1 at the gore
+                    m1 = -widening / 20.0 * (grid[i1] - grid[a + j + 1])
+                    hw[after] = np.maximum(_hermite01(x, hw1, m1), 0.0)
+        out[a:b][ok] = inner[ok] + hw[ok]
+    return out

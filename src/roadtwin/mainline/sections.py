@@ -1,0 +1,532 @@
+"""Lane sections from marking tracks and the outer edge: section borders at track ends
+and edge steps, lane widths as cubic pieces (tapers at gores), lane types from width
+and the car, links across sections by border geometry, and the lane events.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import replace
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from ..fitting import (
+    fit_cubic_profile,
+)
+from ..model import (
+    Lane,
+    LaneSection,
+    RoadMark,
+    continue_width,
+)
+from ._common import (
+    BoundaryTrack,
+    LaneEvent,
+    _fill_nan,
+)
+from .gores import (
+    smoothstep,
+    taper_width,
+)
+from .markings import _mark_type, _Track
+
+FloatArray = NDArray[np.float64]
+
+
+_GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that gore
+
+_LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across sections
+
+
+def _taper(
+    dmat: FloatArray,
+    k: int,
+    grid: FloatArray,
+    end: str,
+    cfg: MainlineConfig,
+    fixed: tuple[float, float] | None = None,
+    samples: tuple[FloatArray, FloatArray] | None = None,
+) -> tuple[float, float, int] | None:
+    """Extend track ``k`` at its start/end to where it meets its nearest neighbour.
+
+    The separation from the neighbour is modelled as a smoothstep (cubic) taper whose
+    mid-point and slope are measured where the separation passes half the full width.
+    ``dmat`` is filled in place over the unobserved part of the taper. Returns
+    ``(s_zero, taper_length, neighbour)`` or None if the track starts/ends at full width.
+    ``fixed = (s_zero, taper)`` imposes the taper (an inferred marking that opens with
+    an observed one) and overwrites the track over it. With the track's raw ``samples``
+    (stations, offsets) the taper's zero station and length are refined by a least-squares
+    fit of the cubic taper to them (:func:`_fit_taper`).
+    """
+    n_g = grid.size
+    idx = np.nonzero(np.isfinite(dmat[k]))[0]
+    i_edge = int(idx[0] if end == "start" else idx[-1])
+    others = [j for j in range(dmat.shape[0]) if j != k and np.isfinite(dmat[j, i_edge])]
+    if not others:
+        return None
+    jn = min(others, key=lambda j: abs(dmat[k, i_edge] - dmat[j, i_edge]))
+    span = int(300.0 / cfg.grid_step_m)
+    sl = (
+        slice(i_edge, min(i_edge + span, n_g))
+        if end == "start"
+        else slice(max(i_edge - span, 0), i_edge + 1)
+    )
+    both = np.isfinite(dmat[k, sl]) & np.isfinite(dmat[jn, sl])
+    gs = grid[sl][both]
+    sep = np.abs(dmat[k, sl] - dmat[jn, sl])[both]
+    if gs.size < 10:
+        return None
+    w_full = float(np.percentile(sep, 90))
+    # the side of the neighbour the track runs on where it is open (at its very end the
+    # two may have met)
+    sgn = float(np.sign(np.median((dmat[k, sl] - dmat[jn, sl])[both])))
+    if fixed is not None and w_full >= 1.0:
+        s_zero, taper = fixed
+        if end == "start":
+            dmat[k, grid < s_zero] = np.nan
+            fill = (grid >= s_zero) & (grid < s_zero + taper)
+            x = (grid[fill] - s_zero) / taper
+        else:
+            dmat[k, grid > s_zero] = np.nan
+            fill = (grid > s_zero - taper) & (grid <= s_zero)
+            x = (s_zero - grid[fill]) / taper
+        ok = fill & np.isfinite(dmat[jn])
+        dmat[k, ok] = dmat[jn, ok] + sgn * w_full * smoothstep(x[ok[fill]])
+        return s_zero, taper, jn
+    sep0 = float(np.abs(dmat[k, i_edge] - dmat[jn, i_edge]))
+    if w_full < 1.0 or sep0 > 0.7 * w_full:
+        return None
+    mid = (sep > 0.3 * w_full) & (sep < 0.7 * w_full)
+    if np.count_nonzero(mid) < 3:
+        return None
+    slope, icpt = np.polyfit(gs[mid], sep[mid], 1)
+    if abs(slope) < 1e-4:
+        return None
+    s50 = (0.5 * w_full - icpt) / slope
+    taper = float(min(1.5 * w_full / abs(slope), cfg.lane_taper_max_m))
+    s_edge = float(grid[i_edge])
+    if end == "start":
+        s_zero = float(np.clip(s50 - 0.5 * taper, grid[0], s_edge))
+    else:
+        s_zero = float(np.clip(s50 + 0.5 * taper, s_edge, grid[-1]))
+    refined = _fit_taper(samples, dmat[jn], grid, s_zero, taper, w_full, end, cfg)
+    if refined is not None:
+        # the taper model replaces the smoothed track over the whole taper: the smoother
+        # rounds a taper's steep start off
+        s_zero, taper = refined
+        if end == "start":
+            dmat[k, grid < s_zero] = np.nan
+            fill = (grid >= s_zero) & (grid < s_zero + taper)
+        else:
+            dmat[k, grid > s_zero] = np.nan
+            fill = (grid > s_zero - taper) & (grid <= s_zero)
+    elif end == "start":
+        fill = (grid >= s_zero) & (grid < s_edge)
+    else:
+        fill = (grid > s_edge) & (grid <= s_zero)
+    x = (grid[fill] - s_zero) / taper if end == "start" else (s_zero - grid[fill]) / taper
+    ok = fill & np.isfinite(dmat[jn])
+    dmat[k, ok] = dmat[jn, ok] + sgn * w_full * smoothstep(x[ok[fill]])
+    return s_zero, taper, jn
+
+
+def _fit_taper(
+    samples: tuple[FloatArray, FloatArray] | None,
+    d_neighbour: FloatArray,
+    grid: FloatArray,
+    s_zero: float,
+    taper: float,
+    w_full: float,
+    end: str,
+    cfg: MainlineConfig,
+) -> tuple[float, float] | None:
+    """Zero-width station and length (metres) of a cubic lane taper fitted to the raw
+    samples of the opening (``end == "start"``) or closing marking, as separations from
+    its neighbour (offsets ``d_neighbour`` on ``grid``, NaN where it is absent), starting
+    from ``(s_zero, taper)``. None if there are too few samples in the taper or the fit
+    leaves the plausible range."""
+    from scipy.optimize import least_squares
+
+    if samples is None or samples[0].size < 15:
+        return None
+    s_raw, d_raw = samples
+    lo, hi = (s_zero, s_zero + taper) if end == "start" else (s_zero - taper, s_zero)
+    have = np.isfinite(d_neighbour)
+    if np.count_nonzero(have) < 2:
+        return None
+    win = (s_raw >= lo - 0.25 * taper) & (s_raw <= hi + 0.25 * taper)
+    s_w = s_raw[win]
+    sep = np.abs(d_raw[win] - np.interp(s_w, grid[have], d_neighbour[have]))
+    # the taper itself must be seen, not only the full-width lane beside it
+    if np.count_nonzero((sep > 0.2 * w_full) & (sep < 0.8 * w_full)) < 10:
+        return None
+
+    def residual(p: FloatArray) -> FloatArray:
+        return sep - taper_width(s_w, w_full, p[0], max(p[1], 1.0), entry=end == "end")
+
+    res = least_squares(
+        residual, np.array([s_zero, taper]), loss="soft_l1", f_scale=0.1, x_scale=10.0
+    )
+    s_fit, l_fit = float(res.x[0]), float(res.x[1])
+    if not (5.0 <= l_fit <= cfg.lane_taper_max_m) or abs(s_fit - s_zero) > taper:
+        return None
+    return s_fit, l_fit
+
+
+def _lane_types(
+    borders: FloatArray,
+    gs: FloatArray,
+    car: tuple[FloatArray, FloatArray] | None,
+    cfg: MainlineConfig,
+) -> list[str]:
+    """Lane types of one section from its borders (rows inner to outer, on ``gs``).
+
+    The lanes between a road edge and the nearest marking are shoulders when they are
+    narrower than ``shoulder_max_m``, driving lanes when the car drove in them
+    (``car``: stations and offsets of the poses) or when they are at least
+    ``edge_lane_min_m`` wide (a road without shoulders, whose edge lines run along its
+    edges); in between (2.2-3.3 m: a hard shoulder or a narrow lane) a shoulder where the
+    section has three lanes or more. Lanes between two markings are driving lanes.
+    """
+    n_l = borders.shape[0] - 1
+    types = ["driving"] * n_l
+    if n_l < 2:
+        return types
+    widths = np.median(np.diff(borders, axis=0), axis=1)
+    share = np.zeros(n_l)
+    if car is not None and car[0].size:
+        s_car, d_car = car
+        on = (s_car >= gs[0]) & (s_car <= gs[-1])
+        if np.any(on):
+            i_g = np.clip(np.searchsorted(gs, s_car[on]), 0, gs.size - 1)
+            inside = (d_car[on][None, :] > borders[:-1, i_g]) & (
+                d_car[on][None, :] <= borders[1:, i_g]
+            )
+            share = inside.mean(axis=1)
+    for i in (0, n_l - 1):
+        if widths[i] < cfg.shoulder_max_m:
+            types[i] = "shoulder"
+        elif share[i] > 0.3 or widths[i] >= cfg.edge_lane_min_m:
+            types[i] = "driving"
+        elif n_l >= 3:
+            types[i] = "shoulder"
+    return types
+
+
+def _sections_from_tracks(
+    tracks: list[_Track],
+    grid: FloatArray,
+    d_edge: FloatArray,
+    breaks: FloatArray,
+    sign: float,
+    cfg: MainlineConfig,
+    car: tuple[FloatArray, FloatArray] | None = None,
+    d_median: FloatArray | None = None,
+    median_steps: FloatArray | None = None,
+) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...]]:
+    """Lane sections (constant set of tracks), lane links, road marks and lane events.
+
+    ``d_median`` (on ``grid``) is the innermost border (the median-side edge); its steps
+    (``median_steps``) start sections like the outer edge's steps (``breaks``)."""
+    if d_median is None:
+        d_median = np.zeros(grid.size)
+    if median_steps is None:
+        median_steps = np.zeros(0)
+    breaks = np.sort(np.concatenate([breaks, median_steps]))
+    length = float(grid[-1])
+    side: Literal["right", "left"] = "right" if sign > 0 else "left"
+    n_g = grid.size
+    dmat = np.full((len(tracks), n_g), np.nan)
+    for k, tr in enumerate(tracks):
+        # a track that stops short of the run's start/end was cut by it (the car saw no
+        # more of it), unless an edge step (a gore) lies in between: there it really ends
+        cut_start = not np.any((breaks >= grid[0]) & (breaks <= tr.lo + 5.0))
+        cut_end = not np.any((breaks >= tr.hi - 5.0) & (breaks <= length))
+        lo = grid[0] if tr.lo - grid[0] < cfg.lane_max_gap_m and cut_start else tr.lo
+        hi = length if length - tr.hi < cfg.lane_max_gap_m and cut_end else tr.hi
+        sel = (grid >= lo) & (grid <= hi)
+        dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
+    # births / ends inside the run
+    raw_events: list[tuple[int, str, float, float, int | None]] = []
+    # observed markings first: an inferred (unobserved) one opens/closes like its sibling
+    order = sorted(range(len(tracks)), key=lambda k: tracks[k].n == 0)
+    for k in order:
+        for end in ("start", "end"):
+            idx = np.nonzero(np.isfinite(dmat[k]))[0]
+            if idx.size == 0:
+                continue
+            i_edge = idx[0] if end == "start" else idx[-1]
+            if (end == "start" and i_edge == 0) or (end == "end" and i_edge == n_g - 1):
+                continue
+            fixed = None
+            if tracks[k].n == 0:
+                sib = [
+                    (s_z, tp)
+                    for _, e2, s_z, tp, _ in raw_events
+                    if e2 == end and tp > 0.0 and abs(s_z - grid[i_edge]) < 100.0
+                ]
+                fixed = sib[0] if sib else None
+            raw = (tracks[k].s_samples, tracks[k].d_samples)
+            info = _taper(dmat, k, grid, end, cfg, fixed, raw)
+            if info is None:
+                # a lane that begins/ends at full width does so at a gore, where an edge
+                # steps; a marking that merely starts/ends (paint beginning at a road
+                # edge, a worn stretch) without one is no lane event
+                s_ev = float(grid[i_edge])
+                if breaks.size and np.min(np.abs(breaks - s_ev)) < _GORE_MATCH_M:
+                    s_ev = float(breaks[np.argmin(np.abs(breaks - s_ev))])
+                    raw_events.append((k, end, s_ev, 0.0, None))
+            else:
+                raw_events.append((k, end, info[0], info[1], info[2]))
+    # sections: runs of a constant set of tracks
+    present = np.isfinite(dmat)
+    change = np.flatnonzero(np.any(present[:, 1:] != present[:, :-1], axis=0)) + 1
+    starts = [0, *change.tolist()]
+    # edge steps start a section too
+    forced: set[int] = set()
+    s0_at: dict[int, float] = {}  # a section that starts at an edge step starts exactly there
+    for b in breaks:
+        i_b = int(np.clip(np.ceil((b - grid[0]) / cfg.grid_step_m - 1e-9), 1, n_g - 1))
+        s0_at[i_b] = float(min(b, grid[i_b]))
+        # track changes next to an edge step belong to the gore: move them onto the step
+        starts = [i for i in starts if i == 0 or abs(i - i_b) * cfg.grid_step_m >= 20.0]
+        starts.append(i_b)
+        forced.add(i_b)
+    starts = sorted(set(starts))
+    min_n = max(1, int(cfg.min_section_m / cfg.grid_step_m))
+    merged_starts = [starts[0]]
+    for i in starts[1:]:
+        # an edge step (a gore) starts a section even close to the run's end: the lane
+        # that leaves there must not run on to the end
+        min_tail = max(1, int(2.0 / cfg.grid_step_m)) if i in forced else min_n
+        if n_g - i < min_tail:
+            continue
+        if i - merged_starts[-1] >= min_n:
+            merged_starts.append(i)
+        elif i in forced and merged_starts[-1] != 0 and merged_starts[-1] not in forced:
+            merged_starts[-1] = i
+    starts = [*merged_starts, n_g]
+    sections: list[LaneSection] = []
+    bounds_per: list[list[tuple[object, object]]] = []
+    medians: list[tuple[float, float]] = []  # the median-side edge at section start, end
+    # an edge line painted along a road edge all its length (no shoulder there) is that
+    # edge, not the border of a lane a few centimetres wide (a shoulder opening from zero
+    # beside a gore separates from the edge: its line stays)
+    edge_lines = set()
+    for k in range(len(tracks)):
+        on = np.isfinite(dmat[k])
+        if np.count_nonzero(on) < 10:
+            continue
+        to_edge = float(np.median(d_edge[on] - dmat[k, on]))
+        to_median = float(np.median(dmat[k, on] - d_median[on]))
+        if min(to_edge, to_median) < cfg.edge_line_m:
+            edge_lines.add(k)
+    members_per: list[list[int]] = []
+    for a, b in itertools.pairwise(starts):
+        b_inc = min(b + 1, n_g)
+        votes = present[:, a:b].mean(axis=1)
+        members = [k for k in range(len(tracks)) if votes[k] > 0.5]
+        members.sort(key=lambda k: float(np.nanmedian(dmat[k, a:b])))
+        members = [k for k in members if k not in edge_lines]
+        gs = grid[a:b_inc]
+        s0 = s0_at.get(a, float(grid[a]))
+        rel = gs - s0
+        m = d_median[a:b_inc].copy()
+        if b_inc > b and b < n_g and abs(d_median[b] - d_median[b - 1]) > 0.5:
+            m[-1] = m[-2] if m.size >= 2 else m[-1]  # the next segment's level is not inside
+        rows = [m]
+        labels: list[object] = ["ref"]
+        for k in members:
+            rows.append(_fill_nan(gs, dmat[k, a:b_inc]))
+            labels.append(k)
+        e = d_edge[a:b_inc].copy()
+        if b_inc > b and b < n_g and abs(d_edge[b] - d_edge[b - 1]) > 0.5:
+            e[-1] = 2 * e[-2] - e[-3] if e.size >= 3 else e[-2]  # no step inside
+        rows.append(e)
+        labels.append("edge")
+        stack = np.maximum.accumulate(np.vstack(rows), axis=0)
+        n_l = len(stack) - 1
+        types = _lane_types(stack, gs, car, cfg)
+        lanes: list[Lane] = []
+        bounds: list[tuple[object, object]] = []
+        for i in range(n_l):
+            width = np.clip(stack[i + 1] - stack[i], 0.0, None)
+            lane_type = types[i]
+            if i == n_l - 1:
+                mark = "none"
+            else:
+                tr = tracks[labels[i + 1]]  # type: ignore[index]
+                mark = (
+                    _mark_type(tr.s_samples, float(gs[0]), float(gs[-1]), cfg)
+                    if gs[-1] - gs[0] >= 4 * cfg.broken_gap_m
+                    else tr.mark
+                )
+            prof = fit_cubic_profile(
+                rel, width, tolerance=cfg.lane_width_tolerance_m, shape_preserving=True
+            )
+            lid = -(i + 1) if sign > 0 else i + 1
+            lanes.append(Lane(lid, lane_type, prof, (RoadMark(0.0, mark),)))  # type: ignore[arg-type]
+            bounds.append((labels[i], labels[i + 1]))
+        sections.append(_make_section(s0, lanes, sign))
+        bounds_per.append(bounds)
+        medians.append((float(m[0]), float(m[min(b - a, m.size - 1)])))
+        members_per.append(members)
+    sections = _link_sections(sections, bounds_per, medians)
+    events = _events(raw_events, sections, members_per, dmat, grid, side, sign, median_steps)
+    out_tracks = tuple(
+        BoundaryTrack(
+            tr.id,
+            grid[np.isfinite(dmat[tr.id])],
+            dmat[tr.id][np.isfinite(dmat[tr.id])],
+            tr.mark,  # type: ignore[arg-type]
+            tr.n,
+        )
+        for tr in tracks
+    )
+    return tuple(sections), events, out_tracks
+
+
+def _make_section(s0: float, lanes: list[Lane], sign: float) -> LaneSection:
+    return LaneSection(s0, right=tuple(lanes)) if sign > 0 else LaneSection(s0, left=tuple(lanes))
+
+
+def _side_lanes(sec: LaneSection) -> tuple[Lane, ...]:
+    return sec.right if sec.right else sec.left
+
+
+def _link_sections(
+    sections: list[LaneSection],
+    bounds_per: list[list[tuple[object, object]]],
+    medians: list[tuple[float, float]] | None = None,
+) -> list[LaneSection]:
+    """Lane predecessor/successor ids between consecutive sections of the road.
+
+    Chosen by geometry: a lane continues into the lane of the next section whose inner
+    and outer borders lie where its own end (within ``_LINK_TOLERANCE_M``, offsets from
+    the reference line: the median-side edge ``medians`` (section start, end) plus the
+    widths), both wider than 0.3 m there; counting lanes or matching border labels fails
+    where a lane begins or ends beside the others, on either side. A lane whose width
+    jumps at the boundary (the hard shoulder at a gore: the old one leaves with the ramp,
+    the new one starts narrow) ends there.
+    """
+    if medians is None:
+        medians = [(0.0, 0.0)] * len(sections)
+    preds: list[dict[int, int]] = [{} for _ in sections]
+    succs: list[dict[int, int]] = [{} for _ in sections]
+    for n in range(1, len(sections)):
+        prev_lanes, cur_lanes = _side_lanes(sections[n - 1]), _side_lanes(sections[n])
+        prev_len = sections[n].s0 - sections[n - 1].s0
+        w_prev = np.array([float(ln.width.value(prev_len)) for ln in prev_lanes])
+        w_cur = np.array([float(ln.width.value(0.0)) for ln in cur_lanes])
+        b_prev = medians[n - 1][1] + np.concatenate([[0.0], np.cumsum(w_prev)])
+        b_cur = medians[n][0] + np.concatenate([[0.0], np.cumsum(w_cur)])
+        pairs = []
+        for i in range(len(cur_lanes)):
+            for j in range(len(prev_lanes)):
+                if min(w_cur[i], w_prev[j]) < 0.3:
+                    continue
+                d = max(abs(b_cur[i] - b_prev[j]), abs(b_cur[i + 1] - b_prev[j + 1]))
+                if d <= _LINK_TOLERANCE_M:
+                    pairs.append((d, i, j))
+        mapping: dict[int, int] = {}
+        used: set[int] = set()
+        for _, i, j in sorted(pairs):
+            if i not in mapping and j not in used:
+                mapping[i] = j
+                used.add(j)
+        for i, j in mapping.items():
+            if abs(w_prev[j] - w_cur[i]) > 0.05:
+                continue
+            preds[n][i] = prev_lanes[j].id
+            succs[n - 1][j] = cur_lanes[i].id
+    out = []
+    for n, sec in enumerate(sections):
+        lanes = tuple(
+            replace(ln, predecessor=preds[n].get(i), successor=succs[n].get(i))
+            for i, ln in enumerate(_side_lanes(sec))
+        )
+        if n > 0:
+            # linked lanes continue with the width they had (sections are fitted one by
+            # one to 1 cm; the checker flags jumps above 1 mm)
+            prev_len = sec.s0 - sections[n - 1].s0
+            by_id = {ln.id: ln for ln in _side_lanes(out[n - 1])}
+            lanes = tuple(
+                continue_width(ln, float(by_id[ln.predecessor].width.value(prev_len)))
+                if ln.predecessor in by_id
+                else ln
+                for ln in lanes
+            )
+        out.append(replace(sec, right=lanes) if sec.right else replace(sec, left=lanes))
+    return out
+
+
+def _events(
+    raw_events: list[tuple[int, str, float, float, int | None]],
+    sections: list[LaneSection],
+    members_per: list[list[int]],
+    dmat: FloatArray,
+    grid: FloatArray,
+    side: Literal["right", "left"],
+    sign: float,
+    median_steps: FloatArray | None = None,
+) -> tuple[LaneEvent, ...]:
+    """Lane events: the lane between a track that starts/ends and its nearest neighbour.
+
+    A track that starts/ends abruptly (a gore) bounds the lane that begins/ends on its
+    outer side, or, at a step of the median-side edge (a gore on the median side), on its
+    carriageway side."""
+    if median_steps is None:
+        median_steps = np.zeros(0)
+    s0s = np.array([sec.s0 for sec in sections])
+    events = []
+    for k, end, s_zero, taper, jn in raw_events:
+        # the section where the lane exists: just after a birth, just before an end
+        probe = s_zero + (1.0 + taper if end == "start" else -(1.0 + taper))
+        probe = float(np.clip(probe, grid[0], grid[-1]))
+        n = int(np.clip(np.searchsorted(s0s, probe, side="right") - 1, 0, len(sections) - 1))
+        members = members_per[n]
+        if k not in members:
+            continue
+        pos = members.index(k)
+        i_p = int(np.clip(np.searchsorted(grid, probe), 0, grid.size - 1))
+        # neighbour: the adjacent member nearer in offset
+        cand = [p for p in (pos - 1, pos + 1) if 0 <= p < len(members)]
+        at_median_step = bool(
+            median_steps.size and np.min(np.abs(median_steps - s_zero)) < _GORE_MATCH_M
+        )
+        if taper == 0.0:  # abrupt (gore): the lane whose outer border is the track
+            outer_pos = pos + 1 if at_median_step else pos
+        elif jn is not None and jn in members:
+            outer_pos = max(pos, members.index(jn))
+        elif cand:
+            p_nb = min(cand, key=lambda p: abs(dmat[members[p], i_p] - dmat[k, i_p]))
+            outer_pos = max(pos, p_nb)
+        else:
+            outer_pos = pos
+        lanes = _side_lanes(sections[n])
+        lane_idx = outer_pos  # lane index whose outer border is member outer_pos
+        if lane_idx == 0 and not cand:
+            lane_idx = 1
+        if lane_idx >= len(lanes) - 1:
+            continue
+        lane = lanes[lane_idx]
+        driving = [ln for ln in lanes if ln.type == "driving"]
+        position = (
+            "outer" if driving and lane.id == driving[-1].id and len(driving) > 1 else "inner"
+        )
+        ds = probe - sections[n].s0
+        events.append(
+            LaneEvent(
+                s_m=float(s_zero),
+                kind="birth" if end == "start" else "end",
+                side=side,
+                lane_id=int(lane.id),
+                position=position,  # type: ignore[arg-type]
+                taper_m=float(taper),
+                width_m=float(lane.width.value(ds)),
+            )
+        )
+    return tuple(sorted(events, key=lambda e: e.s_m))
