@@ -212,3 +212,19 @@ def test_moving_median_equals_nanmedian_of_the_windows():
         with np.errstate(all="ignore"), pytest.warns(RuntimeWarning):
             ref = np.nanmedian(view, axis=1)
         np.testing.assert_array_equal(moving_median(v, window=window), ref)
+
+
+def test_cubic_profile_ignores_a_station_a_hair_after_the_last_node():
+    """A 1 m grid clipped at a road's end (length 419.0001 m) ends with two stations
+    0.1 mm apart; the profile of a flat lane width must stay flat there (it swung 0.73 m
+    before the near-duplicate station was dropped), and still reach the end station."""
+    s = np.r_[np.arange(0.0, 420.0), 419.00010299]
+    width = 2.5223 + 0.001 * np.sin(s / 30.0)
+    width[-2:] += (3e-4, 1e-4)  # the two samples at the end differ a little
+    prof = fit_cubic_profile(s, width, tolerance=0.01)
+    x = np.linspace(0.0, s[-1], 8001)
+    assert np.max(np.abs(prof.value(x) - (2.5223 + 0.001 * np.sin(x / 30.0)))) < 0.01
+    assert prof.value(np.array([s[-1]]))[0] == pytest.approx(width[-1], abs=1e-3)
+    # samples spaced normally are untouched: the same profile as before for a clean grid
+    clean = fit_cubic_profile(s[:-1], width[:-1], tolerance=0.01)
+    np.testing.assert_allclose(clean.value(x[:-1]), prof.value(x[:-1]), atol=0.01)

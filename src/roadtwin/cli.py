@@ -121,7 +121,8 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
     s = run.summary()
     n_left = int((run.edge_side == 1).sum())
     n_right = int((run.edge_side == -1).sum())
-    sides = f" ({n_left:,} left, {n_right:,} right)" if n_left + n_right else " (no side)"
+    rows = "rows: " if run.edge_reduction is not None and run.edge_reduction.reduced else ""
+    sides = f" ({rows}{n_left:,} left, {n_right:,} right)" if n_left + n_right else " (no side)"
     xmin, ymin, xmax, ymax = s.bbox_m
     crs = s.crs if s.crs != "local" else f"local ({run.frame.geo_reference})"
     lines = [
@@ -131,6 +132,11 @@ def _cmd_inspect(args: argparse.Namespace) -> int:
         f"points     {s.edge_points:,} road-edge points{sides}, {s.lane_samples:,} lane samples",
         f"dropped    {s.dropped_edge_points:,} road-edge points, {s.dropped_lane_samples:,} "
         f"lane samples (farther than {cfg.max_point_distance_m:g} m from the trajectory)",
+        *(
+            f"reduced    {what}: {red.describe()}"
+            for what, red in (("edges", run.edge_reduction), ("lanes", run.lane_reduction))
+            if red is not None and red.reduced
+        ),
         f"bbox       x {xmin:.1f} .. {xmax:.1f} m, y {ymin:.1f} .. {ymax:.1f} m "
         f"({xmax - xmin:.0f} m x {ymax - ymin:.0f} m, mapping frame)",
         f"crs        {crs}",
@@ -498,11 +504,10 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
     import time
 
     from ._files import check_output_dir, staged_output
-    from .export import plot_network, write_geojson, write_kml
+
+    # only what the first stage needs is imported before it starts (start-up time); the
+    # later stages import their modules when they begin
     from .io import load_run
-    from .osm import load_osm, load_osm_online
-    from .pipeline import build_map
-    from .xodr import write_xodr
 
     started = time.perf_counter()
     cfg = _build_config(args)
@@ -531,6 +536,8 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
     times["load run"] = time.perf_counter() - t0
     bar.update()
 
+    from .osm import load_osm, load_osm_online
+
     t0 = time.perf_counter()
     step("load OSM")
     osm_graph = None
@@ -543,10 +550,15 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
     times["load OSM"] = time.perf_counter() - t0
     bar.update()
 
+    from .pipeline import build_map
+
     step("build map")
     result = build_map(run, osm_graph, config=cfg)
     times.update(result.timings_s)
     bar.update()
+
+    from .export import plot_network, write_geojson, write_kml
+    from .xodr import write_xodr
 
     t0 = time.perf_counter()
     step("write files")
@@ -1278,14 +1290,51 @@ def run_command(args: argparse.Namespace) -> int:
         _close_bars()
 
 
+class _StageBar:
+    """A stage of :mod:`roadtwin.progress`: a tqdm bar (see :func:`progress`) and, when the
+    stage ends, one log line with its seconds and count (shown with ``-v``). A message
+    printed meanwhile may close the tqdm bar early (:func:`_close_bars`); the stage still
+    ends, and logs, when the library says so."""
+
+    def __init__(self, args: argparse.Namespace, name: str, total: float | None, unit: str):
+        import time
+
+        self.name, self.unit, self.count = name, unit, 0.0
+        self.started = time.perf_counter()
+        self.bar = progress(args, total=total, desc=name, unit=unit, unit_scale=True, leave=False)
+
+    def update(self, n: float = 1) -> None:
+        self.count += n
+        self.bar.update(n)
+
+    def close(self) -> None:
+        import time
+
+        self.bar.close()
+        done = f" ({self.count:,.0f} {self.unit})" if self.count else ""
+        log.info("stage %s: %.2f s%s", self.name, time.perf_counter() - self.started, done)
+
+
+def _progress_listener(args: argparse.Namespace):
+    """Listener for :mod:`roadtwin.progress`: a :class:`_StageBar` per long stage."""
+
+    def listener(name: str, total: float | None, unit: str) -> _StageBar:
+        return _StageBar(args, name, total, unit)
+
+    return listener
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``roadtwin`` console script; returns the exit code."""
+    from .progress import listening
+
     parser = build_parser()
     args = parser.parse_args(argv)
     with (
         _signals_as_exceptions(),
         _logging(args.verbose, args.quiet),
         _warnings_as_lines(),
+        listening(_progress_listener(args)),
     ):
         return run_command(args)
 

@@ -86,15 +86,32 @@ class LoadConfig:
     the length (about 1 GiB per 100 km with the default method); split longer runs."""
     max_poses: int = 2_000_000
     """A trajectory with more poses is refused (55 h at 10 Hz; at most ~1 GiB of arrays)."""
-    max_points: int = 50_000_000
-    """Road-edge point files and lane-sample tables with more rows are refused (1.2 GiB of
-    float64 coordinates each); thin them first."""
+    max_points: int = 1_000_000_000
+    """Road-edge point files and lane-sample tables with more rows are refused. They are
+    read in chunks and reduced while reading (memory stays bounded), at about 0.3 s per
+    million points on one core: this bounds the time, not the memory."""
     max_origin_distance_km: float = 200.0
     """Every pose must lie within this (kilometres) of the run's GPS origin (for the
     ``local`` frame: of (0, 0)); farther means a wrong CRS, units or origin."""
     allow_files_outside_run: bool = False
     """Files named in ``run.toml`` must lie inside the run folder (after following
     symbolic links) unless this is true."""
+    cell_station_m: float = 0.25
+    """Density reduction (:mod:`roadtwin.reduction`): cell length along the trajectory
+    (metres)."""
+    cell_lateral_m: float = 0.05
+    """Density reduction: cell width across the trajectory (metres)."""
+    edge_points_per_m: float = 4.0
+    """Rows per metre of each road edge after the density reduction: one per station cell,
+    each the mean of the edge's points in it (the simulator's default sensor gives ~4.6
+    points per metre; more rows would repeat the same means)."""
+    lane_samples_per_m: float = 4.0
+    """Rows per metre of each lane marking after the density reduction."""
+    reduce_factor: float = 2.0
+    """Points are reduced only where a line is denser than this times its target
+    (``edge_points_per_m`` / ``lane_samples_per_m``); sparser runs pass unchanged."""
+    chunk_points: int = 1_000_000
+    """Points (or CSV rows) read per chunk: bounds the working memory of loading."""
 
     def __post_init__(self) -> None:
         check_fields(self, "load")

@@ -4,7 +4,10 @@ A run folder holds ``run.toml`` and the files it names. :func:`load_run` reads t
 one :class:`MappingRun` of NumPy arrays in the mapping frame. File formats (CSV tables,
 road-edge point clouds) are parsed in :mod:`roadtwin.pointfiles`; this module checks the
 manifest, the trajectory and the lane samples, and transforms the samples into the
-mapping frame. Everything is vectorised; bad input raises
+mapping frame. Point files are read in chunks and each chunk goes straight into the
+density reduction (:mod:`roadtwin.reduction`): a run of tens of millions of points never
+sits in memory, and what the later stages get is at most a few rows per metre of each line
+(sparse runs pass unchanged). Everything is vectorised; bad input raises
 :class:`~roadtwin._errors.InputError` with one line naming the file, row or field and what
 was expected; suspicious but usable input warns with :class:`~roadtwin._errors.InputWarning`.
 """
@@ -12,15 +15,16 @@ was expected; suspicious but usable input warns with :class:`~roadtwin._errors.I
 from __future__ import annotations
 
 import logging
+import math
 import os
 import warnings
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.spatial import cKDTree
 
 from ._errors import InputError, InputWarning
 from .config import LoadConfig
@@ -28,13 +32,19 @@ from .frames import MappingFrame, Origin
 from .pointfiles import (
     EDGE_SUFFIXES,
     check_coordinates,
+    count_road_edges,
     float_column,
     int_column,
+    iter_road_edges,
+    iter_table,
     one_line,
     read_road_edges,
     read_table,
     require_columns,
+    stack_columns,
 )
+from .progress import progress
+from .reduction import CellAccumulator, Reduction, TrajectoryLine, trajectory_line
 
 try:
     import tomllib
@@ -42,6 +52,18 @@ except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib  # type: ignore[no-redef]
 
 log = logging.getLogger(__name__)
+
+__all__ = [
+    "MappingRun",
+    "RunSummary",
+    "Trajectory",
+    "iter_lane_samples",
+    "load_run",
+    "read_lane_samples",
+    "read_road_edges",
+    "read_trajectory",
+    "reduce_run",
+]
 
 
 @dataclass(frozen=True, repr=False)
@@ -112,6 +134,10 @@ class MappingRun:
     osm_path : OSM file named in run.toml, or None.
     traffic_side : ``"right"`` or ``"left"``-hand traffic.
     input_files : run.toml and every file it names (outputs must never replace them).
+    edge_reduction, lane_reduction : how dense points were reduced to the rows above
+        (:class:`~roadtwin.reduction.Reduction`: points read, rows, density, the spread
+        of the points behind each row), or None for points that were never looked at
+        (a run built in memory; :func:`reduce_run` reduces it).
     """
 
     root: Path
@@ -127,6 +153,8 @@ class MappingRun:
     dropped_edge_points: int = 0
     dropped_lane_samples: int = 0
     input_files: tuple[Path, ...] = ()
+    edge_reduction: Reduction | None = None
+    lane_reduction: Reduction | None = None
 
     def __repr__(self) -> str:
         s = self.summary()
@@ -137,14 +165,15 @@ class MappingRun:
         )
 
     def summary(self) -> RunSummary:
-        """Counts, driven length, duration and bounding box of the run."""
+        """Counts (points read, not rows kept), driven length, duration and bounding box."""
         xy = np.vstack([self.trajectory.xy, self.edges[:, :2]])
+        er, lr = self.edge_reduction, self.lane_reduction
         return RunSummary(
             driven_length_m=self.trajectory.length_m,
             duration_s=float(self.trajectory.t[-1] - self.trajectory.t[0]),
             frames=int(self.trajectory.frame.size),
-            edge_points=int(self.edges.shape[0]),
-            lane_samples=int(self.lane_samples.shape[0]),
+            edge_points=int(er.points if er is not None else self.edges.shape[0]),
+            lane_samples=int(lr.points if lr is not None else self.lane_samples.shape[0]),
             dropped_edge_points=self.dropped_edge_points,
             dropped_lane_samples=self.dropped_lane_samples,
             bbox_m=(
@@ -172,7 +201,9 @@ heading follows its track to within a few degrees (side slip, antenna offsets)."
 _MAX_POSE_HEIGHT_M = 10.0
 
 
-def load_run(run_dir: str | Path, *, config: LoadConfig | None = None) -> MappingRun:
+def load_run(
+    run_dir: str | Path, *, config: LoadConfig | None = None, reduce: bool = True
+) -> MappingRun:
     """Load and validate a mapping-run folder (DESIGN.md section 3).
 
     Parameters
@@ -180,7 +211,13 @@ def load_run(run_dir: str | Path, *, config: LoadConfig | None = None) -> Mappin
     run_dir
         Folder holding ``run.toml`` (or the path of the ``run.toml`` itself).
     config
-        Loading thresholds; :class:`~roadtwin.config.LoadConfig` defaults if None.
+        Loading thresholds and the density reduction; :class:`~roadtwin.config.LoadConfig`
+        defaults if None.
+    reduce
+        Reduce dense point files to ``config.edge_points_per_m`` /
+        ``config.lane_samples_per_m`` rows per metre of each line
+        (:mod:`roadtwin.reduction`; runs below ``config.reduce_factor`` times that pass
+        unchanged). ``False`` keeps every point (memory grows with the files).
 
     Returns
     -------
@@ -218,19 +255,54 @@ def load_run(run_dir: str | Path, *, config: LoadConfig | None = None) -> Mappin
 
     trajectory = read_trajectory(files["trajectory"], config=cfg)
     _check_origin_distance(trajectory, frame, files["trajectory"], manifest_path, cfg)
-    edges, edge_side = read_road_edges(files["road_edges"], max_points=cfg.max_points)
-    lane_samples, lane_frame = read_lane_samples(
-        files["lane_samples"], trajectory, pose_height_m=pose_height, max_rows=cfg.max_points
+    line = trajectory_line(trajectory.xy)
+    edge_acc = _accumulator(line, cfg, kind="edges", reduce=reduce, n_groups=3)
+    edge_path = files["road_edges"]
+    with progress("load road edges", total=count_road_edges(edge_path), unit="points") as step:
+        dropped_e = _stream(
+            (
+                (c.xyz, c.side.astype(np.int64) + 1, None, c.first_row)
+                for c in iter_road_edges(
+                    edge_path, chunk_points=cfg.chunk_points, max_points=cfg.max_points
+                )
+            ),
+            edge_acc,
+            edge_path,
+            "road-edge points",
+            cfg,
+            step,
+        )
+    lane_acc = _accumulator(line, cfg, kind="lanes", reduce=reduce, n_groups=1)
+    lane_path = files["lane_samples"]
+    with progress("load lane samples", unit="samples") as step:
+        dropped_l = _stream(
+            (
+                (xyz, np.zeros(len(xyz), np.int64), frames, row)
+                for xyz, frames, row in iter_lane_samples(
+                    lane_path,
+                    trajectory,
+                    pose_height_m=pose_height,
+                    chunk_rows=cfg.chunk_points,
+                    max_rows=cfg.max_points,
+                )
+            ),
+            lane_acc,
+            lane_path,
+            "lane samples",
+            cfg,
+            step,
+        )
+    factor = cfg.reduce_factor if reduce else math.inf
+    edge_rows = edge_acc.finish(target_per_m=cfg.edge_points_per_m, reduce_factor=factor)
+    lane_rows = lane_acc.finish(
+        target_per_m=cfg.lane_samples_per_m,
+        reduce_factor=factor,
+        payload_of_vertex=_vertex_frames(line, trajectory),
     )
-    tree = _trajectory_tree(trajectory.xy)
-    keep_e = _near_trajectory(tree, edges[:, :2], files["road_edges"], "road-edge points", cfg)
-    keep_l = _near_trajectory(tree, lane_samples[:, :2], files["lane_samples"], "lane samples", cfg)
-    dropped_e = int(keep_e.size - np.count_nonzero(keep_e))
-    dropped_l = int(keep_l.size - np.count_nonzero(keep_l))
-    if dropped_e:
-        edges, edge_side = edges[keep_e], edge_side[keep_e]
-    if dropped_l:
-        lane_samples, lane_frame = lane_samples[keep_l], lane_frame[keep_l]
+    edges, edge_side = edge_rows.xyz, (edge_rows.group - 1).astype(np.int8)
+    lane_samples, lane_frame = lane_rows.xyz, lane_rows.payload
+    for what, rows in (("road edges", edge_rows), ("lane samples", lane_rows)):
+        log.info("%s: %s", what, rows.info.describe())
 
     run = MappingRun(
         root=root,
@@ -246,6 +318,8 @@ def load_run(run_dir: str | Path, *, config: LoadConfig | None = None) -> Mappin
         dropped_edge_points=dropped_e,
         dropped_lane_samples=dropped_l,
         input_files=(manifest_path, *files.values()),
+        edge_reduction=edge_rows.info,
+        lane_reduction=lane_rows.info,
     )
     s = run.summary()
     log.info(
@@ -640,126 +714,233 @@ def read_lane_samples(
         z = pose z + ego z, or pose z - pose_height_m without a ``z`` column.
     frame : (M,) int64 frame of each sample (nearest pose in time for ``t`` rows).
     """
+    parts = list(
+        iter_lane_samples(path, trajectory, pose_height_m=pose_height_m, max_rows=max_rows)
+    )
+    return np.vstack([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def iter_lane_samples(
+    path: str | Path,
+    trajectory: Trajectory,
+    *,
+    pose_height_m: float = 0.0,
+    chunk_rows: int = 1_000_000,
+    max_rows: int | None = None,
+) -> Iterator[tuple[NDArray[np.float64], NDArray[np.int64], int]]:
+    """:func:`read_lane_samples` in chunks of ``chunk_rows`` rows (file order).
+
+    Yields ``(xyz, frame, first_row)``: mapping-frame samples, their frames and the data
+    row of the chunk's first sample (0-based). The checks name rows of the whole file.
+    """
     path = Path(path)
     what = "columns frame,x,y[,z] or t,x,y[,z]"
-    df = read_table(path, what, max_rows=max_rows)
-    require_columns(df.columns, ("x", "y"), path, what)
-    ex = float_column(df["x"], path, "x")
-    ey = float_column(df["y"], path, "y")
-    ez = float_column(df["z"], path, "z") if "z" in df else None
-    check_coordinates(np.column_stack([ex, ey] if ez is None else [ex, ey, ez]), path)
     traj_frame = trajectory.frame
     order = np.argsort(traj_frame)
-    if "frame" in df:
-        frame = int_column(df["frame"], path, "frame")
-        pos = np.searchsorted(traj_frame[order], frame)
-        pos_c = np.minimum(pos, order.size - 1)
-        found = traj_frame[order][pos_c] == frame
-        if not found.all():
-            row = int(np.argmin(found))
-            missing = np.unique(frame[~found])
-            msg = (
-                f"{path}: data row {row + 1}, column 'frame': frame {frame[row]} has no pose in "
-                f"the trajectory ({missing.size} frame(s) without a pose, "
-                f"{np.count_nonzero(~found)} row(s); expected frames of trajectory.csv)"
-            )
+    sorted_frames = traj_frame[order]
+    row0 = 0
+    for df in iter_table(path, what, chunk_rows=chunk_rows, max_rows=max_rows):
+        require_columns(df.columns, ("x", "y"), path, what)
+        ex = float_column(df["x"], path, "x", first_row=row0)
+        ey = float_column(df["y"], path, "y", first_row=row0)
+        ez = float_column(df["z"], path, "z", first_row=row0) if "z" in df else None
+        check_coordinates(
+            np.column_stack([ex, ey] if ez is None else [ex, ey, ez]), path, first_row=row0
+        )
+        if "frame" in df:
+            frame = int_column(df["frame"], path, "frame", first_row=row0)
+            pos = np.searchsorted(sorted_frames, frame)
+            pos_c = np.minimum(pos, order.size - 1)
+            found = sorted_frames[pos_c] == frame
+            if not found.all():
+                row = int(np.argmin(found))
+                missing = np.unique(frame[~found])
+                msg = (
+                    f"{path}: data row {row0 + row + 1}, column 'frame': frame {frame[row]} "
+                    f"has no pose in the trajectory ({missing.size} frame(s) without a pose, "
+                    f"{np.count_nonzero(~found)} row(s); expected frames of trajectory.csv)"
+                )
+                raise InputError(msg)
+            idx = order[pos_c]
+            px, py, pz = trajectory.xyz[idx].T
+            yaw = trajectory.yaw[idx]
+        elif "t" in df:
+            t = float_column(df["t"], path, "t", first_row=row0)
+            t0, t1 = float(trajectory.t[0]), float(trajectory.t[-1])
+            slack = float(np.median(np.diff(trajectory.t)))  # one frame interval at either end
+            outside = (t < t0 - slack) | (t > t1 + slack)
+            if outside.any():
+                row = int(np.argmax(outside))
+                msg = (
+                    f"{path}: data row {row0 + row + 1}, column 't': {t[row]} is outside the "
+                    f"trajectory's time span [{t0}, {t1}] ({np.count_nonzero(outside)} row(s); "
+                    "no pose to interpolate)"
+                )
+                raise InputError(msg)
+            tt = trajectory.t
+            t = np.clip(t, t0, t1)
+            px = np.interp(t, tt, trajectory.xyz[:, 0])
+            py = np.interp(t, tt, trajectory.xyz[:, 1])
+            pz = np.interp(t, tt, trajectory.xyz[:, 2])
+            yaw = np.interp(t, tt, trajectory.yaw)  # yaw is unwrapped
+            k = np.clip(np.searchsorted(tt, t), 1, tt.size - 1)
+            nearest = np.where(t - tt[k - 1] <= tt[k] - t, k - 1, k)
+            frame = trajectory.frame[nearest]
+        else:
+            msg = f"{path}: missing column 'frame' (expected {what})"
             raise InputError(msg)
-        idx = order[pos_c]
-        px, py, pz = trajectory.xyz[idx].T
-        yaw = trajectory.yaw[idx]
-    elif "t" in df:
-        t = float_column(df["t"], path, "t")
-        t0, t1 = float(trajectory.t[0]), float(trajectory.t[-1])
-        slack = float(np.median(np.diff(trajectory.t)))  # one frame interval at either end
-        outside = (t < t0 - slack) | (t > t1 + slack)
-        if outside.any():
-            row = int(np.argmax(outside))
-            msg = (
-                f"{path}: data row {row + 1}, column 't': {t[row]} is outside the trajectory's "
-                f"time span [{t0}, {t1}] ({np.count_nonzero(outside)} row(s); no pose to "
-                "interpolate)"
-            )
-            raise InputError(msg)
-        tt = trajectory.t
-        t = np.clip(t, t0, t1)
-        px = np.interp(t, tt, trajectory.xyz[:, 0])
-        py = np.interp(t, tt, trajectory.xyz[:, 1])
-        pz = np.interp(t, tt, trajectory.xyz[:, 2])
-        yaw = np.interp(t, tt, trajectory.yaw)  # yaw is unwrapped
-        k = np.clip(np.searchsorted(tt, t), 1, tt.size - 1)
-        nearest = np.where(t - tt[k - 1] <= tt[k] - t, k - 1, k)
-        frame = trajectory.frame[nearest]
-    else:
-        msg = f"{path}: missing column 'frame' (expected {what})"
-        raise InputError(msg)
-    c, s = np.cos(yaw), np.sin(yaw)
-    x = px + c * ex - s * ey
-    y = py + s * ex + c * ey
-    z = pz + ez if ez is not None else pz - pose_height_m
-    return np.column_stack([x, y, z]), frame.astype(np.int64)
+        c, s = np.cos(yaw), np.sin(yaw)
+        x = px + c * ex - s * ey
+        y = py + s * ex + c * ey
+        z = pz + ez if ez is not None else pz - pose_height_m
+        yield stack_columns([x, y, z]), frame.astype(np.int64), row0
+        row0 += ex.size
 
 
 # ---------------------------------------------------------------------------
-# distance to the trajectory
+# distance to the trajectory and density reduction
 # ---------------------------------------------------------------------------
 
+# lines (edges, ramp edges, markings) a run may hold side by side: raw points are kept for
+# an unchanged pass-through up to this many lines at the reduction threshold's density
+_RAW_LINES = 4
 
-def _trajectory_tree(
-    xy: NDArray[np.float64], step_m: float = 2.0
-) -> tuple[cKDTree, NDArray[np.float64]]:
-    """KD-tree of the trajectory densified to ``step_m`` (metres), and the station (metres
-    along the trajectory) of each of its points."""
-    seg = np.hypot(*np.diff(xy, axis=0).T)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    if s[-1] <= 0:
-        return cKDTree(xy[:1]), np.zeros(1)
-    n = max(int(np.ceil(s[-1] / step_m)) + 1, 2)
-    grid = np.unique(np.concatenate([np.linspace(0.0, s[-1], n), s]))
-    keep = np.concatenate([[True], np.diff(s) > 0])
-    dense = np.column_stack(
-        [np.interp(grid, s[keep], xy[keep, 0]), np.interp(grid, s[keep], xy[keep, 1])]
+
+def _accumulator(
+    line: TrajectoryLine, cfg: LoadConfig, *, kind: str, reduce: bool, n_groups: int
+) -> CellAccumulator:
+    target = cfg.edge_points_per_m if kind == "edges" else cfg.lane_samples_per_m
+    keep_raw = (
+        math.inf
+        if not reduce
+        else cfg.reduce_factor * target * _RAW_LINES * (line.length + 2 * cfg.max_point_distance_m)
     )
-    return cKDTree(dense), grid
+    return CellAccumulator(
+        line,
+        n_groups=n_groups,
+        station_bin_m=cfg.cell_station_m,
+        lateral_bin_m=cfg.cell_lateral_m,
+        max_lateral_m=cfg.max_point_distance_m,
+        keep_raw_points=keep_raw,
+    )
 
 
-def _near_trajectory(
-    tree: tuple[cKDTree, NDArray[np.float64]],
-    xy: NDArray[np.float64],
+def _stream(
+    chunks: Iterable[tuple[NDArray[np.float64], NDArray[np.int64], Any, int]],
+    acc: CellAccumulator,
     path: Path,
     what: str,
     cfg: LoadConfig,
-) -> NDArray[np.bool_]:
-    """Mask of points within ``max_point_distance_m``; warn about (or refuse) the rest.
+    advance: Callable[[float], object],
+) -> int:
+    """Feed chunks ``(xyz, group, payload, first_row)`` into ``acc``; returns the number of
+    points dropped beyond ``max_point_distance_m`` (warned about, or refused if all).
 
     The kept points must also spread along the run (at least ``min_driven_m``, or the
     whole run if it is shorter): points that all sit at one spot are no road edge.
     """
     limit = cfg.max_point_distance_m
-    kdtree, stations = tree
-    dist, _ = kdtree.query(xy, k=1, distance_upper_bound=limit, workers=-1)
-    keep = np.isfinite(dist)
-    dropped = int(keep.size - np.count_nonzero(keep))
-    if dropped == keep.size:
+    total = dropped = 0
+    first_far: int | None = None
+    lo = np.full(2, np.inf)
+    hi = np.full(2, -np.inf)
+    for xyz, group, payload, first_row in chunks:
+        near = acc.add(xyz, group, payload)
+        n_far = int(near.size - np.count_nonzero(near))
+        if n_far and first_far is None:
+            first_far = first_row + int(np.argmin(near))
+        if n_far < near.size:
+            kept = xyz[near, :2] if n_far else xyz[:, :2]
+            lo = np.minimum(lo, kept.min(axis=0))
+            hi = np.maximum(hi, kept.max(axis=0))
+        dropped += n_far
+        total += near.size
+        advance(near.size)
+    if total and dropped == total:
         msg = (
             f"{path}: all {dropped} {what} are farther than {limit:g} m from the trajectory "
             "(expected points in the mapping frame of run.toml; wrong CRS or units?)"
         )
         raise InputError(msg)
-    kept = xy[keep]
-    span = float(np.hypot(*(kept.max(axis=0) - kept.min(axis=0))))
-    needed = min(cfg.min_driven_m, 0.5 * float(stations[-1]))
+    span = float(np.hypot(*(hi - lo))) if total else 0.0
+    needed = min(cfg.min_driven_m, 0.5 * acc.line.length)
     if span < needed:
         msg = (
-            f"{path}: the {what} span only {span:.1f} m, along a {stations[-1]:.0f} m "
+            f"{path}: the {what} span only {span:.1f} m, along a {acc.line.length:.0f} m "
             f"trajectory (all at one spot?); expected {what} along the run"
         )
         raise InputError(msg)
     if dropped:
-        row = int(np.argmin(keep))
         warnings.warn(
-            f"{path}: dropped {dropped} of {keep.size} {what} farther than {limit:g} m from "
-            f"the trajectory (first: data row {row + 1})",
+            f"{path}: dropped {dropped} of {total} {what} farther than {limit:g} m from "
+            f"the trajectory (first: data row {(first_far or 0) + 1})",
             InputWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
-    return keep
+    return dropped
+
+
+def _vertex_frames(line: TrajectoryLine, trajectory: Trajectory) -> NDArray[np.int64]:
+    """Frame of the pose nearest (in station) to every vertex of the trajectory line."""
+    seg = np.hypot(*np.diff(trajectory.xy, axis=0).T)
+    s_pose = np.concatenate([[0.0], np.cumsum(seg)])
+    k = np.clip(np.searchsorted(s_pose, line.s), 1, max(s_pose.size - 1, 1))
+    if s_pose.size == 1:
+        return np.full(line.s.size, trajectory.frame[0], dtype=np.int64)
+    nearest = np.where(line.s - s_pose[k - 1] <= s_pose[k] - line.s, k - 1, k)
+    return trajectory.frame[nearest].astype(np.int64)
+
+
+def reduce_run(run: MappingRun, *, config: LoadConfig | None = None) -> MappingRun:
+    """The density reduction of :func:`load_run` for a run built in memory.
+
+    A run whose points went through the reduction already (``edge_reduction`` set) is
+    returned as it is; otherwise its edge points and lane samples are counted in cells and,
+    if denser than ``config.reduce_factor`` times the targets, replaced by the rows of
+    :mod:`roadtwin.reduction` (a sparse run comes back with the same arrays). Points are
+    not dropped here (``load_run`` did the distance check).
+    """
+    if run.edge_reduction is not None and run.lane_reduction is not None:
+        return run
+    cfg = config if config is not None else LoadConfig()
+    line = trajectory_line(run.trajectory.xy)
+    # no distance check here: every point stays, far ones in the outermost cells
+    wide = replace(cfg, max_point_distance_m=_max_distance(line, run) + 1.0)
+    edge_acc = _accumulator(line, wide, kind="edges", reduce=True, n_groups=3)
+    lane_acc = _accumulator(line, wide, kind="lanes", reduce=True, n_groups=1)
+    step = max(1, cfg.chunk_points)
+    for i in range(0, run.edges.shape[0], step):
+        edge_acc.add(run.edges[i : i + step], run.edge_side[i : i + step].astype(np.int64) + 1)
+    for i in range(0, run.lane_samples.shape[0], step):
+        lane_acc.add(
+            run.lane_samples[i : i + step],
+            np.zeros(min(step, run.lane_samples.shape[0] - i), np.int64),
+            run.lane_sample_frame[i : i + step],
+        )
+    edge_rows = edge_acc.finish(target_per_m=cfg.edge_points_per_m, reduce_factor=cfg.reduce_factor)
+    lane_rows = lane_acc.finish(
+        target_per_m=cfg.lane_samples_per_m,
+        reduce_factor=cfg.reduce_factor,
+        payload_of_vertex=_vertex_frames(line, run.trajectory),
+    )
+    if not edge_rows.info.reduced and not lane_rows.info.reduced:
+        return replace(run, edge_reduction=edge_rows.info, lane_reduction=lane_rows.info)
+    return replace(
+        run,
+        edges=edge_rows.xyz,
+        edge_side=(edge_rows.group - 1).astype(np.int8),
+        lane_samples=lane_rows.xyz,
+        lane_sample_frame=lane_rows.payload,
+        edge_reduction=edge_rows.info,
+        lane_reduction=lane_rows.info,
+    )
+
+
+def _max_distance(line: TrajectoryLine, run: MappingRun) -> float:
+    """Largest distance of any run point from the trajectory line's vertices (metres)."""
+    far = 0.0
+    for pts in (run.edges, run.lane_samples):
+        if pts.shape[0]:
+            d, _ = line.tree.query(np.asarray(pts)[:, :2], workers=-1)
+            far = max(far, float(np.max(d)))
+    return far

@@ -17,9 +17,10 @@ from threadpoolctl import threadpool_limits
 from . import __version__
 from .config import PipelineConfig
 from .evaluation import self_consistency
-from .io import MappingRun
+from .io import MappingRun, reduce_run
 from .mainline import Mainline, build_mainline
 from .model import Header, Road, RoadNetwork
+from .progress import progress
 from .ramps import Ramp, RampSet, build_ramps, gores_from_lane_events
 from .topology import Topology, build_topology
 
@@ -115,35 +116,43 @@ def _build_map(
     timings: dict[str, float] = {}
     warnings: list[str] = []
 
+    # dense points -> a few rows per metre of each line (a no-op for a run from load_run,
+    # which reduced while reading): every stage below sees the same kind of input at any
+    # density
+    run = reduce_run(run, config=cfg.load)
+
     t0 = time.perf_counter()
-    mainline = build_mainline(run, config=cfg.mainline)
+    with progress("mainline"):
+        mainline = build_mainline(run, config=cfg.mainline)
     timings["mainline"] = time.perf_counter() - t0
     warnings.extend(st.message() for st in mainline.stretches)
 
     t0 = time.perf_counter()
-    if osm_graph is not None and osm_graph.number_of_edges() > 0:
-        ramp_set = build_ramps(
-            osm_graph,
-            mainline.road,
-            trajectory_xy=run.trajectory.xy,
-            traffic_side=run.traffic_side,
-            gores=gores_from_lane_events(
-                mainline.lane_events, mainline.road, traffic_side=run.traffic_side
-            ),
-            edge_xy=run.edges,
-            lane_xy=run.lane_samples,
-            config=cfg.ramps,
-        )
-    else:
-        ramp_set = RampSet(ramps=(), candidates=())
-        warnings.append("no OSM graph: the map has the mainline only")
+    with progress("ramps"):
+        if osm_graph is not None and osm_graph.number_of_edges() > 0:
+            ramp_set = build_ramps(
+                osm_graph,
+                mainline.road,
+                trajectory_xy=run.trajectory.xy,
+                traffic_side=run.traffic_side,
+                gores=gores_from_lane_events(
+                    mainline.lane_events, mainline.road, traffic_side=run.traffic_side
+                ),
+                edge_xy=run.edges,
+                lane_xy=run.lane_samples,
+                config=cfg.ramps,
+            )
+        else:
+            ramp_set = RampSet(ramps=(), candidates=())
+            warnings.append("no OSM graph: the map has the mainline only")
     warnings.extend(ramp_set.warnings)
     timings["ramps"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    topology = build_topology(
-        mainline.road, ramp_set.ramps, traffic_side=run.traffic_side, config=cfg.topology
-    )
+    with progress("topology"):
+        topology = build_topology(
+            mainline.road, ramp_set.ramps, traffic_side=run.traffic_side, config=cfg.topology
+        )
     warnings.extend(f"skipped {what}: {why}" for what, why in topology.skipped)
     timings["topology"] = time.perf_counter() - t0
 
@@ -163,7 +172,8 @@ def _build_map(
     # between adjacent entries) that OpenDRIVE's <dataQuality><error> records, so it goes
     # into <userData>; <dataQuality> stays empty until a run states its GNSS accuracy.
     t0 = time.perf_counter()
-    sc = self_consistency(network, run, config=cfg.evaluation)
+    with progress("self-consistency"):
+        sc = self_consistency(network, run, config=cfg.evaluation)
     user_data = [
         ("roadtwin:generator", f"roadtwin {__version__}"),
         ("roadtwin:method", cfg.mainline.method),

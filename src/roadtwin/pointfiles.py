@@ -2,7 +2,9 @@
 
 Vectorised readers for the road-edge formats of DESIGN.md section 3 -- LAS/LAZ (laspy with
 lazrs), PLY (ascii and binary, own header parser + ``np.fromfile``), CSV, NPY and Parquet
-(pyarrow) -- and the column checks shared with :mod:`roadtwin.io`. Every problem raises
+(pyarrow) -- and the column checks shared with :mod:`roadtwin.io`. Point files and CSV tables
+are read in chunks (:func:`iter_road_edges`, :func:`iter_table`) so that a run of tens of
+millions of points never sits in memory at once; the checks are the same. Every problem raises
 :class:`~roadtwin._errors.InputError` naming the file, the data row (1 = first row after the
 header) or field, and what was expected.
 
@@ -14,7 +16,9 @@ read as right). The result uses :data:`SIDE_LEFT` (+1) / :data:`SIDE_RIGHT` (-1)
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -25,17 +29,23 @@ from numpy.typing import NDArray
 from ._errors import InputError, InputWarning, one_line, reason
 
 __all__ = [
+    "DEFAULT_CHUNK_POINTS",
     "EDGE_SUFFIXES",
     "MAX_COORDINATE_M",
     "SIDE_LEFT",
     "SIDE_RIGHT",
+    "EdgeChunk",
     "check_coordinates",
+    "count_road_edges",
     "float_column",
     "int_column",
+    "iter_road_edges",
+    "iter_table",
     "one_line",
     "read_road_edges",
     "read_table",
     "require_columns",
+    "stack_columns",
 ]
 
 MAX_COORDINATE_M = 1.0e8
@@ -72,14 +82,8 @@ def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.Data
     pandas.DataFrame
         At least one row; column names stripped and lower-cased.
     """
-    if path.stat().st_size == 0:
-        msg = f"{path}: file is empty (expected {what})"
-        raise InputError(msg)
-    nul = _first_nul(path)
-    if nul is not None:  # pandas would silently cut the field at the NUL
-        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
-        raise InputError(msg)
-    try:
+    _check_text_file(path, what)
+    with _csv_errors(path, what):
         df = pd.read_csv(
             path,
             skipinitialspace=True,
@@ -87,6 +91,33 @@ def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.Data
             encoding="utf-8-sig",
             nrows=None if max_rows is None else max_rows + 1,
         )
+    df.columns = [str(c).strip().lower() for c in df.columns]
+    if df.shape[0] == 0:
+        msg = f"{path}: file has a header but no data rows (expected {what})"
+        raise InputError(msg)
+    _check_row_count(path, df.shape[0], max_rows)
+    return df
+
+
+def _check_text_file(path: Path, what: str) -> None:
+    """Refuse an empty file, or one with NUL bytes (pandas would silently cut the field at
+    the NUL)."""
+    if path.stat().st_size == 0:
+        msg = f"{path}: file is empty (expected {what})"
+        raise InputError(msg)
+    nul = _first_nul(path)
+    if nul is not None:
+        msg = f"{path}: NUL byte at offset {nul}: not a text CSV file (expected {what})"
+        raise InputError(msg)
+
+
+@contextmanager
+def _csv_errors(path: Path, what: str) -> Iterator[None]:
+    """pandas' parse errors as one-line :class:`InputError` that quote no file content."""
+    try:
+        yield
+    except InputError:
+        raise
     except pd.errors.EmptyDataError:
         msg = f"{path}: file is empty (expected {what})"
         raise InputError(msg) from None
@@ -96,17 +127,15 @@ def read_table(path: Path, what: str, *, max_rows: int | None = None) -> pd.Data
     except (pd.errors.ParserError, ValueError) as exc:
         msg = f"{path}: not a readable CSV file ({reason(exc)}); expected {what}"
         raise InputError(msg) from None
-    df.columns = [str(c).strip().lower() for c in df.columns]
-    if df.shape[0] == 0:
-        msg = f"{path}: file has a header but no data rows (expected {what})"
-        raise InputError(msg)
-    if max_rows is not None and df.shape[0] > max_rows:
+
+
+def _check_row_count(path: Path, rows: int, max_rows: int | None) -> None:
+    if max_rows is not None and rows > max_rows:
         msg = (
             f"{path}: more than {max_rows:,} data rows; larger files are refused "
             "([load] max_poses / max_points): thin or split them"
         )
         raise InputError(msg)
-    return df
 
 
 def _first_nul(path: Path, chunk: int = 1 << 22) -> int | None:
@@ -119,6 +148,34 @@ def _first_nul(path: Path, chunk: int = 1 << 22) -> int | None:
                 return offset + at
             offset += len(block)
     return None
+
+
+def iter_table(
+    path: Path, what: str, *, chunk_rows: int, max_rows: int | None = None
+) -> Iterator[pd.DataFrame]:
+    """:func:`read_table` in chunks of ``chunk_rows`` rows (file order).
+
+    Same checks and messages (empty file, NUL bytes, not UTF-8, not a CSV, header without
+    rows, more than ``max_rows`` data rows); column names stripped and lower-cased in every
+    chunk. Yields at least one chunk.
+    """
+    _check_text_file(path, what)
+    rows = 0
+    with _csv_errors(path, what):
+        reader = pd.read_csv(
+            path, skipinitialspace=True, encoding="utf-8-sig", chunksize=max(1, chunk_rows)
+        )
+        with reader:
+            for df in reader:
+                df.columns = [str(c).strip().lower() for c in df.columns]
+                if rows == 0 and df.shape[0] == 0:
+                    break
+                rows += df.shape[0]
+                _check_row_count(path, rows, max_rows)
+                yield df
+    if rows == 0:
+        msg = f"{path}: file has a header but no data rows (expected {what})"
+        raise InputError(msg)
 
 
 def _column_names(columns: Iterable[str]) -> str:
@@ -140,8 +197,9 @@ def require_columns(columns: Iterable[str], needed: Iterable[str], path: Path, w
             raise InputError(msg)
 
 
-def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
-    """A column as float64; non-numbers, NaN and inf name the first bad data row."""
+def float_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> NDArray[np.float64]:
+    """A column as float64; non-numbers, NaN and inf name the first bad data row
+    (``first_row``: data row of the column's first value, 0-based, for chunks)."""
     series = values if isinstance(values, pd.Series) else pd.Series(np.asarray(values))
     if series.dtype.kind in "fiub":
         arr = series.to_numpy(dtype=np.float64)
@@ -152,7 +210,7 @@ def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
             row = int(np.argmax(bad_text))
             count = int(np.count_nonzero(bad_text))
             msg = (
-                f"{path}: data row {row + 1}, column '{name}': not a number "
+                f"{path}: data row {first_row + row + 1}, column '{name}': not a number "
                 f"({count} such value(s) in this column; expected numbers)"
             )
             raise InputError(msg)
@@ -161,36 +219,39 @@ def float_column(values: Any, path: Path, name: str) -> NDArray[np.float64]:
         row = int(np.argmin(finite))
         count = int(finite.size - np.count_nonzero(finite))
         msg = (
-            f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not a finite number "
-            f"({count} NaN/inf value(s) in this column; expected finite numbers)"
+            f"{path}: data row {first_row + row + 1}, column '{name}': {arr[row]} is not a "
+            f"finite number ({count} NaN/inf value(s) in this column; expected finite numbers)"
         )
         raise InputError(msg)
     return arr
 
 
-def check_coordinates(xyz: NDArray[np.float64], path: Path) -> None:
-    """Refuse coordinates beyond :data:`MAX_COORDINATE_M` (corrupt, or not metres)."""
+def check_coordinates(xyz: NDArray[np.float64], path: Path, *, first_row: int = 0) -> None:
+    """Refuse coordinates beyond :data:`MAX_COORDINATE_M` (corrupt, or not metres);
+    ``first_row``: data row of ``xyz[0]`` (0-based, for chunks)."""
     if xyz.size == 0:
         return
     big = np.abs(xyz) > MAX_COORDINATE_M
     if big.any():
         row, col = np.unravel_index(int(np.argmax(big)), big.shape)
         msg = (
-            f"{path}: data row {row + 1}: coordinate {xyz[row, col]:.3g} is beyond "
+            f"{path}: data row {first_row + row + 1}: coordinate {xyz[row, col]:.3g} is beyond "
             f"{MAX_COORDINATE_M:.0e} m ({int(big.any(axis=1).sum())} row(s)); expected "
             "metres in the mapping frame"
         )
         raise InputError(msg)
 
 
-def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
+def int_column(values: Any, path: Path, name: str, *, first_row: int = 0) -> NDArray[np.int64]:
     """A column of integer values (``1000`` or ``1000.0``) as int64, checked like floats."""
-    arr = float_column(values, path, name)
+    arr = float_column(values, path, name, first_row=first_row)
     rounded = np.round(arr)
     bad = np.abs(arr - rounded) > 1e-9
     if bad.any():
         row = int(np.argmax(bad))
-        msg = f"{path}: data row {row + 1}, column '{name}': {arr[row]} is not an integer"
+        msg = (
+            f"{path}: data row {first_row + row + 1}, column '{name}': {arr[row]} is not an integer"
+        )
         raise InputError(msg)
     return rounded.astype(np.int64)
 
@@ -200,10 +261,30 @@ def int_column(values: Any, path: Path, name: str) -> NDArray[np.int64]:
 # ---------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class EdgeChunk:
+    """Consecutive road-edge points of a file.
+
+    Attributes
+    ----------
+    xyz : (n, 3) float64 points, mapping frame, metres.
+    side : (n,) int8, +1 left, -1 right, 0 unknown.
+    first_row : data row of the first point (0-based; error messages add 1).
+    """
+
+    xyz: NDArray[np.float64]
+    side: NDArray[np.int8]
+    first_row: int
+
+
+DEFAULT_CHUNK_POINTS = 1_000_000
+"""Points per chunk of :func:`iter_road_edges` (about 40 MB of working memory)."""
+
+
 def read_road_edges(
     path: str | Path, *, max_points: int | None = None
 ) -> tuple[NDArray[np.float64], NDArray[np.int8]]:
-    """Read road-edge points from LAS/LAZ, PLY, CSV, NPY or Parquet.
+    """Read all road-edge points of a LAS/LAZ, PLY, CSV, NPY or Parquet file.
 
     Parameters
     ----------
@@ -220,38 +301,90 @@ def read_road_edges(
     edges : (N, 3) float64 points, mapping frame, metres.
     edge_side : (N,) int8, +1 left, -1 right, 0 unknown.
     """
+    chunks = list(iter_road_edges(path, max_points=max_points))
+    return (
+        np.vstack([c.xyz for c in chunks]),
+        np.concatenate([c.side for c in chunks]),
+    )
+
+
+def iter_road_edges(
+    path: str | Path, *, chunk_points: int = DEFAULT_CHUNK_POINTS, max_points: int | None = None
+) -> Iterator[EdgeChunk]:
+    """Read road-edge points in chunks of at most ``chunk_points`` (file order).
+
+    Same formats, checks and messages as :func:`read_road_edges` (a bad value names its
+    data row in the whole file); LAS/LAZ are read with laspy's chunk iterator, PLY and NPY
+    through memory maps, Parquet by record batches, CSV by pandas chunks. Yields at least
+    one chunk, or raises :class:`~roadtwin._errors.InputError`.
+    """
     path = Path(path)
     name = path.name.lower()
     if path.stat().st_size == 0:
         msg = f"{path}: file is empty (expected road-edge points x,y,z)"
         raise InputError(msg)
+    n = max(1, int(chunk_points))
     limit = max_points if max_points is not None else np.iinfo(np.int64).max
     if name.endswith((".las", ".laz")):
-        cols, side = _read_las(path, limit)
+        parts = _las_chunks(path, n, limit)
     elif name.endswith(".ply"):
-        cols, side = _read_ply(path, limit)
+        parts = _ply_chunks(path, n, limit)
     elif name.endswith(".csv"):
-        df = read_table(path, "columns x,y,z[,side]", max_rows=max_points)
-        require_columns(df.columns, "xyz", path, "columns x,y,z[,side]")
-        cols = {c: df[c] for c in "xyz"}
-        side = df.get("side")
+        parts = _csv_chunks(path, n, max_points)
     elif name.endswith(".npy"):
-        cols, side = _read_npy(path, limit)
+        parts = _npy_chunks(path, n, limit)
     elif name.endswith(".parquet"):
-        cols, side = _read_parquet(path, limit)
+        parts = _parquet_chunks(path, n, limit)
     else:
         msg = f"{path}: unsupported road-edge format (expected one of {', '.join(EDGE_SUFFIXES)})"
         raise InputError(msg)
-    xyz = np.column_stack([float_column(cols[c], path, c) for c in "xyz"])
-    if xyz.shape[0] == 0:
+    row = 0
+    for cols, side in parts:
+        xyz = stack_columns([float_column(cols[c], path, c, first_row=row) for c in "xyz"])
+        if xyz.shape[0] == 0:
+            continue
+        check_coordinates(xyz, path, first_row=row)
+        codes = _side_codes(side, path, xyz.shape[0], first_row=row)
+        yield EdgeChunk(xyz, codes, row)
+        row += xyz.shape[0]
+    if row == 0:
         msg = f"{path}: no points (expected road-edge points x,y,z)"
         raise InputError(msg)
-    check_coordinates(xyz, path)
-    codes = _side_codes(side, path, xyz.shape[0])
-    return xyz, codes
 
 
-def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
+def stack_columns(columns: list[NDArray[np.float64]]) -> NDArray[np.float64]:
+    """``(n, k)`` array with contiguous columns (Fortran order: no copy to take a column)."""
+    out = np.empty((columns[0].size, len(columns)), order="F")
+    for k, col in enumerate(columns):
+        out[:, k] = col
+    return out
+
+
+def count_road_edges(path: str | Path) -> int | None:
+    """Number of points a road-edge file says it holds (LAS/LAZ, PLY, NPY and Parquet
+    headers), or ``None`` (CSV, unreadable header): for progress bars only."""
+    path = Path(path)
+    name = path.name.lower()
+    try:
+        if name.endswith((".las", ".laz")):
+            import laspy
+
+            with laspy.open(path) as reader:
+                return int(reader.header.point_count)
+        if name.endswith(".npy"):
+            return int(np.load(path, mmap_mode="r", allow_pickle=False).shape[0])
+        if name.endswith(".parquet"):
+            import pyarrow.parquet as pq
+
+            return int(pq.ParquetFile(path).metadata.num_rows)
+        if name.endswith(".ply"):
+            return int(_ply_header(path).count)
+    except Exception:  # only a hint: the reader reports what is wrong
+        return None
+    return None
+
+
+def _side_codes(side: Any, path: Path, n: int, *, first_row: int = 0) -> NDArray[np.int8]:
     """Map a ``side`` column (strings or integer codes) to +1 left / -1 right / 0."""
     if side is None:
         return np.zeros(n, np.int8)
@@ -264,7 +397,8 @@ def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
         if not ok.all():
             row = int(np.argmin(ok))
             msg = (
-                f"{path}: data row {row + 1}, field 'side': {vals[row]:g} is not a side code "
+                f"{path}: data row {first_row + row + 1}, field 'side': {vals[row]:g} is not a "
+                "side code "
                 "(expected 1 = left, 2 = right, 0 = unknown)"
             )
             raise InputError(msg)
@@ -279,7 +413,8 @@ def _side_codes(side: Any, path: Path, n: int) -> NDArray[np.int8]:
     if not ok.all():
         row = int(np.argmin(ok))
         msg = (
-            f"{path}: data row {row + 1}, column 'side': {series.iloc[row]!r} is not a side "
+            f"{path}: data row {first_row + row + 1}, column 'side': {series.iloc[row]!r} is "
+            "not a side "
             "(expected 'left' or 'right')"
         )
         raise InputError(msg)
@@ -297,86 +432,107 @@ def _too_many(path: Path, count: int, limit: int) -> None:
         raise InputError(msg)
 
 
-def _read_las(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
+def _las_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
     import laspy
 
     try:
-        with laspy.open(path) as reader:
-            _too_many(path, int(reader.header.point_count), limit)
-            las = reader.read()
-    except InputError:
-        raise
+        reader = laspy.open(path)
     except Exception as exc:  # laspy raises many kinds on corrupt files
         msg = f"{path}: not a readable LAS/LAZ file ({reason(exc)})"
         raise InputError(msg) from None
-    cols = {"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z)}
-    names = {d.lower(): d for d in las.point_format.dimension_names}
-    side = np.asarray(las[names["side"]]) if "side" in names else None
-    return cols, side
+    with reader:
+        _too_many(path, int(reader.header.point_count), limit)
+        names = {d.lower(): d for d in reader.header.point_format.dimension_names}
+        side_name = names.get("side")
+        chunks = reader.chunk_iterator(n)
+        while True:
+            try:
+                points = next(chunks)
+            except StopIteration:
+                break
+            except Exception as exc:
+                msg = f"{path}: not a readable LAS/LAZ file ({reason(exc)})"
+                raise InputError(msg) from None
+            cols = {"x": np.asarray(points.x), "y": np.asarray(points.y), "z": np.asarray(points.z)}
+            yield cols, (np.asarray(points[side_name]) if side_name else None)
 
 
-def _read_npy(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
-    try:  # memory-mapped first: the header's shape is checked against the file's size
-        mapped = np.load(path, allow_pickle=False, mmap_mode="r")
+def _csv_chunks(path: Path, n: int, limit: int | None) -> Iterator[tuple[dict[str, Any], Any]]:
+    what = "columns x,y,z[,side]"
+    for df in iter_table(path, what, chunk_rows=n, max_rows=limit):
+        require_columns(df.columns, "xyz", path, what)
+        yield {c: df[c] for c in "xyz"}, df.get("side")
+
+
+def _npy_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
+    try:  # memory-mapped: the header's shape is checked against the file's size
+        arr = np.load(path, allow_pickle=False, mmap_mode="r")
     except (ValueError, OSError, EOFError) as exc:
         msg = f"{path}: not a readable .npy array ({reason(exc)})"
         raise InputError(msg) from None
-    if mapped.ndim >= 1:
-        _too_many(path, int(mapped.shape[0]), limit)
-    if mapped.dtype.kind not in "fiub" and not mapped.dtype.names:
-        msg = f"{path}: array of dtype {mapped.dtype}; expected numbers (x,y,z[,side])"
+    if arr.ndim >= 1:
+        _too_many(path, int(arr.shape[0]), limit)
+    if arr.dtype.kind not in "fiub" and not arr.dtype.names:
+        msg = f"{path}: array of dtype {arr.dtype}; expected numbers (x,y,z[,side])"
         raise InputError(msg)
-    arr = np.array(mapped)
-    del mapped
     if arr.dtype.names:
-        names = {n.lower(): n for n in arr.dtype.names}
+        names = {name.lower(): name for name in arr.dtype.names}
         require_columns(names, "xyz", path, "fields x,y,z[,side]")
-        cols = {c: arr[names[c]] for c in "xyz"}
-        side = arr[names["side"]] if "side" in names else None
-        return cols, side
+        for i in range(0, arr.shape[0], n):
+            part = arr[i : i + n]
+            side = part[names["side"]] if "side" in names else None
+            yield {c: np.asarray(part[names[c]]) for c in "xyz"}, side
+        return
     if arr.ndim != 2 or arr.shape[1] not in (3, 4):
         msg = (
             f"{path}: array of shape {arr.shape}; expected (N, 3) x,y,z, (N, 4) x,y,z,side "
             "or a structured array with fields x,y,z[,side]"
         )
         raise InputError(msg)
-    cols = {c: arr[:, i] for i, c in enumerate("xyz")}
-    if arr.shape[1] == 3:
-        return cols, None
-    fourth = np.asarray(arr[:, 3], dtype=float)
-    if not np.isin(fourth, (0.0, 1.0, 2.0, -1.0)).all():
+    with_side = arr.shape[1] == 4
+    if with_side and not np.isin(np.asarray(arr[:, 3], dtype=float), (0.0, 1.0, 2.0, -1.0)).all():
         warnings.warn(
             f"{path}: 4th column is not a side code (expected 1 = left, 2 = right, "
             "0 = unknown); ignored, sides unknown",
             InputWarning,
-            stacklevel=4,
+            stacklevel=5,
         )
-        return cols, None
-    return cols, fourth
+        with_side = False
+    for i in range(0, arr.shape[0], n):
+        part = np.asarray(arr[i : i + n])
+        yield {c: part[:, k] for k, c in enumerate("xyz")}, (part[:, 3] if with_side else None)
 
 
-def _read_parquet(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
+def _parquet_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
     import pyarrow.parquet as pq
 
     try:
-        meta = pq.ParquetFile(path)
-        schema = meta.schema_arrow
-        rows = int(meta.metadata.num_rows)
+        file = pq.ParquetFile(path)
+        schema = file.schema_arrow
+        rows = int(file.metadata.num_rows)
     except Exception as exc:  # pyarrow raises ArrowInvalid/OSError on bad files
         msg = f"{path}: not a readable Parquet file ({reason(exc)})"
         raise InputError(msg) from None
     _too_many(path, rows, limit)
-    names = {n.lower(): n for n in schema.names}
+    names = {name.lower(): name for name in schema.names}
     require_columns(names, "xyz", path, "columns x,y,z[,side]")
     wanted = [names[c] for c in ("x", "y", "z", "side") if c in names]
-    try:
-        table = pq.read_table(path, columns=wanted)
-        cols = {c: table.column(names[c]).to_numpy() for c in "xyz"}
-        side = table.column(names["side"]).to_pandas() if "side" in names else None
-    except Exception as exc:  # corrupt pages surface only when the data is read
-        msg = f"{path}: Parquet data not readable ({reason(exc)})"
-        raise InputError(msg) from None
-    return cols, side
+    batches = file.iter_batches(batch_size=n, columns=wanted)
+    while True:
+        try:
+            batch = next(batches)
+        except StopIteration:
+            break
+        except Exception as exc:  # corrupt pages surface only when the data is read
+            msg = f"{path}: Parquet data not readable ({reason(exc)})"
+            raise InputError(msg) from None
+        try:
+            cols = {c: batch.column(names[c]).to_numpy(zero_copy_only=False) for c in "xyz"}
+            side = batch.column(names["side"]).to_pandas() if "side" in names else None
+        except Exception as exc:
+            msg = f"{path}: Parquet data not readable ({reason(exc)})"
+            raise InputError(msg) from None
+        yield cols, side
 
 
 _PLY_TYPES = {
@@ -399,8 +555,19 @@ _PLY_TYPES = {
 }
 
 
-def _read_ply(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
-    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
+@dataclass(frozen=True)
+class _PlyHeader:
+    fmt: str
+    count: int
+    props: list[tuple[str, str | None]]
+    body_offset: int
+    header_lines: int
+    skip_rows: int
+    skip_bytes: int
+
+
+def _ply_header(path: Path) -> _PlyHeader:
+    """Parse a PLY header up to the ``vertex`` element (ascii, binary little/big endian)."""
     with path.open("rb") as fh:
         head = fh.read(65536)
     end = head.find(b"end_header")
@@ -453,6 +620,21 @@ def _read_ply(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
         msg = f"{path}: PLY file has no 'vertex' element (expected x,y,z vertices)"
         raise InputError(msg)
     count, props = vertex
+    return _PlyHeader(
+        fmt,
+        count,
+        props,
+        body_offset,
+        len(head[:body_offset].splitlines()),
+        skip_rows,
+        skip_bytes,
+    )
+
+
+def _ply_chunks(path: Path, n: int, limit: int) -> Iterator[tuple[dict[str, Any], Any]]:
+    """Vectorised PLY reader (ascii, binary little/big endian) for the ``vertex`` element."""
+    hdr = _ply_header(path)
+    count, props = hdr.count, hdr.props
     if any(t is None for _, t in props):
         msg = f"{path}: PLY 'vertex' element has list properties; expected scalar x,y,z[,side]"
         raise InputError(msg)
@@ -462,36 +644,45 @@ def _read_ply(path: Path, limit: int) -> tuple[dict[str, Any], Any]:
         msg = f"{path}: PLY file has 0 vertices (expected road-edge points)"
         raise InputError(msg)
     _too_many(path, count, limit)
-    if fmt == "ascii":
+    if hdr.fmt == "ascii":
+        seen = 0
         try:
-            df = pd.read_csv(
+            reader = pd.read_csv(
                 path,
                 sep=r"\s+",
                 header=None,
-                skiprows=len(head[:body_offset].splitlines()) + skip_rows,
+                skiprows=hdr.header_lines + hdr.skip_rows,
                 nrows=count,
                 names=names,
                 usecols=range(len(names)),
                 engine="c",
+                chunksize=n,
             )
+            with reader:
+                for df in reader:
+                    seen += df.shape[0]
+                    yield {c: df[c] for c in "xyz"}, df.get("side")
         except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
             msg = f"{path}: PLY ascii body not readable ({reason(exc)})"
             raise InputError(msg) from None
-        if df.shape[0] != count:
-            msg = f"{path}: PLY header says {count} vertices, body has {df.shape[0]}"
+        if seen != count:
+            msg = f"{path}: PLY header says {count} vertices, body has {seen}"
             raise InputError(msg)
-        cols = {c: df[c] for c in "xyz"}
-        return cols, df.get("side")
-    endian = "<" if fmt == "binary_little_endian" else ">"
-    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])
+        return
+    endian = "<" if hdr.fmt == "binary_little_endian" else ">"
+    dtype = np.dtype([(p.lower(), endian + t) for p, t in props])  # type: ignore[operator]
     size = path.stat().st_size
-    need = body_offset + skip_bytes + count * dtype.itemsize
+    need = hdr.body_offset + hdr.skip_bytes + count * dtype.itemsize
     if size < need:
         msg = (
             f"{path}: PLY body too short: header says {count} vertices of {dtype.itemsize} "
-            f"bytes, file has {size - body_offset - skip_bytes} bytes of vertex data"
+            f"bytes, file has {size - hdr.body_offset - hdr.skip_bytes} bytes of vertex data"
         )
         raise InputError(msg)
-    data = np.fromfile(path, dtype=dtype, count=count, offset=body_offset + skip_bytes)
-    cols = {c: data[c].astype(np.float64) for c in "xyz"}
-    return cols, (data["side"] if "side" in names else None)
+    data = np.memmap(
+        path, dtype=dtype, mode="r", offset=hdr.body_offset + hdr.skip_bytes, shape=(count,)
+    )
+    for i in range(0, count, n):
+        part = np.asarray(data[i : i + n])
+        cols = {c: part[c].astype(np.float64) for c in "xyz"}
+        yield cols, (part["side"] if "side" in names else None)

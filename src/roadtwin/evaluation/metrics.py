@@ -58,9 +58,21 @@ def error_stats(errors: Sequence[float] | FloatArray) -> dict[str, float | int |
     }
 
 
-def _rmse(errors: FloatArray) -> float:
-    e = errors[np.isfinite(errors)]
-    return float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+def _rmse(errors: FloatArray, spread_m2: FloatArray | None = None) -> float:
+    ok = np.isfinite(errors)
+    e = errors[ok]
+    if not e.size:
+        return math.nan
+    sq = e * e if spread_m2 is None else e * e + spread_m2[ok]
+    return float(np.sqrt(np.mean(sq)))
+
+
+def _row_spread(run: Any, kind: str) -> FloatArray | None:
+    """Lateral variance behind each row of a reduced run (``None``: rows are points)."""
+    info = getattr(run, "edge_reduction" if kind == EDGE else "lane_reduction", None)
+    if info is None or not info.reduced:
+        return None
+    return np.asarray(info.spread_m2, dtype=float)
 
 
 # ---------------------------------------------------------------------------
@@ -79,6 +91,9 @@ class PointErrors:
     station_m : (N,) station along the mainline chain (metres).
     error_m : (N,) signed error (measured/true minus reconstructed), metres.
     boundary : (N,) lane id whose outer border the matched boundary is.
+    spread_m2 : (N,) lateral variance of the measured points each row stands for (m^2) when
+        the run's points were reduced to rows (:mod:`roadtwin.reduction`), else None: the
+        RMSE over all points is ``sqrt(mean(error^2 + spread))``.
     """
 
     name: str
@@ -86,11 +101,13 @@ class PointErrors:
     station_m: FloatArray
     error_m: FloatArray
     boundary: NDArray[np.int64]
+    spread_m2: FloatArray | None = None
 
     @property
     def rmse_m(self) -> float:
-        """RMSE of ``error_m`` (metres; NaN if empty)."""
-        return _rmse(self.error_m)
+        """RMSE over the points (metres; NaN if empty): of ``error_m``, plus the spread of
+        the points behind each row for a reduced run."""
+        return _rmse(self.error_m, self.spread_m2)
 
 
 # ---------------------------------------------------------------------------
@@ -162,6 +179,7 @@ def self_consistency_errors(
     dz_all = []
     for pts, kind in ((run.edges, EDGE), (run.lane_samples, LANE)):
         pts = np.asarray(pts, dtype=float).reshape(-1, 3)
+        spread = _row_spread(run, kind)
         kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
         proj = project_points(main, pts, **kw)
         err, lane = _errors_full(main, proj, kind)
@@ -179,7 +197,14 @@ def self_consistency_errors(
         counts["excluded_no_road"] += int(np.sum(status == _NO_ROAD))
         good = np.isfinite(err)
         out.append(
-            PointErrors(f"self/{kind}", pts[good, :2], proj.station_m[good], err[good], lane[good])
+            PointErrors(
+                f"self/{kind}",
+                pts[good, :2],
+                proj.station_m[good],
+                err[good],
+                lane[good],
+                None if spread is None else spread[good],
+            )
         )
         on_main = proj.ok & ~use_r
         for r in np.unique(proj.road_index[on_main]):  # measured height - map surface
@@ -191,10 +216,18 @@ def self_consistency_errors(
 
 def _self_summary(edge: PointErrors, lane: PointErrors, counts: dict[str, Any]) -> dict:
     both = np.concatenate([edge.error_m, lane.error_m])
+    spread = None
+    if edge.spread_m2 is not None or lane.spread_m2 is not None:
+        spread = np.concatenate(
+            [
+                np.zeros(pe.error_m.size) if pe.spread_m2 is None else pe.spread_m2
+                for pe in (edge, lane)
+            ]
+        )
     return {
-        "road_edge_rmse_m": _rmse(edge.error_m),
-        "lane_boundary_rmse_m": _rmse(lane.error_m),
-        "overall_rmse_m": _rmse(both),
+        "road_edge_rmse_m": edge.rmse_m,
+        "lane_boundary_rmse_m": lane.rmse_m,
+        "overall_rmse_m": _rmse(both, spread),
         "road_edge_points": int(edge.error_m.size),
         "lane_samples": int(lane.error_m.size),
         **counts,
