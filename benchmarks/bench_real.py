@@ -253,8 +253,9 @@ def _f(value, digits: int = 3) -> str:
 def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
     head = (
         "| run | split | method | km | edge RMSE | lane RMSE | lane count | ramps found/true "
-        "| typed | spurious | widest lane | check errors | SUMO | ASAM | drive | build s |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| typed | spurious | ramp centre RMSE | widest lane | check errors | SUMO | ASAM | drive "
+        "| build s |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     lines = [head]
     for name, split, rows in results:
@@ -277,7 +278,8 @@ def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
             lines.append(
                 f"| {name} | {split} | {r['method']} | {_f(r['km'], 1)} | {_f(r['edge_rmse'])} "
                 f"| {_f(r['lane_rmse'])} | {count_txt} | {r['matched']}/{r['true_ramps']} "
-                f"| {r['typed']} | {r['spurious']} | {_f(r['widest_lane_m'], 1)} "
+                f"| {r['typed']} | {r['spurious']} | {_f(r.get('ramp_centre'), 2)} "
+                f"| {_f(r['widest_lane_m'], 1)} "
                 f"| {r['check_errors']} | {status('sumo')} | {status('asam')} | {drive_txt} "
                 f"| {_f(r['build_s'], 1)} |"
             )
@@ -300,6 +302,7 @@ def summary(results: list[tuple[str, str, list[dict]]], method: str) -> str:
         f"{method}: {len(rows)} runs built, {len(failed)} failed; "
         f"edge RMSE median {np.median(edge):.3f} max {edge.max():.3f} m; "
         f"lane RMSE median {np.median(lane):.3f} max {lane.max():.3f} m; "
+        f"ramp centre RMSE median {np.median(col('ramp_centre')):.2f} m; "
         f"lane count min {100 * count.min():.1f} %; ramps missed {missed}, "
         f"spurious {sum(r['spurious'] for r in rows)}, "
         f"mistyped {sum((r['matched'] or 0) - (r['typed'] or 0) for r in rows)}; "

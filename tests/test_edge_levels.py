@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from roadtwin.mainline.edge_levels import edge_level_path
+from roadtwin.mainline.edge_levels import edge_level_path, edge_steps
 
 
 def _line(rng, s0, s1, d_of_s, spacing=0.2, noise=0.03):
@@ -41,3 +41,42 @@ def test_path_keeps_the_mainline_edge_past_foreign_edges_and_takes_gore_steps():
     after = c[seen & (np.abs(level - 8.5) < 0.2)]
     assert 599.0 <= after.min() <= 603.0
     assert np.count_nonzero(seen) > 0.9 * (c.size - 30)
+
+
+def _steps_of(s, d):
+    edges = np.arange(-1.0, 1201.0, 2.0)
+    return edge_steps(s, d, edges, edge_level_path(s, d, edges))
+
+
+def test_step_sizes_hold_where_the_line_they_are_measured_from_wanders():
+    # Offsets of the median-side edge from the smoothed trajectory: the car changes lanes
+    # (3.5 m over 100 m around 300 m), so the edge's offset wanders before the step; a left
+    # lane leaves at 700 m (the edge moves 3.6 m towards the carriageway). The segment's
+    # median would mix both lane positions; the step measured next to it does not.
+    rng = np.random.default_rng(11)
+    lane_change = lambda s: 3.5 * np.clip((s - 250.0) / 100.0, 0.0, 1.0)  # noqa: E731
+    s0, d0 = _line(rng, 0.0, 700.0, lambda s: 12.0 + lane_change(s))
+    s1, d1 = _line(rng, 700.0, 1200.0, lambda s: 12.0 + lane_change(s) - 3.6)
+    steps = _steps_of(np.concatenate([s0, s1]), np.concatenate([d0, d1]))
+    assert steps.stations.size == 1
+    assert abs(steps.stations[0] - 700.0) < 2.0
+    assert abs((steps.offsets[1] - steps.offsets[0]) - (-3.6)) < 0.05
+
+
+def test_step_sizes_of_steady_segments_ignore_a_converging_ramp_edge():
+    # A steady edge (the line runs parallel to it): an inner lane joins at 400 m (the edge
+    # moves out 3.5 m) and leaves at 800 m. Right before 400 m the entry ramp's edge
+    # converges onto the new level, which biases the level bins next to the step; the
+    # offsets are the segments' own levels to the centimetre.
+    rng = np.random.default_rng(12)
+    s0, d0 = _line(rng, 0.0, 400.0, lambda s: np.full(s.size, 10.0))
+    s1, d1 = _line(rng, 400.0, 800.0, lambda s: np.full(s.size, 13.5))
+    s2, d2 = _line(rng, 800.0, 1200.0, lambda s: np.full(s.size, 10.0))
+    sr, dr = _line(rng, 380.0, 400.0, lambda s: 10.0 + 3.5 * (s - 380.0) / 20.0, spacing=0.05)
+    s = np.concatenate([s0, s1, s2, sr])
+    d = np.concatenate([d0, d1, d2, dr])
+    steps = _steps_of(s, d)
+    assert steps.stations.size == 2
+    np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, 3.5, 0.0], atol=0.03)
+    base = steps.from_base(0.0, 1200.0)
+    np.testing.assert_allclose(base.offsets, [0.0, 3.5, 0.0], atol=0.03)

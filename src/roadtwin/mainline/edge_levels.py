@@ -206,6 +206,9 @@ def refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, star
     return edge if starts else -edge
 
 
+_STEADY_SPREAD_M = 0.25  # a segment whose quarters' offsets agree this well is one level
+
+
 @dataclass(frozen=True)
 class EdgeSteps:
     """Steps of an edge level path (gores where lanes begin or end at full width).
@@ -274,20 +277,56 @@ def edge_steps(
         sizes.append(after - before)
     if not stations:
         return EdgeSteps(np.zeros(0), np.zeros(1))
-    st = np.sort(np.asarray(stations))
-    # each segment's offset is measured, not summed from level changes: the level path
-    # near a merge is biased by the converging ramp edge, and a sum carries that bias
-    # into every later segment (Town06: 1.3 m after an inner entry)
+    order = np.argsort(stations)
+    st = np.asarray(stations)[order]
+    # Offsets sum the step sizes. A step between two segments whose points lie on one
+    # level each (``u`` steady: the line it is measured from runs parallel to the edge)
+    # is the difference of their medians, 10 m clear of the steps; the level bins next
+    # to a step are biased by a converging ramp edge near a merge, and a sum would carry
+    # that bias into every later segment (Town06: 1.3 m after an inner entry). Where a
+    # segment's ``u`` wanders (the car changed lanes, the edge diverges at a split) its
+    # median means nothing, and the step is measured from the points 10-50 m either side.
     path = np.interp(s, centres[seen], level[seen])
     on_level = np.abs(u - path) < 0.8
     bounds = np.concatenate([[float(edges_s[0])], st, [float(edges_s[-1])]])
     seg = np.searchsorted(st, s)
-    values = np.empty(st.size + 1)
+    median = np.full(st.size + 1, np.nan)
     for k in range(st.size + 1):
         mine = on_level & (seg == k)
         away = mine & (s > bounds[k] + 10.0) & (s < bounds[k + 1] - 10.0)
         pick = away if np.count_nonzero(away) >= 10 else mine
-        values[k] = float(np.median(u[pick])) if pick.any() else np.nan
-    middles = 0.5 * (bounds[1:] + bounds[:-1])
-    ok = np.isfinite(values)
-    return EdgeSteps(st, np.interp(middles, middles[ok], values[ok]) if ok.any() else values * 0)
+        if np.count_nonzero(pick) >= 40:
+            # steady: the medians of its quarters (along s) agree
+            s_pick, u_pick = s[pick], u[pick]
+            quarter = np.minimum(
+                (4.0 * (s_pick - s_pick.min()) / max(np.ptp(s_pick), 1e-9)).astype(int), 3
+            )
+            q_med = [np.median(u_pick[quarter == q]) for q in range(4) if np.any(quarter == q)]
+            if np.ptp(q_med) < _STEADY_SPREAD_M:
+                median[k] = float(np.median(u_pick))
+    sized = np.asarray(sizes, dtype=float)[order]
+    for k, station in enumerate(st):
+        if np.isfinite(median[k]) and np.isfinite(median[k + 1]):
+            sized[k] = median[k + 1] - median[k]
+            continue
+        lo, hi = max(bounds[k], station - 50.0), min(bounds[k + 2], station + 50.0)
+        before = on_level & (s >= lo) & (s < station - 10.0)
+        after = on_level & (s > station + 10.0) & (s <= hi)
+        if np.count_nonzero(before) >= 10 and np.count_nonzero(after) >= 10:
+            sized[k] = float(np.median(u[after]) - np.median(u[before]))
+    offsets = np.concatenate([[0.0], np.cumsum(sized)])
+    # anchored on the line the offsets were measured from: steady segments keep their
+    # own median, so the line's own level has offset 0 (a level the line does not follow
+    # exactly keeps its remainder); without one, the level of the longest stretch
+    steady = np.isfinite(median)
+    if steady.any():
+        lengths = np.diff(bounds)[steady]
+        anchor = _weighted_median(median[steady] - offsets[steady], lengths)
+        return EdgeSteps(st, offsets + anchor)
+    return EdgeSteps(st, offsets).from_base(float(edges_s[0]), float(edges_s[-1]))
+
+
+def _weighted_median(values: FloatArray, weights: FloatArray) -> float:
+    order = np.argsort(values)
+    cum = np.cumsum(weights[order])
+    return float(values[order][np.searchsorted(cum, 0.5 * cum[-1])])

@@ -44,6 +44,8 @@ _WIDTH_PRIOR_SIGMA_M = 0.6  # the default widths as weak priors
 _MIN_GROUP_POINTS = 20  # an edge seen by fewer points cannot give its shoulder's width
 _MAX_POINTS = 600  # measured points used per ramp (evenly thinned beyond)
 _OSM_LOOKAHEAD_M = 40.0  # OSM is ignored up to this far beyond the measured window
+_MEASURED_REACH_M = 10.0  # ... and where associated points lie this close along the ramp
+_LOOKAHEAD_WEIGHT = 0.1  # OSM's weight in the look-ahead (enough to stop a swing there)
 
 
 @dataclass(frozen=True)
@@ -296,16 +298,37 @@ def _fit_ramp_shape(
     p = np.concatenate([np.clip(np.interp(spline.knots[1:], a_all, k_t), lo, hi), w_default])
 
     def solve(
-        p0: FloatArray, assoc: tuple | None, w_row: FloatArray, osm_from: float = 0.0
+        p0: FloatArray,
+        assoc: tuple | None,
+        w_row: FloatArray,
+        osm_from: float = 0.0,
+        measured_a: FloatArray | None = None,
     ) -> FloatArray:
         """Least squares over (knot curvatures, widths) with a fixed association;
         ``w_row`` weights the width priors (large: held at the defaults); targets before
-        ``osm_from`` (metres from the gore) are ignored: where the ramp was measured the
-        measurement decides, and OSM drawn metres off must not bend the prediction of
-        the next stretch."""
+        ``osm_from`` (metres from the gore) are ignored where associated points
+        (``measured_a``: their arc lengths) lie within ``_MEASURED_REACH_M``: where the
+        ramp was measured the measurement decides, and OSM drawn metres off must not bend
+        the prediction of the next stretch; a hole inside the measured stretch (no
+        associated point within that reach) keeps its OSM targets (else nothing holds the
+        curve there and it swings into an S-bend)."""
         if assoc is not None:
             pts, kind_row = assoc
-        w_t = w_target * (a_target >= osm_from)
+        if measured_a is not None and measured_a.size:
+            a_sorted = np.sort(measured_a)
+            j = np.clip(np.searchsorted(a_sorted, a_target), 1, a_sorted.size - 1)
+            gap = np.minimum(np.abs(a_target - a_sorted[j - 1]), np.abs(a_target - a_sorted[j]))
+            if a_sorted.size == 1:
+                gap = np.abs(a_target - a_sorted[0])
+            # holes inside the measured stretch only: beyond it the look-ahead applies
+            # inside the measured stretch a hole is held by OSM; beyond it (the look-ahead)
+            # OSM only damps the curve, so that the next window's points still find it
+            unmeasured = np.where(
+                a_target < a_sorted[-1], gap > _MEASURED_REACH_M, _LOOKAHEAD_WEIGHT
+            )
+        else:
+            unmeasured = np.zeros(a_target.size, dtype=bool)
+        w_t = w_target * np.maximum(a_target >= osm_from, unmeasured)
 
         def parts(p: FloatArray):
             xy, heading = spline.evaluate(p[:n_k])
@@ -412,8 +435,9 @@ def _fit_ramp_shape(
             # shoulder fit the same points), the hard shoulder the outer edge
             w_row = np.where(counts >= _MIN_GROUP_POINTS, 1.0, 1e3)
             assoc = (pts_all[ok], kind[ok])
-            span = float(np.max(a_p[ok]))
-            p = solve(p, assoc, w_row, osm_from=span + _OSM_LOOKAHEAD_M)
+            measured_a = a_p[ok]
+            span = float(np.max(measured_a))
+            p = solve(p, assoc, w_row, osm_from=span + _OSM_LOOKAHEAD_M, measured_a=measured_a)
             xy, heading = spline.evaluate(p[:n_k])
             best = (ok, kind)
         else:
@@ -422,7 +446,7 @@ def _fit_ramp_shape(
     if assoc is None or best is None:
         return RampShape(xy, tuple(float(w) for w in w_default))
     # beyond the measured stretch the OSM shape decides again
-    p = solve(p, assoc, w_row, osm_from=span)
+    p = solve(p, assoc, w_row, osm_from=span, measured_a=measured_a)
     xy, heading = spline.evaluate(p[:n_k])
     # every measured point (not only the thinned ones) against the final boundaries
     tree = cKDTree(xy)
