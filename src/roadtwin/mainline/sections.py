@@ -413,9 +413,10 @@ def _link_sections(
     and outer borders lie where its own end (within ``_LINK_TOLERANCE_M``, offsets from
     the reference line: the median-side edge ``medians`` (section start, end) plus the
     widths), both wider than 0.3 m there; counting lanes or matching border labels fails
-    where a lane begins or ends beside the others, on either side. A lane whose width
+    where a lane begins or ends beside the others, on either side. A shoulder whose width
     jumps at the boundary (the hard shoulder at a gore: the old one leaves with the ramp,
-    the new one starts narrow) ends there.
+    the new one starts narrow) ends there; a driving lane continues (its borders met: the
+    rest of a neighbour's taper is the difference) with the width it had.
     """
     if medians is None:
         medians = [(0.0, 0.0)] * len(sections)
@@ -443,7 +444,8 @@ def _link_sections(
                 mapping[i] = j
                 used.add(j)
         for i, j in mapping.items():
-            if abs(w_prev[j] - w_cur[i]) > 0.05:
+            shoulder = "shoulder" in (prev_lanes[j].type, cur_lanes[i].type)
+            if shoulder and abs(w_prev[j] - w_cur[i]) > 0.05:
                 continue
             preds[n][i] = prev_lanes[j].id
             succs[n - 1][j] = cur_lanes[i].id
@@ -523,6 +525,17 @@ def _events(
             "outer" if driving and lane.id == driving[-1].id and len(driving) > 1 else "inner"
         )
         ds = probe - sections[n].s0
+        if taper == 0.0:
+            # an abrupt end/birth is where the lane's section ends/begins (two edge steps
+            # close together can leave the track end and the section border metres apart;
+            # the junction must start where the lane really leaves)
+            border = (
+                sections[n].s0
+                if end == "start"
+                else (sections[n + 1].s0 if n + 1 < len(sections) else s_zero)
+            )
+            if abs(border - s_zero) < _GORE_MATCH_M:
+                s_zero = float(border)
         events.append(
             LaneEvent(
                 s_m=float(s_zero),
