@@ -208,6 +208,11 @@ class MainlineConfig:
     ramp_line_slope: float = 0.012
     """A marking whose offset changes faster than this (m/m) where it starts (inward) or
     ends (outward) is a ramp line crossing the corridor near a gore, not the mainline's."""
+    painted_gore_max_m: float = 100.0
+    """Longest painted gore (metres, tip of the paint to the physical nose): an exit's lanes
+    split where the through lanes' outer marking turns solid, up to this far before the
+    nose where the edge steps; an entry's after it (:mod:`roadtwin.mainline.painted_gores`).
+    0 keeps every gore at the nose."""
     hidden_gore_slope: float = 0.004
     """Where the outer edge is occluded, a marking that starts (ends) converging (diverging)
     faster than this (m/m) is a ramp line up to the gore."""
@@ -247,7 +252,12 @@ class MainlineConfig:
     """A driving lane wider than this (metres) is flagged: a boundary was missed."""
 
     _ZERO_OK: ClassVar[frozenset[str]] = frozenset(
-        {"edge_outlier_min_m", "superelevation_min_rad", "superelevation_k_sigma"}
+        {
+            "edge_outlier_min_m",
+            "superelevation_min_rad",
+            "superelevation_k_sigma",
+            "painted_gore_max_m",
+        }
     )
     _RANGES: ClassVar[dict[str, tuple[float, float]]] = {
         "broken_gap_fraction": (0.0, 1.0),

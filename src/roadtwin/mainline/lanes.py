@@ -1,7 +1,7 @@
 """Default method: the lane structure of the mainline from lane-marking samples and
 outer-edge points (:func:`fit_lanes`), stage by stage: outer edge (:mod:`.outer_edge`),
-marking tracks (:mod:`.markings`), hidden gores (:mod:`.hidden_gores`), lane sections
-and events (:mod:`.sections`).
+marking tracks (:mod:`.markings`), hidden gores (:mod:`.hidden_gores`), gores moved to
+the paint (:mod:`.painted_gores`), lane sections and events (:mod:`.sections`).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ from .edge_levels import EdgeSteps
 from .hidden_gores import _place_hidden_gores, _snap_to_hidden_gores, _visible_taper_length
 from .markings import _add_hidden_lanes, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
+from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
 
 FloatArray = NDArray[np.float64]
@@ -100,6 +101,12 @@ def fit_lanes(
                 s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden), levels=levels
             )
         d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers)
+        if cfg.painted_gore_max_m > 0.0:
+            tracks, d_edge, breaks, painted = move_gores_to_paint(
+                tracks, grid, d_edge, breaks, np.sort(s_l), cfg
+            )
+            for lo, hi in painted:  # the outer-edge points there are the ramp's
+                used = used & ~((s_outer > lo) & (s_outer < hi))
     tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
