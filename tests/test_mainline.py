@@ -458,3 +458,22 @@ def test_points_of_another_level_give_no_superelevation():
     s_true, _ = road.project(xy)
     dz = built.road.height(s_chk) - road.height(s_true)
     assert float(np.max(np.abs(dz))) < 0.05
+
+
+def test_cut_at_a_lane_offset_step_leaves_no_sliver_of_the_old_offset(right_case):
+    # a median-side step of 3.5 m a hair (0.1 micrometre) after the cut, as at an inner
+    # gore where the junction starts: the road after the cut starts on the new offset
+    # (a sliver of the old one made esmini's car jump 3.5 m into the connecting road)
+    _, _, ml = right_case
+    road = replace(
+        ml.road,
+        lane_offset=CubicProfile((CubicPiece(0.0, 3.5), CubicPiece(600.0 + 1.3e-7, 0.0))),
+    )
+    before = cut_road(road, 10.0, 600.0, road_id="1")
+    after = cut_road(road, 600.0, 900.0, road_id="2")
+    assert [p.a for p in before.lane_offset.pieces] == [3.5]
+    assert [p.a for p in after.lane_offset.pieces] == [0.0]
+    assert after.lane_offset.pieces[0].s0 == 0.0
+    # a step well inside a cut road stays where it is
+    inside = cut_road(road, 500.0, 700.0, road_id="3")
+    assert [(round(p.s0, 6), p.a) for p in inside.lane_offset.pieces] == [(0.0, 3.5), (100.0, 0.0)]
