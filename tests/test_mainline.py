@@ -477,3 +477,43 @@ def test_cut_at_a_lane_offset_step_leaves_no_sliver_of_the_old_offset(right_case
     # a step well inside a cut road stays where it is
     inside = cut_road(road, 500.0, 700.0, road_id="3")
     assert [(round(p.s0, 6), p.a) for p in inside.lane_offset.pieces] == [(0.0, 3.5), (100.0, 0.0)]
+
+
+def test_lanes_linked_across_a_lane_offset_step_stay_joined():
+    from roadtwin.mainline.reference import _join_lanes_across_offset_steps
+
+    # an inner lane (3.50 m) and a narrower inner shoulder join at 200 m on the median
+    # side; the measured offset step (3.49 m) disagrees with the lane widths by 1 cm +
+    # the shoulders' difference: the through lanes would jump sideways at the step
+    before = _section(0.0, [0.78, 3.5, 3.5], ["shoulder", "driving", "driving"], ["solid"] * 3, 1)
+    after = _section(
+        200.0,
+        [0.79, 3.5, 3.5, 3.5],
+        ["shoulder", "driving", "driving", "driving"],
+        ["solid"] * 4,
+        1,
+    )
+    after = replace(
+        after,
+        right=tuple(
+            replace(ln, predecessor=ln.id + 1 if ln.id <= -3 else None) for ln in after.right
+        ),
+    )
+    road = Road(
+        "1",
+        chain_geometry([Line(0, 0.0, 0.0, 0.0, 400.0)]),
+        (before, after),
+        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(200.0, 3.49))),
+    )
+    joined = _join_lanes_across_offset_steps(road, np.array([200.0]))
+    for lid_before, lid_after in ((-2, -3), (-3, -4)):
+        t0 = joined.lane_border_t(np.array([200.0 - 1e-6]), lid_before)[0]
+        t1 = joined.lane_border_t(np.array([200.0]), lid_after)[0]
+        assert abs(t1 - t0) < 1e-6
+    # the raw offsets left a 2 cm jump
+    gap = (
+        road.lane_border_t(np.array([200.0]), -3)[0]
+        - road.lane_border_t(np.array([200.0 - 1e-6]), -2)[0]
+    )
+    assert abs(gap) > 0.015
+    assert joined.lane_offset.pieces[0].a == 0.0

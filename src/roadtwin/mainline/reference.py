@@ -95,6 +95,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         lane_sections=sections,
         lane_offset=_lane_offset(median.steps, sign),
     )
+    road = _join_lanes_across_offset_steps(road, median.steps.stations)
     return _Partial(road, events, "default", tracks)
 
 
@@ -129,6 +130,45 @@ def _lane_offset(steps: EdgeSteps, sign: float) -> CubicProfile:
             for s0, off in zip(starts, steps.offsets, strict=True)
         )
     )
+
+
+_STEP_SECTION_M = 0.5  # a lane section starting this close to an offset step starts there
+
+
+def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
+    """Lane offsets re-levelled so that the lanes linked across each step stay joined.
+
+    The offset of each segment is measured from the median-side edge points, the lane
+    widths from the markings; at a step the two need not agree to the millimetre, and a
+    through lane would jump sideways by the difference where the road is cut into a
+    junction (14 mm at Town06's inner entry: a link-gap error). Step by step along the
+    road, the segment after a step is moved so that the innermost lane linked across the
+    section border there keeps its outer border (metres, t)."""
+    pieces = list(road.lane_offset.pieces)
+    if len(pieces) < 2 or not len(stations):
+        return road
+    s0s = np.array([sec.s0 for sec in road.lane_sections])
+    for k in range(1, len(pieces)):
+        s_step = pieces[k].s0
+        n = int(np.argmin(np.abs(s0s - s_step)))
+        if n == 0 or abs(s0s[n] - s_step) > _STEP_SECTION_M:
+            continue
+        prev_sec, sec = road.lane_sections[n - 1], road.lane_sections[n]
+        lanes = sec.right or sec.left
+        linked = [ln for ln in lanes if ln.predecessor is not None]
+        if not linked:
+            continue
+        lane = min(linked, key=lambda ln: abs(ln.id))
+        probe = replace(road, lane_offset=CubicProfile(tuple(pieces)))
+        s_before = np.array([s0s[n] - 1e-6])
+        if s_before[0] < prev_sec.s0:
+            continue
+        t_before = probe.lane_border_t(s_before, int(lane.predecessor))[0]
+        t_after = probe.lane_border_t(np.array([s0s[n]]), lane.id)[0]
+        shift = float(t_before - t_after)
+        if np.isfinite(shift) and abs(shift) < 0.5:
+            pieces[k] = replace(pieces[k], a=pieces[k].a + shift)
+    return replace(road, lane_offset=CubicProfile(tuple(pieces)))
 
 
 def fit_reference_edge(
