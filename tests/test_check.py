@@ -371,3 +371,24 @@ def test_zero_width_lane_end_with_link_is_an_error():
     assert not [
         f for f in check_network(replace(network, roads=(unlinked,))) if f.code == "zero_width_link"
     ]
+
+
+def test_a_width_record_starting_after_the_section_start_is_an_error():
+    from roadtwin.model import (
+        CubicPiece,
+        CubicProfile,
+        Header,
+        Lane,
+        LaneSection,
+        Line,
+        Road,
+        RoadNetwork,
+    )
+
+    lane = Lane(-1, "driving", CubicProfile((CubicPiece(0.733, 3.5),)))
+    road = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 100.0),), (LaneSection(0.0, right=(lane,)),))
+    findings = check_network(RoadNetwork(Header(), (road,)))
+    found = [f for f in findings if f.code == "width_start"]
+    assert len(found) == 1
+    assert found[0].severity == "error"
+    assert found[0].value == pytest.approx(0.733)

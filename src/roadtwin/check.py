@@ -12,6 +12,7 @@ Own checks (:func:`check_network`, on the model):
   lane border of the mainline); otherwise it is the distance between the reference lines.
   The heading jump compares reference-line headings (reversed for end-to-end and
   start-to-start contacts).
+* ``width_start``: a lane whose first width record does not start at the section's start.
 * ``negative_width`` (sampled every metre in each lane section) and ``width_jump`` between
   consecutive lane sections for lanes that continue (lane links, or equal ids where a side
   has no links and the same lane count).
@@ -364,6 +365,19 @@ class _Checker:
             n = max(2, math.ceil(span / cfg.width_sample_step_m) + 1)
             ds = np.linspace(0.0, span, n)
             for lane in (*sec.left, *sec.right):
+                first = lane.width.pieces[0].s0 if lane.width.pieces else 0.0
+                if first > 1e-6:
+                    # the width is undefined before its first record: consumers differ
+                    # (extrapolate, zero, refuse)
+                    self.add(
+                        "warning" if first < 1e-3 else "error",
+                        "width_start",
+                        f"lane {lane.id}'s first width record starts at sOffset {first:.4f} m, "
+                        "not 0: its width is undefined before",
+                        road=road.id,
+                        s=float(sec.s0),
+                        value=float(first),
+                    )
                 w = lane.width.value(ds)
                 self._zero_width_links(road, sec, lane, w, ds)
                 k = int(np.argmin(w))

@@ -381,6 +381,9 @@ def _hidden_lane_count(
     return n
 
 
+_HIDDEN_SMOOTH_M = 40.0  # window of the moving median of the extreme markings (metres)
+
+
 def _add_hidden_lanes(
     tracks: list[_Track],
     grid: FloatArray,
@@ -411,6 +414,12 @@ def _add_hidden_lanes(
     has = np.isfinite(marks).any(axis=0)
     d_last = np.where(has, np.nanmax(np.where(has, marks, 0.0), axis=0), np.nan)
     d_first = np.where(has, np.nanmin(np.where(has, marks, 0.0), axis=0), np.nan)
+    # the outermost / innermost marking over a few tens of metres: where a marking track
+    # starts a few metres late (at the run's start) or stops early, the extreme marking
+    # jumps by lanes for those metres, and lanes inferred from it would jump with it
+    window = max(3, round(_HIDDEN_SMOOTH_M / cfg.grid_step_m) | 1)
+    d_last = np.where(has, moving_median(d_last, window=window), np.nan)
+    d_first = np.where(has, moving_median(d_first, window=window), np.nan)
     min_run = math.ceil(cfg.lane_min_track_m / cfg.grid_step_m)
     out = list(tracks)
 

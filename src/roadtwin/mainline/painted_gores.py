@@ -21,6 +21,8 @@ reference (median-side) edge towards the carriageway and beyond (larger: farther
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -83,6 +85,8 @@ def move_gores_to_paint(
         tracks, tip = moved
         out_breaks.append(tip)
         painted.append((min(tip, float(b)), max(tip, float(b))))
+    # track ids are their positions (the lane-section stage indexes by them)
+    tracks = [replace(tr, id=i) for i, tr in enumerate(tracks)]
     return tracks, d_edge, np.sort(np.asarray(out_breaks)), painted
 
 

@@ -275,7 +275,14 @@ def _sections_from_tracks(
                 ]
                 fixed = sib[0] if sib else None
             raw = (tracks[k].s_samples, tracks[k].d_samples)
-            info = _taper(dmat, k, grid, end, cfg, fixed, raw)
+            at_median_gore = bool(
+                tracks[k].n == 0
+                and median_steps.size
+                and np.min(np.abs(median_steps - grid[i_edge])) < _GORE_MATCH_M
+            )
+            # an inferred median-side marking that ends at a median-side gore ends there
+            # with its lane (no taper borrowed from a marking elsewhere)
+            info = None if at_median_gore else _taper(dmat, k, grid, end, cfg, fixed, raw)
             if info is None:
                 # a lane that begins/ends at full width does so at a gore, where an edge
                 # steps; a marking that merely starts/ends (paint beginning at a road
@@ -339,6 +346,10 @@ def _sections_from_tracks(
         gs = grid[a:b_inc]
         s0 = s0_at.get(a, float(grid[a]))
         rel = gs - s0
+        # a section that starts at an edge step starts between grid stations: its width
+        # profiles start at the section's start (the first record at sOffset 0), not at
+        # the first grid station after it
+        rel[0] = 0.0
         m = d_median[a:b_inc].copy()
         if b_inc > b and b < n_g and abs(d_median[b] - d_median[b - 1]) > 0.5:
             m[-1] = m[-2] if m.size >= 2 else m[-1]  # the next segment's level is not inside
