@@ -603,6 +603,11 @@ def _connection_routes(ctx: _Ctx, covered: set) -> list[Route]:
             path.append(_pick(succ, path[-1][0]))
         if ctx.network.road(path[-1][0]).junction != "-1":
             end = path[-1]
+            if _natural_end(ctx, end):
+                # a lane that tapers out inside the junction (a ramp's second lane
+                # merging): no route a driver keeps to
+                covered.update(itertools.pairwise(path))
+                continue
             problem = (
                 f"road {end[0]} lane {end[2]} inside junction {junction_id} leads nowhere "
                 f"(no lane link out of the junction)"
