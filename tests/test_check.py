@@ -392,3 +392,37 @@ def test_a_width_record_starting_after_the_section_start_is_an_error():
     assert len(found) == 1
     assert found[0].severity == "error"
     assert found[0].value == pytest.approx(0.733)
+
+
+def test_a_linked_lane_moving_sideways_at_a_section_border_is_an_error():
+    from roadtwin.model import (
+        CubicPiece,
+        CubicProfile,
+        Header,
+        Lane,
+        LaneSection,
+        Line,
+        Road,
+        RoadNetwork,
+    )
+
+    def lane(lid, w, pred=None, succ=None, kind="driving"):
+        return Lane(
+            lid, kind, CubicProfile((CubicPiece(0.0, w),)), predecessor=pred, successor=succ
+        )
+
+    # lane -2 continues as lane -2, but the unlinked shoulder inside it grows 0.29 m at
+    # the border (a lane born 0.29 m wide): lane -2 moves sideways by 290 mm
+    first = LaneSection(0.0, right=(lane(-1, 1.0, kind="shoulder"), lane(-2, 3.5, succ=-2)))
+    second = LaneSection(50.0, right=(lane(-1, 1.29, kind="shoulder"), lane(-2, 3.5, pred=-2)))
+    road = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 100.0),), (first, second))
+    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_shift"]
+    assert len(found) == 1
+    assert found[0].severity == "error"
+    assert found[0].value == pytest.approx(290.0, abs=0.5)
+    # the shoulder continuing with its width: no shift
+    second_ok = LaneSection(50.0, right=(lane(-1, 1.0, kind="shoulder"), lane(-2, 3.5, pred=-2)))
+    road_ok = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 100.0),), (first, second_ok))
+    assert not [
+        f for f in check_network(RoadNetwork(Header(), (road_ok,))) if f.code == "lane_shift"
+    ]

@@ -75,3 +75,22 @@ def test_lane_border_offsets():
     np.testing.assert_allclose(road.lane_border_t([10.0, 150.0], -1), -3.5)
     np.testing.assert_allclose(road.lane_border_t([10.0, 150.0], -2), -7.25)
     assert np.all(np.isnan(road.lane_border_t([10.0], 1)))
+
+
+def test_close_width_ends_a_lane_at_zero_width():
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, close_width
+
+    # a taper that stopped 0.22 m short of zero over its last piece (40..100 m)
+    lane = Lane(
+        -3,
+        "driving",
+        CubicProfile((CubicPiece(0.0, 3.5), CubicPiece(40.0, 3.5, -0.0547))),
+    )
+    closed = close_width(lane, 100.0)
+    s = np.linspace(0.0, 100.0, 1001)
+    w = closed.width.value(s)
+    assert w[-1] == pytest.approx(0.0, abs=1e-9)
+    assert w.min() >= 0.0
+    # untouched before the last piece, and the correction grows linearly over it
+    np.testing.assert_allclose(w[s < 40.0], 3.5)
+    assert closed.width.value(np.array([40.0]))[0] == pytest.approx(3.5)

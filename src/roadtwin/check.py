@@ -13,6 +13,8 @@ Own checks (:func:`check_network`, on the model):
   The heading jump compares reference-line headings (reversed for end-to-end and
   start-to-start contacts).
 * ``width_start``: a lane whose first width record does not start at the section's start.
+* ``lane_shift``: a lane linked across a lane-section border whose inner or outer border
+  moves there (thresholds of ``link_gap``).
 * ``negative_width`` (sampled every metre in each lane section) and ``width_jump`` between
   consecutive lane sections for lanes that continue (lane links, or equal ids where a side
   has no links and the same lane count).
@@ -356,6 +358,35 @@ class _Checker:
 
     # -- widths ------------------------------------------------------------
 
+    def _lane_shift(self, road: Road, s: float, la: Lane, lb: Lane) -> None:
+        """A lane linked across a lane-section border whose borders move there (an
+        unlinked lane inside it changed width, the lane offset stepped): a car in it
+        jumps sideways (ASAM contact_point_no_horizontal_gaps)."""
+        cfg = self.cfg
+        before, at = np.array([max(s - 1e-7, 0.0)]), np.array([s])
+        step = 1 if la.id > 0 else -1
+        gaps = []
+        for ida, idb in ((la.id, lb.id), (la.id - step, lb.id - step)):
+            ta = (
+                road.lane_border_t(before, ida)[0]
+                if ida != 0
+                else road.lane_offset.value(before)[0]
+            )
+            tb = road.lane_border_t(at, idb)[0] if idb != 0 else road.lane_offset.value(at)[0]
+            gaps.append(abs(tb - ta))
+        gap_mm = 1000.0 * float(np.nanmax(gaps))
+        sev = _grade(gap_mm, cfg.gap_warning_mm, cfg.gap_error_mm)
+        if sev:
+            self.add(
+                sev,
+                "lane_shift",
+                f"lane {la.id} -> {lb.id} moves sideways by {gap_mm:.1f} mm at the lane section "
+                f"at s={s:.2f}",
+                road=road.id,
+                s=s,
+                value=gap_mm,
+            )
+
     def widths(self, road: Road) -> None:
         cfg = self.cfg
         secs = road.lane_sections
@@ -415,6 +446,8 @@ class _Checker:
                 elif len(side_a) == len(side_b):
                     pairs = [(ln, by_id_b[ln.id]) for ln in side_a if ln.id in by_id_b]
                 for la, lb in pairs:
+                    if has_links:
+                        self._lane_shift(road, b.s0, la, lb)
                     wa = float(la.width.value(np.array([len_a]))[0])
                     wb = float(lb.width.value(np.array([0.0]))[0])
                     jump_mm = 1000.0 * abs(wa - wb)

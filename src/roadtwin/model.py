@@ -704,6 +704,24 @@ def constant_lane(
     )
 
 
+def close_width(lane: Lane, length_m: float) -> Lane:
+    """``lane`` with its last width piece corrected to end at zero width at ``length_m``
+    (metres from the section start); the correction grows linearly over that piece (a
+    lane that ends beside others away from a gore closes to zero width)."""
+    pieces = lane.width.pieces
+    if not pieces:
+        return lane
+    last = pieces[-1]
+    span = length_m - last.s0
+    if span <= 0.0:
+        return lane
+    w_end = float(lane.width.value(np.array([length_m]))[0])
+    if abs(w_end) < 1e-7:
+        return lane
+    fixed = replace(last, b=last.b - w_end / span)
+    return replace(lane, width=replace(lane.width, pieces=(*pieces[:-1], fixed)))
+
+
 def continue_width(lane: Lane, w_start: float) -> Lane:
     """``lane`` with its first width piece corrected to start at ``w_start`` (metres); the
     correction fades out linearly over that piece (a lane that continues across a section

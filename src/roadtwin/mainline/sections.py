@@ -20,6 +20,7 @@ from ..model import (
     Lane,
     LaneSection,
     RoadMark,
+    close_width,
     continue_width,
 )
 from ._common import (
@@ -37,6 +38,8 @@ FloatArray = NDArray[np.float64]
 
 
 _GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that gore
+
+_RESIDUAL_WIDTH_M = 1.0  # a lane beginning/ending narrower than this is a taper's rest
 
 _LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across sections
 
@@ -390,7 +393,8 @@ def _sections_from_tracks(
         bounds_per.append(bounds)
         medians.append((float(m[0]), float(m[min(b - a, m.size - 1)])))
         members_per.append(members)
-    sections = _link_sections(sections, bounds_per, medians)
+    at_step = [a in forced for a in starts[:-1]]
+    sections = _link_sections(sections, bounds_per, medians, at_step)
     events = _events(raw_events, sections, members_per, dmat, grid, side, sign, median_steps)
     out_tracks = tuple(
         BoundaryTrack(
@@ -413,10 +417,16 @@ def _side_lanes(sec: LaneSection) -> tuple[Lane, ...]:
     return sec.right if sec.right else sec.left
 
 
+def _nonnegative(fixed: Lane, original: Lane, ds: FloatArray) -> Lane:
+    """``fixed`` unless its width dips below zero on ``ds`` (metres), then ``original``."""
+    return fixed if float(np.min(fixed.width.value(ds))) >= 0.0 else original
+
+
 def _link_sections(
     sections: list[LaneSection],
     bounds_per: list[list[tuple[object, object]]],
     medians: list[tuple[float, float]] | None = None,
+    at_step: list[bool] | None = None,
 ) -> list[LaneSection]:
     """Lane predecessor/successor ids between consecutive sections of the road.
 
@@ -425,12 +435,17 @@ def _link_sections(
     the reference line: the median-side edge ``medians`` (section start, end) plus the
     widths), both wider than 0.3 m there; counting lanes or matching border labels fails
     where a lane begins or ends beside the others, on either side. A shoulder whose width
-    jumps at the boundary (the hard shoulder at a gore: the old one leaves with the ramp,
-    the new one starts narrow) ends there; a driving lane continues (its borders met: the
-    rest of a neighbour's taper is the difference) with the width it had.
+    jumps at a boundary on an edge step (``at_step``: the hard shoulder at a gore, where
+    the old one leaves with the ramp and the new one starts narrow) ends there; a lane that
+    begins or ends there other than at a gore opens from (closes to) zero width; every
+    other lane whose borders met continues with the width it had (sections are fitted
+    one by one: an unlinked shoulder whose width differs by centimetres would move every
+    lane beyond it sideways at the boundary).
     """
     if medians is None:
         medians = [(0.0, 0.0)] * len(sections)
+    if at_step is None:
+        at_step = [True] * len(sections)
     preds: list[dict[int, int]] = [{} for _ in sections]
     succs: list[dict[int, int]] = [{} for _ in sections]
     for n in range(1, len(sections)):
@@ -455,8 +470,10 @@ def _link_sections(
                 mapping[i] = j
                 used.add(j)
         for i, j in mapping.items():
-            shoulder = "shoulder" in (prev_lanes[j].type, cur_lanes[i].type)
-            if shoulder and abs(w_prev[j] - w_cur[i]) > 0.05:
+            hard_shoulder = (prev_lanes[j].type == "shoulder" and j == len(prev_lanes) - 1) or (
+                cur_lanes[i].type == "shoulder" and i == len(cur_lanes) - 1
+            )
+            if hard_shoulder and at_step[n] and abs(w_prev[j] - w_cur[i]) > 0.05:
                 continue
             preds[n][i] = prev_lanes[j].id
             succs[n - 1][j] = cur_lanes[i].id
@@ -466,6 +483,36 @@ def _link_sections(
             replace(ln, predecessor=preds[n].get(i), successor=succs[n].get(i))
             for i, ln in enumerate(_side_lanes(sec))
         )
+        # a lane that begins / ends beside linked ones away from a gore opens from / closes
+        # to zero width, so that the lanes beyond it keep their place (a lane born 0.3 m
+        # wide moved every lane outside it sideways by 0.3 m at the section border)
+        sec_len = (sections[n + 1].s0 if n + 1 < len(sections) else np.inf) - sec.s0
+        end = sec_len if np.isfinite(sec_len) else 1.0
+        span = np.concatenate(  # densest near the ends, where a closed taper dips
+            [
+                np.linspace(0.0, end, 400),
+                np.linspace(0.0, min(20.0, end), 400),
+                np.linspace(max(end - 20.0, 0.0), end, 400),
+            ]
+        )
+        lanes = tuple(
+            _nonnegative(continue_width(ln, 0.0), ln, span)
+            if n > 0
+            and not at_step[n]
+            and ln.predecessor is None
+            and preds[n]
+            and abs(float(ln.width.value(np.array([0.0]))[0])) < _RESIDUAL_WIDTH_M
+            else ln
+            for ln in lanes
+        )
+        if n + 1 < len(sections) and not at_step[n + 1] and succs[n]:
+            lanes = tuple(
+                _nonnegative(close_width(ln, sec_len), ln, span)
+                if ln.successor is None
+                and abs(float(ln.width.value(np.array([sec_len]))[0])) < _RESIDUAL_WIDTH_M
+                else ln
+                for ln in lanes
+            )
         if n > 0:
             # linked lanes continue with the width they had (sections are fitted one by
             # one to 1 cm; the checker flags jumps above 1 mm)
