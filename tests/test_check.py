@@ -17,9 +17,14 @@ from roadtwin.model import (
     Connection,
     CubicPiece,
     CubicProfile,
+    Header,
     Junction,
+    Lane,
+    LaneSection,
     Line,
+    Road,
     RoadLink,
+    RoadNetwork,
 )
 from roadtwin.xodr import read_xodr, write_xodr
 
@@ -374,17 +379,6 @@ def test_zero_width_lane_end_with_link_is_an_error():
 
 
 def test_a_width_record_starting_after_the_section_start_is_an_error():
-    from roadtwin.model import (
-        CubicPiece,
-        CubicProfile,
-        Header,
-        Lane,
-        LaneSection,
-        Line,
-        Road,
-        RoadNetwork,
-    )
-
     lane = Lane(-1, "driving", CubicProfile((CubicPiece(0.733, 3.5),)))
     road = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 100.0),), (LaneSection(0.0, right=(lane,)),))
     findings = check_network(RoadNetwork(Header(), (road,)))
@@ -395,17 +389,6 @@ def test_a_width_record_starting_after_the_section_start_is_an_error():
 
 
 def test_a_linked_lane_moving_sideways_at_a_section_border_is_an_error():
-    from roadtwin.model import (
-        CubicPiece,
-        CubicProfile,
-        Header,
-        Lane,
-        LaneSection,
-        Line,
-        Road,
-        RoadNetwork,
-    )
-
     def lane(lid, w, pred=None, succ=None, kind="driving"):
         return Lane(
             lid, kind, CubicProfile((CubicPiece(0.0, w),)), predecessor=pred, successor=succ
