@@ -88,7 +88,8 @@ def _load(paths):
         warnings.simplefilter("ignore")
         runs = [load_run(p) for p in paths]
         frame = runs[0].frame
-        around = np.vstack([run_in_frame(r, frame).trajectory.xy for r in runs])
+        runs = [run_in_frame(r, frame) for r in runs]  # once; build_highway finds them there
+        around = np.vstack([r.trajectory.xy for r in runs])
         graph = load_osm(runs[0].osm_path, frame=frame, around_xy=around)
     return runs, graph
 

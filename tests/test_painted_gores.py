@@ -23,6 +23,18 @@ def _seen(*tracks: _Track) -> np.ndarray:
     return np.sort(np.concatenate([tr.s_samples for tr in tracks]))
 
 
+def _move(through: _Track, beyond: _Track, d_edge, nose: float, config=None):
+    """The gore at ``nose`` moved to the paint, with every lane sample as seen."""
+    return move_gores_to_paint(
+        [through, beyond],
+        GRID,
+        d_edge,
+        np.array([nose]),
+        _seen(through, beyond),
+        config or MainlineConfig(),
+    )
+
+
 def _dashed_then_solid(tip: float, *, exit_: bool) -> np.ndarray:
     """Stations of the through lanes' outer marking: 6 m dashes every 12 m beside the
     auxiliary lane, the solid edge line on the other side of ``tip``, 3 m from the nearest
@@ -56,14 +68,7 @@ def test_exit_lanes_split_at_the_painted_tip_not_at_the_nose():
     )
     # outer edge: 2.5 m shoulder beyond the exit lane up to the nose, 0.3 m after it
     d_edge = np.where(nose > GRID, 13.5, 7.8)
-    tracks, edge, breaks, painted = move_gores_to_paint(
-        [through, beyond],
-        GRID,
-        d_edge,
-        np.array([nose]),
-        _seen(through, beyond),
-        MainlineConfig(),
-    )
+    tracks, edge, breaks, painted = _move(through, beyond, d_edge, nose)
     assert breaks.tolist() == [pytest.approx(tip, abs=0.3)]  # one sample spacing
     assert painted == [(breaks[0], nose)]
     cut = next(tr for tr in tracks if tr.id == 1)
@@ -86,28 +91,17 @@ def test_entry_mirrors_and_an_unpainted_gore_stays_at_the_nose():
         1, 280.0, 1000.0, lambda s: np.full(s.size, 11.0), np.arange(280.0, 1000.0, 0.3)
     )
     d_edge = np.where(nose > GRID, 7.8, 13.5)
-    tracks, _, breaks, _ = move_gores_to_paint(
-        [through, beyond],
-        GRID,
-        d_edge,
-        np.array([nose]),
-        _seen(through, beyond),
-        MainlineConfig(),
-    )
+    tracks, _, breaks, _ = _move(through, beyond, d_edge, nose)
     assert breaks.tolist() == [pytest.approx(tip, abs=0.3)]  # one sample spacing
     assert next(tr for tr in tracks if tr.id == 1).lo == breaks[0]
     # a solid marking all along shows no tip: the step stays at the nose
     solid = _track(0, 0.0, 1000.0, lambda s: np.full(s.size, 7.5), np.arange(0.0, 1000.0, 0.3))
-    _, edge2, breaks2, painted2 = move_gores_to_paint(
-        [solid, beyond], GRID, d_edge, np.array([nose]), _seen(solid, beyond), MainlineConfig()
-    )
+    _, edge2, breaks2, painted2 = _move(solid, beyond, d_edge, nose)
     assert breaks2.tolist() == [nose]
     assert painted2 == []
     np.testing.assert_array_equal(edge2, d_edge)
     # and switched off, nothing moves
     off = MainlineConfig(painted_gore_max_m=0.0)
-    _, edge3, breaks3, _ = move_gores_to_paint(
-        [through, beyond], GRID, d_edge, np.array([nose]), _seen(through, beyond), off
-    )
+    _, edge3, breaks3, _ = _move(through, beyond, d_edge, nose, off)
     assert breaks3.tolist() == [nose]
     np.testing.assert_array_equal(edge3, d_edge)

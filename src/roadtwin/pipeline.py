@@ -69,7 +69,7 @@ class BuildResult:
         }
 
 
-def _with_osm_way_ids(topology: Topology) -> tuple[Road, ...]:
+def with_osm_way_ids(topology: Topology) -> tuple[Road, ...]:
     """The topology's roads, each ramp road carrying the OSM way ids it was built from."""
     ways = {
         rid: tuple(int(w) for w in ramp.osm_way_ids)
@@ -156,7 +156,7 @@ def _build_map(
     warnings.extend(f"skipped {what}: {why}" for what, why in topology.skipped)
     timings["topology"] = time.perf_counter() - t0
 
-    roads = _with_osm_way_ids(topology)
+    roads = with_osm_way_ids(topology)
     header = Header(
         name=run.root.name if run.root is not None else "roadtwin",
         rev_major=1,

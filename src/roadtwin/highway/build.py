@@ -48,7 +48,7 @@ from ..osm_roads import (
     opposite_carriageway,
 )
 from ..osm_roads.chains import shared_length_m
-from ..pipeline import BuildResult, build_map
+from ..pipeline import BuildResult, build_map, with_osm_way_ids
 from ..ramps import RampSet, build_ramps
 from ..topology import Topology, build_topology
 from .merge import NetworkPart, merge_parts
@@ -190,11 +190,7 @@ def _osm_part(
             for r in topology.ramps
         ),
     )
-    ways = {
-        rid: tuple(int(w) for w in ramp.osm_way_ids)
-        for rid, ramp in zip(topology.ramp_road_ids, topology.ramps, strict=True)
-    }
-    roads = [replace(r, osm_way_ids=ways[r.id]) if r.id in ways else r for r in topology.roads]
+    roads = list(with_osm_way_ids(topology))
     cw = Carriageway(number, "osm", (), ramp_set, topology, osm_road=osm_road, partner=partner)
     return _Part(cw, roads, topology.junctions)
 

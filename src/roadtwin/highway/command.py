@@ -116,7 +116,7 @@ def build_info(result: HighwayResult) -> dict[str, Any]:
 
 
 def _inputs(args: argparse.Namespace, cfg):
-    """(runs, area): the mapping runs, or the OSM-only area."""
+    """(runs, area): the mapping runs (in the first run's frame), or the OSM-only area."""
     from ..io import load_run
     from .area import area_from_bbox, is_osm_only_run, load_osm_area, parse_bbox
 
@@ -137,16 +137,19 @@ def _inputs(args: argparse.Namespace, cfg):
         return [], area
     if args.bbox is not None:
         raise InputError("build --bbox is for the OSM-only mode (no run with a trajectory)")
-    return [load_run(d, config=cfg.load) for d in args.run_dirs], None
+    from .runs import run_in_frame
+
+    runs = [load_run(d, config=cfg.load) for d in args.run_dirs]
+    # every run in the first run's frame, once (build_highway finds them there)
+    return [run_in_frame(r, runs[0].frame) for r in runs], None
 
 
 def _osm_graph(args: argparse.Namespace, runs, cfg):
-    """The OSM graph around every run, in the first run's frame."""
+    """The OSM graph around every run (all in the first run's frame)."""
     from ..osm import load_osm, load_osm_online
-    from .runs import run_in_frame
 
     frame = runs[0].frame
-    around = np.vstack([run_in_frame(r, frame).trajectory.xy for r in runs])
+    around = np.vstack([r.trajectory.xy for r in runs])
     if args.osm_online:
         return load_osm_online(frame=frame, around_xy=around, config=cfg.load)
     path = args.osm or next((r.osm_path for r in runs if r.osm_path is not None), None)

@@ -24,7 +24,6 @@ from ..model import (
     CubicProfile,
     LaneSection,
     Road,
-    continue_width,
 )
 from ._common import (
     _grid,
@@ -155,25 +154,10 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
         if n == 0 or abs(s0s[n] - s_step) > _STEP_SECTION_M:
             continue
         prev_sec, sec = road.lane_sections[n - 1], road.lane_sections[n]
-        lanes = sec.right or sec.left
-        linked = [ln for ln in lanes if ln.predecessor is not None]
+        # linked lanes already continue with the width they had (sections._link_sections)
+        linked = [ln for ln in (sec.right or sec.left) if ln.predecessor is not None]
         if not linked:
             continue
-        # linked lanes start with the width they ended with (the step's sections are
-        # fitted separately: millimetres to centimetres apart)
-        prev_by_id = {ln.id: ln for ln in (prev_sec.right or prev_sec.left)}
-        ds_end = sec.s0 - prev_sec.s0
-        lanes = tuple(
-            continue_width(ln, float(prev_by_id[ln.predecessor].width.value(ds_end)))
-            if ln.predecessor in prev_by_id
-            else ln
-            for ln in lanes
-        )
-        sec = replace(sec, right=lanes) if sec.right else replace(sec, left=lanes)
-        sections = list(road.lane_sections)
-        sections[n] = sec
-        road = replace(road, lane_sections=tuple(sections))
-        linked = [ln for ln in lanes if ln.predecessor is not None]
         lane = min(linked, key=lambda ln: abs(ln.id))
         probe = replace(road, lane_offset=CubicProfile(tuple(pieces)))
         s_before = np.array([s0s[n] - 1e-6])

@@ -403,15 +403,13 @@ def link_beyond(ramp: Road, beyond: Road, *, exit_: bool, traffic_side: str) -> 
 
 
 def _role(lanes: list[Lane], kind: str) -> list[int]:
-    """Indices of the lanes of one role: shoulders before the first driving lane,
-    driving lanes, shoulders after the last."""
+    """Indices of the lanes of one role (``kind``): the driving lanes
+    (``"driving"``) or the shoulders after the last one (``"shoulder-outer"``)."""
     idx = [i for i, ln in enumerate(lanes) if ln.type == "driving"]
     if not idx:
         return []
     if kind == "driving":
         return idx
-    if kind == "shoulder-inner":
-        return [i for i in range(idx[0]) if lanes[i].type == "shoulder"]
     return [i for i in range(idx[-1] + 1, len(lanes)) if lanes[i].type == "shoulder"]
 
 

@@ -22,7 +22,7 @@ frame (metres, radians CCW from +x).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import networkx as nx
 import numpy as np
@@ -278,13 +278,13 @@ def opposite_carriageway(
     if (keep.stop - keep.start) * _STEP_M < cfg.min_overlap_m:
         return None
     s_k, t_bk, c_bk = s_grid[keep], t_b[keep], c_b[keep]
-    h_b = np.array([xs.half_width_m(n) for n in other.lanes_at(c_bk)])
+    h_b = xs.half_width_m(np.asarray(other.lanes_at(c_bk), dtype=float))
     notes = []
     if own is not None:
         t_a, c_a = _lateral_along(measured, own, s_k, max_m=_OWN_CHAIN_M * 2, opposite=False)
         has_a = np.isfinite(t_a)
         h_a = np.full(s_k.shape, np.nan)
-        h_a[has_a] = [xs.half_width_m(n) for n in own.lanes_at(c_a[has_a])]
+        h_a[has_a] = xs.half_width_m(np.asarray(own.lanes_at(c_a[has_a]), dtype=float))
         # OSM's own median (both ways as OSM draws them) where both are there; else the
         # OSM way of the other direction against the measured median-side edge
         median = np.where(has_a, side * (t_bk - t_a) - h_a - h_b, side * t_bk - h_b)
@@ -399,7 +399,7 @@ def carriageway_from_osm(
     n_smooth = np.convolve(np.pad(n, win // 2, mode="edge"), np.ones(win) / win, mode="valid")
     frame = PolylineFrame.from_points(pts)
     side = 1.0 if traffic_side == "right" else -1.0
-    target = frame.offset_points(side * np.array([xs.half_width_m(v) for v in n_smooth]))
+    target = frame.offset_points(side * xs.half_width_m(np.asarray(n_smooth, dtype=float)))
     ref = _fit_windows(
         resample_polyline(target, 1.0),
         lanes=int(np.median(n)),
@@ -424,7 +424,6 @@ def carriageway_from_osm(
         chain=chain,
         config=cfg,
     )
-    road = replace(road, id="osm")
     note = (
         f"carriageway from OSM way(s) {', '.join(str(w) for w in chain.way_ids[:4])}: "
         f"{road.length:.0f} m, lanes {'/'.join(str(c[1]) for c in counts)}"

@@ -22,8 +22,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
 
-from ..fitting import resample_polyline
+from ..fitting import arc_length, resample_polyline
 from ..ramps import infer_lane_count
+from ..ramps.candidates import chain_xy, edge_xy
 
 FloatArray = NDArray[np.float64]
 EdgeKey = tuple[Any, Any, int]
@@ -33,15 +34,6 @@ CARRIAGEWAY_HIGHWAYS = frozenset({"motorway", "trunk"})
 
 _MAX_TURN_RAD = math.radians(60.0)
 _END_HEADING_M = 30.0  # the heading of an edge end is taken over this length
-
-
-def edge_xy(graph: nx.MultiDiGraph, u: Any, v: Any, key: int) -> FloatArray:
-    """``(N, 2)`` polyline of an edge from ``u`` to ``v`` (mapping frame, metres)."""
-    geom = graph.edges[u, v, key].get("geometry")
-    if geom is not None:
-        return np.asarray(geom.coords, dtype=float)[:, :2]
-    a, b = graph.nodes[u], graph.nodes[v]
-    return np.array([[a["x"], a["y"]], [b["x"], b["y"]]], dtype=float)
 
 
 def end_heading(xy: FloatArray, *, at_end: bool) -> float:
@@ -264,13 +256,9 @@ def carriageway_chains(
         chains.append(chain)
     out = []
     for chain in chains:
-        parts = [xy[e] if i == 0 else xy[e][1:] for i, e in enumerate(chain)]
-        pts = np.vstack(parts)
-        seg = np.hypot(*np.diff(pts, axis=0).T)
-        keep = np.concatenate([[True], seg > 1e-6])
+        pts = chain_xy(graph, chain)
         lengths = [float(np.hypot(*np.diff(xy[e], axis=0).T).sum()) for e in chain]
-        pts = pts[keep]
-        s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+        s = arc_length(pts)
         if s[-1] < min_length_m or pts.shape[0] < 2:
             continue
         edge_s = np.concatenate([[0.0], np.cumsum(lengths)])

@@ -18,9 +18,12 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..model import CubicPiece, CubicProfile, Lane, LaneSection, Road, RoadMark
 from ..ramps import width_transition
+
+FloatArray = NDArray[np.float64]
 
 __all__ = ["CrossSection", "lane_sections", "measured_cross_section"]
 
@@ -36,9 +39,9 @@ class CrossSection:
     inner_shoulder_m: float = 0.75
     hard_shoulder_m: float = 2.5
 
-    def half_width_m(self, lanes: float) -> float:
+    def half_width_m(self, lanes: float | FloatArray) -> float | FloatArray:
         """Distance (metres) from the median-side edge to the middle of ``lanes`` driving
-        lanes: where OSM draws the way."""
+        lanes (a number or an array of them): where OSM draws the way."""
         return self.inner_shoulder_m + 0.5 * lanes * self.lane_width_m
 
 

@@ -62,7 +62,8 @@ def _wrap(angle: FloatArray | float) -> FloatArray | float:
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def _edge_xy(graph: nx.MultiDiGraph, u: Any, v: Any, key: int) -> FloatArray:
+def edge_xy(graph: nx.MultiDiGraph, u: Any, v: Any, key: int) -> FloatArray:
+    """``(N, 2)`` polyline of an OSM edge from ``u`` to ``v`` (mapping frame, metres)."""
     data = graph.edges[u, v, key]
     geom = data.get("geometry")
     if geom is not None:
@@ -135,7 +136,7 @@ def find_candidates(
     for u, v, k, data in osm_graph.edges(keys=True, data=True):
         if not _is_link(data):
             continue
-        xy = _edge_xy(osm_graph, u, v, k)
+        xy = edge_xy(osm_graph, u, v, k)
         coarse, idx = tree.query(resample_polyline(xy, step))
         if float(coarse.min()) > cfg.candidate_distance_m + step:
             continue
@@ -182,7 +183,7 @@ def _mainline_nodes(
             data = osm_graph.edges[u, v, k]
             if _is_link(data):
                 continue
-            xy = _edge_xy(osm_graph, u, v, k)
+            xy = edge_xy(osm_graph, u, v, k)
             h = _end_heading(xy, at_start=outgoing)
             if abs(float(_wrap(h - h_track))) <= max_dh:
                 out[n] = (u, v, k)
@@ -207,7 +208,7 @@ def _follow(
         return _is_link(data) or (same is not None and _highway(data) == same)
 
     chain = [first]
-    length = float(arc_length(_edge_xy(osm_graph, *first))[-1])
+    length = float(arc_length(edge_xy(osm_graph, *first))[-1])
     seen = {first[0], first[1]}
     while length < max_length_m:
         node = chain[-1][1] if forward else chain[-1][0]
@@ -229,12 +230,14 @@ def _follow(
             break
         seen.add(far)
         chain.append(nxt)
-        length += float(arc_length(_edge_xy(osm_graph, *nxt))[-1])
+        length += float(arc_length(edge_xy(osm_graph, *nxt))[-1])
     return chain if forward else chain[::-1]
 
 
-def _chain_xy(osm_graph: nx.MultiDiGraph, edges: list[EdgeKey]) -> FloatArray:
-    parts = [_edge_xy(osm_graph, *e) for e in edges]
+def chain_xy(osm_graph: nx.MultiDiGraph, edges: list[EdgeKey]) -> FloatArray:
+    """One polyline along consecutive edges (mapping frame, metres; repeated points
+    dropped)."""
+    parts = [edge_xy(osm_graph, *e) for e in edges]
     xy = np.vstack([parts[0], *[p[1:] for p in parts[1:]]])
     keep = np.concatenate([[True], np.hypot(*np.diff(xy, axis=0).T) > 1e-6])
     return xy[keep]
@@ -253,7 +256,7 @@ def _highway(data: dict[str, Any]) -> str:
 def _reach_xy(osm_graph: nx.MultiDiGraph, edge: EdgeKey, *, forward: bool) -> FloatArray:
     """The polyline of ``edge`` continued along single successors (forward) or
     predecessors up to ``_BRANCH_PROBE_M``, starting at the fork node."""
-    parts = [_edge_xy(osm_graph, *edge)]
+    parts = [edge_xy(osm_graph, *edge)]
     if not forward:
         parts = [parts[0][::-1]]
     length = float(arc_length(parts[0])[-1])
@@ -270,7 +273,7 @@ def _reach_xy(osm_graph: nx.MultiDiGraph, edge: EdgeKey, *, forward: bool) -> Fl
         if far in seen:
             break
         seen.add(far)
-        xy = _edge_xy(osm_graph, *e)
+        xy = edge_xy(osm_graph, *e)
         parts.append(xy if forward else xy[::-1])
         length += float(arc_length(xy)[-1])
         node = far
@@ -309,7 +312,7 @@ def branch_candidates(
             _, t = track.project(probe[None, :])
             if abs(float(t[0])) < _BRANCH_AWAY_M:
                 continue  # the carriageway itself (or a parallel one close by)
-            d = float(shapely.distance(shapely.LineString(_edge_xy(osm_graph, *e)),
+            d = float(shapely.distance(shapely.LineString(edge_xy(osm_graph, *e)),
                                        shapely.Point(xy_n[0])))  # fmt: skip
             out.append(
                 RampCandidate(e[0], e[1], e[2], _highway(data), _first_value(data.get("osmid")), d)
@@ -379,7 +382,7 @@ def extract_ramp_chains(
             any_class=e in branch_edges,
         )
         covered.update(edges)
-        xy = _chain_xy(osm_graph, edges)
+        xy = chain_xy(osm_graph, edges)
         ways = tuple(dict.fromkeys(_first_value(osm_graph.edges[x].get("osmid")) for x in edges))
         what = f"ways {', '.join(str(w) for w in ways)} ({ramp_type})"
         # direction check at the attachment

@@ -6,6 +6,7 @@ All coordinates are in the mapping frame (metres, radians CCW from +x).
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import replace
@@ -195,7 +196,8 @@ def _build_ramp_road(
     anchor = (float(target[0]), float(target[1]), hdg)
     k_start = -k_border if backwards else k_border
     sigma_osm = np.full(len(ref), cfg.osm_sigma_m)
-    osm_fit = fit_ramp_shape(
+    fit_shape = functools.partial(
+        fit_ramp_shape,
         ref,
         sigma_osm,
         anchor=anchor,
@@ -205,22 +207,13 @@ def _build_ramp_road(
         widths=(w_in, width, w_hs),
         config=cfg,
     )
+    osm_fit = fit_shape()
     fit = None
     measured = _measured_near_ramp(
         osm_fit.xy, mainline_road, edge_xy, lane_xy, lanes * width + 8.0, traffic_side, cfg
     )
     if measured is not None:
-        shape = fit_ramp_shape(
-            ref,
-            sigma_osm,
-            anchor=anchor,
-            curvature0=k_start,
-            lane_side=lane_side,
-            lanes=lanes,
-            widths=(w_in, width, w_hs),
-            points=measured,
-            config=cfg,
-        )
+        shape = fit_shape(points=measured)
         shift = float(np.max(np.hypot(*(shape.xy - osm_fit.xy).T)))
         if shape.points < cfg.evidence_min_points or shape.span_m < cfg.evidence_min_span_m:
             shape = None

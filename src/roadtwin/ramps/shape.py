@@ -196,6 +196,9 @@ def _project_on_grid(
     return idx * step + along, lateral, idx
 
 
+# the solves are small dense problems: BLAS threads only contend (a loaded 2-core machine
+# took 20x longer with them)
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def fit_ramp_shape(
     target_xy: FloatArray,
     sigma_m: FloatArray,
@@ -242,34 +245,6 @@ def fit_ramp_shape(
     -------
     RampShape
     """
-    # the solves are small dense problems: BLAS threads only contend (a loaded 2-core
-    # machine took 20x longer with them)
-    with threadpool_limits(limits=1, user_api="blas"):
-        return _fit_ramp_shape(
-            target_xy,
-            sigma_m,
-            anchor=anchor,
-            curvature0=curvature0,
-            lane_side=lane_side,
-            lanes=lanes,
-            widths=widths,
-            points=points,
-            config=config,
-        )
-
-
-def _fit_ramp_shape(
-    target_xy: FloatArray,
-    sigma_m: FloatArray,
-    *,
-    anchor: tuple[float, float, float],
-    curvature0: float,
-    lane_side: float,
-    lanes: int,
-    widths: tuple[float, float, float],
-    points: tuple[FloatArray, NDArrayBool] | None,
-    config: RampConfig | None,
-) -> RampShape:
     cfg = config or RampConfig()
     target = np.asarray(target_xy, dtype=float)[:, :2]
     sigma = np.asarray(sigma_m, dtype=float)

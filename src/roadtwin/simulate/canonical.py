@@ -182,7 +182,7 @@ def _left_normals(xy: FloatArray, *, half_window_m: float = 0.25) -> FloatArray:
     chord between the points about ``half_window_m`` behind and ahead: points only
     micrometres apart (samples at nearly coinciding breakpoints) get the same normal, so
     shifting along the normals keeps their order."""
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    arc = arc_length(xy)
     n = xy.shape[0]
     ahead = np.clip(np.searchsorted(arc, arc + half_window_m), 1, n - 1)
     behind = np.clip(np.searchsorted(arc, arc - half_window_m, side="right") - 1, 0, n - 2)

@@ -28,6 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .._errors import InputError
+from ..fitting import arc_length
 from .markings import MarkingStyle
 from .network_run import NetworkRunSettings, simulate_network_run
 from .osm_truth import OsmTruth, OsmTruthSettings, truth_from_osm
@@ -161,7 +162,7 @@ def opposite_chain(
     _, ll_a, _ = chain_polyline(roads, chain)
     lat0 = float(ll_a[0, 1])
     xy_a = _local_xy(ll_a, lat0)
-    s_a = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy_a, axis=0).T))])
+    s_a = arc_length(xy_a)
     end = s_a[-1] if length_m is None else min(s_a[-1], start_m + length_m)
     grid = np.arange(start_m, end, 5.0)
     win = np.column_stack([np.interp(grid, s_a, xy_a[:, 0]), np.interp(grid, s_a, xy_a[:, 1])])
@@ -192,7 +193,7 @@ def opposite_chain(
     xy_b = _local_xy(ll_b, lat0)
     # stations as window_chain measures them (its own first latitude)
     own = _local_xy(ll_b, float(ll_b[0, 1]))
-    s_b = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(own, axis=0).T))])
+    s_b = arc_length(own)
     dense_s = np.arange(0.0, s_b[-1], 2.0)
     dense = np.column_stack(
         [np.interp(dense_s, s_b, xy_b[:, 0]), np.interp(dense_s, s_b, xy_b[:, 1])]

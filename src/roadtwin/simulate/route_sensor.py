@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from ..evaluation.mainline_truth import lane_borders
+from ..fitting import arc_length
 from ..model import Road, RoadNetwork
 from .markings import PAINTED, MarkingStyle, dash_pattern
 from .route import TRAFFIC_LANE_TYPES
@@ -202,7 +203,7 @@ def drive(
     # ending at full width at a gore)
     t = _limit_lateral_rate(t, PATH_STEP_M, max_slope=0.1)
     path = road.to_xy(u, t)
-    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(path, axis=0).T))])
+    arc = arc_length(path)
     step = car.speed_kmh / 3.6 / car.rate_hz
     s_pose = np.arange(0.0, arc[-1], step)
     u_pose = np.interp(s_pose, arc, u)

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from ...fitting import arc_length
 from ...frames import Origin
 from ...model import Connection, Header, Junction, Road, RoadLink, RoadNetwork
 from .chain import read_osm_roads, select_chain, window_chain
@@ -205,7 +206,7 @@ def truth_from_osm(
     centre_xy = ch.xy.mean(axis=0) if offset_centre_xy is None else np.asarray(offset_centre_xy)
     fld = offset_field(_rng(seed, 1), cfg.offset, centre=centre_xy)
     centre = smooth_line(ch.xy + fld(ch.xy), window_m=cfg.mainline_smooth_window_m)
-    s_c = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(centre, axis=0).T))])
+    s_c = arc_length(centre)
     # tagged lanes along the smoothed line (by the OSM stations, scaled)
     frac = s_c / s_c[-1]
     seg_mid = 0.5 * (ch.s[1:] + ch.s[:-1]) / ch.s[-1]

@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._errors import InputError
+from ...fitting import arc_length
 from ...frames import MappingFrame, Origin
 from ...osm import _read_highway_ways
 from .settings import ChainSelection
@@ -333,7 +334,7 @@ def window_chain(
     nodes, ll, seg = chain_polyline(roads, chain)
     lat0 = float(ll[0, 1])
     xy0 = _local_xy(ll, lat0)
-    s_all = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy0, axis=0).T))])
+    s_all = arc_length(xy0)
     total = float(s_all[-1])
     a = min(selection.start_m, max(total - selection.min_length_m, 0.0))
     length = selection.length_m if selection.length_m is not None else total - a
@@ -362,6 +363,6 @@ def window_chain(
     frame = MappingFrame(origin, "local")
     x, y = frame.from_lonlat(w_ll[:, 0], w_ll[:, 1])
     xy = np.column_stack([x, y])
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    s = arc_length(xy)
     used = tuple(dict.fromkeys(int(w) for w in seg[seg_idx]))
     return Chain(used, w_nodes, xy, s, seg[seg_idx], frame, a)

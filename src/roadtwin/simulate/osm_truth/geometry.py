@@ -111,13 +111,6 @@ def fit_line(
     return chain_geometry(pieces)
 
 
-def ref_line_xy(road: Road, step_m: float = 1.0) -> tuple[FloatArray, FloatArray]:
-    """Stations and points of a road's reference line every ~``step_m``."""
-    n = max(2, math.ceil(road.length / step_m) + 1)
-    s = np.linspace(0.0, road.length, n)
-    return s, road.xy(s)
-
-
 def ramp_polyline(
     main: Road,
     gore_s: float,

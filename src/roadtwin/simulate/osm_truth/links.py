@@ -17,6 +17,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from ...fitting import arc_length
 from .chain import CARRIAGEWAY, LINKS, Chain, OsmRoads, _end_heading, _turn
 from .settings import CrossSection, RampShape
 
@@ -78,7 +79,7 @@ def _side(chain: Chain, k: int, xy: NDArray, *, exit_: bool, traffic: str) -> st
     tangent = chain.xy[j1] - chain.xy[j0]
     tangent = tangent / np.linalg.norm(tangent)
     pts = xy if exit_ else xy[::-1]
-    d = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    d = arc_length(pts)
     sel = (d >= 15.0) & (d <= 120.0)
     if not sel.any():
         sel = d > 0
@@ -92,7 +93,7 @@ def _side(chain: Chain, k: int, xy: NDArray, *, exit_: bool, traffic: str) -> st
 def _cap(xy: NDArray, length_m: float, *, from_start: bool) -> NDArray:
     """The first (or last) ``length_m`` of a polyline."""
     pts = xy if from_start else xy[::-1]
-    d = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
+    d = arc_length(pts)
     if d[-1] > length_m:
         k = int(np.searchsorted(d, length_m))
         f = (length_m - d[k - 1]) / max(d[k] - d[k - 1], 1e-9)

@@ -19,9 +19,10 @@ import numpy as np
 
 from ...fitting import fit_cubic_profile
 from ...mainline import cut_road
-from ...model import CubicPiece, CubicProfile, Lane, LaneLink, LaneSection, Road, RoadMark
+from ...model import CubicPiece, CubicProfile, Lane, LaneSection, Road, RoadMark
 from ...topology import true_lengths
 from ..alignment import cut_profile
+from ..route import side_lanes
 from ..scenario import Markings
 from .layout import Layout, Strip
 
@@ -143,7 +144,7 @@ def build_road(
     # inner lane links by key
     for k in range(len(sections) - 1):
         sa, sb = sections[k], sections[k + 1]
-        la, lb = _side(sa, sign), _side(sb, sign)
+        la, lb = side_lanes(sa, sign), side_lanes(sb, sign)
         end_a = sb.s0 - sa.s0
         ids_b = {keys[k + 1][x.id]: x for x in lb}
         new_a, new_b = list(la), list(lb)
@@ -169,10 +170,6 @@ def build_road(
         lane_offset=CubicProfile(tuple(offset_pieces)) if any_offset else CubicProfile(),
     )
     return BuiltRoad(road, keys)
-
-
-def _side(sec: LaneSection, sign: int) -> tuple[Lane, ...]:
-    return sec.left if sign > 0 else sec.right
 
 
 def _with_side(sec: LaneSection, lanes: list[Lane], sign: int) -> LaneSection:
@@ -201,7 +198,7 @@ def set_end_links(
     sign = -1 if secs[0].right else 1
 
     def apply(sec: LaneSection, links: dict[int, int], attr: str) -> LaneSection:
-        lanes = [replace(x, **{attr: links.get(x.id)}) for x in _side(sec, sign)]
+        lanes = [replace(x, **{attr: links.get(x.id)}) for x in side_lanes(sec, sign)]
         return _with_side(sec, lanes, sign)
 
     if predecessors is not None:
@@ -209,8 +206,3 @@ def set_end_links(
     if successors is not None:
         secs[-1] = apply(secs[-1], successors, "successor")
     return BuiltRoad(replace(road.road, lane_sections=tuple(secs)), road.keys)
-
-
-def junction_links(up: BuiltRoad, conn: BuiltRoad) -> tuple[LaneLink, ...]:
-    """Junction lane links from the end of the incoming road into a connecting road."""
-    return tuple(LaneLink(a, b) for a, b in lane_pairs(up, conn))
