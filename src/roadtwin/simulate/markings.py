@@ -20,8 +20,12 @@ missing paint is simulated as random stretches without paint.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
+from typing import TYPE_CHECKING
 
 from .._errors import InputError
+
+if TYPE_CHECKING:
+    from .scenario import Markings
 
 
 @dataclass(frozen=True)
@@ -53,6 +57,21 @@ class MarkingStyle:
         lo, hi = self.worn_length_m
         if not 0.0 < lo <= hi:
             raise InputError(f"marking style {self.name}: worn_length_m must be 0 < min <= max")
+
+
+def style_from_markings(
+    markings: Markings, *, name: str, base: MarkingStyle | None = None
+) -> MarkingStyle:
+    """``base`` (default :class:`MarkingStyle`) painted with the dash patterns of a
+    scenario's or a country's :class:`~roadtwin.simulate.scenario.Markings` (metres)."""
+    return replace(
+        base or MarkingStyle(),
+        name=name,
+        dash_m=markings.dash_m,
+        gap_m=markings.gap_m,
+        aux_dash_m=markings.aux_dash_m,
+        aux_gap_m=markings.aux_gap_m,
+    )
 
 
 STYLES: dict[str, MarkingStyle] = {

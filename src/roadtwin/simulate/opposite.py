@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 from .._errors import InputError
 from ..fitting import arc_length
-from .markings import MarkingStyle
+from .markings import MarkingStyle, style_from_markings
 from .network_run import NetworkRunSettings, simulate_network_run
 from .osm_truth import OsmTruth, OsmTruthSettings, truth_from_osm
 from .osm_truth.chain import (
@@ -39,6 +39,7 @@ from .osm_truth.chain import (
     chain_polyline,
     grow_chain,
     read_osm_roads,
+    resolve_selection,
     select_chain,
 )
 from .osm_truth.settings import ChainSelection
@@ -99,14 +100,7 @@ def simulate_opposite_run(
         car=sc.car,
         noise=sc.noise,
         sensor=sc.sensor,
-        style=MarkingStyle(
-            name="scenario",
-            dash_m=m.dash_m,
-            gap_m=m.gap_m,
-            aux_dash_m=m.aux_dash_m,
-            aux_gap_m=m.aux_gap_m,
-            worn_fraction=0.0,
-        ),
+        style=style_from_markings(m, name="scenario", base=MarkingStyle(worn_fraction=0.0)),
         origin=sc.origin,
         road_edges_format=sc.road_edges_format,
         pass_index=pass_index,
@@ -215,17 +209,16 @@ def opposite_truth(
     *,
     chain: int | str | None = None,
     settings: OsmTruthSettings | None = None,
+    roads: OsmRoads | None = None,
 ) -> OsmTruth:
     """The truth of the carriageway running the other way beside ``forward``'s chain:
     the window beside the forward window, built with the forward truth's seed, origin and
-    OSM offset field (:func:`~.osm_truth.truth_from_osm`)."""
+    OSM offset field (:func:`~.osm_truth.truth_from_osm`); ``roads``: the extract already
+    read (:func:`~.osm_truth.chain.read_osm_roads`)."""
     cfg = settings or OsmTruthSettings()
-    sel = cfg.chain
-    if isinstance(chain, int):
-        sel = dataclasses.replace(sel, way_id=chain, ref=None)
-    elif isinstance(chain, str):
-        sel = dataclasses.replace(sel, ref=chain, way_id=None)
-    roads = read_osm_roads(osm_path)
+    sel = resolve_selection(cfg.chain, chain)
+    if roads is None:
+        roads = read_osm_roads(osm_path)
     ids = select_chain(roads, sel)
     _, ll, _ = chain_polyline(roads, ids)
     own = _local_xy(ll, float(ll[0, 1]))
@@ -242,4 +235,5 @@ def opposite_truth(
         settings=dataclasses.replace(cfg, chain=other),
         seed=forward.seed,
         offset_centre_xy=forward.offset_centre_xy,
+        roads=roads,
     )

@@ -16,9 +16,10 @@ from pathlib import Path
 from typing import Literal
 
 from .._errors import InputError
-from .markings import MarkingStyle
+from .markings import style_from_markings
 from .network_run import NetworkRunSettings, simulate_network_run
 from .osm_truth import OsmTruthSettings, truth_from_osm
+from .osm_truth.chain import read_osm_roads
 
 
 def simulate_osm_run(
@@ -62,24 +63,17 @@ def simulate_osm_run(
     Path
         ``out_dir``.
     """
-    truth = truth_from_osm(osm_path, chain=chain, settings=truth_settings, seed=seed)
+    if direction not in ("forward", "opposite"):
+        msg = f"direction {direction!r}: expected 'forward' or 'opposite'"
+        raise InputError(msg)
+    roads = read_osm_roads(osm_path)  # once for both directions' truths
+    truth = truth_from_osm(osm_path, chain=chain, settings=truth_settings, seed=seed, roads=roads)
     if direction == "opposite":
         from .opposite import opposite_truth
 
-        truth = opposite_truth(osm_path, truth, chain=chain, settings=truth_settings)
-    elif direction != "forward":
-        msg = f"direction {direction!r}: expected 'forward' or 'opposite'"
-        raise InputError(msg)
-    paint = truth.style.markings
+        truth = opposite_truth(osm_path, truth, chain=chain, settings=truth_settings, roads=roads)
     base = settings or NetworkRunSettings()
-    style = replace(
-        base.style if isinstance(base.style, MarkingStyle) else MarkingStyle(),
-        name=truth.style.country,
-        dash_m=paint.dash_m,
-        gap_m=paint.gap_m,
-        aux_dash_m=paint.aux_dash_m,
-        aux_gap_m=paint.aux_gap_m,
-    )
+    style = style_from_markings(truth.style.markings, name=truth.style.country, base=base.style)
     cfg = replace(
         base,
         traffic_side=truth.style.traffic,

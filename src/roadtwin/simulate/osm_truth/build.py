@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ...fitting import arc_length
 from ...frames import Origin
 from ...model import Connection, Header, Junction, Road, RoadLink, RoadNetwork
-from .chain import read_osm_roads, select_chain, window_chain
+from .chain import OsmRoads, read_osm_roads, resolve_selection, select_chain, window_chain
 from .elevation import mainline_profile, ramp_profile
 from .geometry import (
     curvature,
@@ -154,6 +154,7 @@ def truth_from_osm(
     settings: OsmTruthSettings | None = None,
     seed: int = 0,
     offset_centre_xy: tuple[float, float] | None = None,
+    roads: OsmRoads | None = None,
 ) -> OsmTruth:
     """Lane-level ground truth of one real motorway/trunk carriageway of an OSM extract.
 
@@ -175,16 +176,14 @@ def truth_from_osm(
         Centre of the offset field's waves (mapping frame, metres); default the chain's
         mean point. Give the other carriageway's ``OsmTruth.offset_centre_xy`` (with the
         same seed and origin) to move both carriageways off OSM by the same field.
+    roads
+        The extract already read (:func:`~.chain.read_osm_roads` of ``osm_path``), so
+        that several truths of one extract read it once.
     """
-    from dataclasses import replace
-
     cfg = settings or OsmTruthSettings()
-    sel = cfg.chain
-    if isinstance(chain, int):
-        sel = replace(sel, way_id=chain, ref=None)
-    elif isinstance(chain, str):
-        sel = replace(sel, ref=chain, way_id=None)
-    roads = read_osm_roads(osm_path)
+    sel = resolve_selection(cfg.chain, chain)
+    if roads is None:
+        roads = read_osm_roads(osm_path)
     ids = select_chain(roads, sel)
     ch = window_chain(roads, ids, sel, origin)
     frame = ch.frame

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +94,16 @@ def _oneway(tags: dict[str, str]) -> int:
     if v == "-1":
         return -1
     return 0
+
+
+def resolve_selection(sel: ChainSelection, chain: int | str | None) -> ChainSelection:
+    """``sel`` with the ``chain`` shortcut applied: an OSM way id (int) or a ``ref``
+    (str); None keeps ``sel``."""
+    if isinstance(chain, int):
+        return replace(sel, way_id=chain, ref=None)
+    if isinstance(chain, str):
+        return replace(sel, ref=chain, way_id=None)
+    return sel
 
 
 def read_osm_roads(path: str | Path) -> OsmRoads:
