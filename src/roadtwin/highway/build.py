@@ -353,7 +353,6 @@ def _build_highway(
     timings["group runs"] = time.perf_counter() - t0
 
     parts: list[_Part] = []
-    builds: list[BuildResult] = []
     for k, members in enumerate(groups.carriageways):
         t0 = time.perf_counter()
         fused = fuse_runs([runs[i] for i in members], config=hw)
@@ -363,7 +362,6 @@ def _build_highway(
         for key, value in result.timings_s.items():
             timings[f"{key} {k + 1}"] = value
         warnings.extend(result.warnings)
-        builds.append(result)
         partner = groups.partner(k)
         per_run: tuple[tuple[str, dict[str, float]], ...] = ()
         if len(members) > 1:
@@ -390,7 +388,8 @@ def _build_highway(
         for k, part in enumerate(list(parts)):
             if groups.partner(k) is not None:
                 continue
-            build = builds[k]
+            build = part.carriageway.build
+            assert build is not None  # a measured carriageway
             xs = measured_cross_section(
                 build.mainline.road,
                 traffic_side=side,
@@ -437,7 +436,10 @@ def _build_highway(
         timings["roads beyond ramps"] = time.perf_counter() - t0
 
     user_data = [("roadtwin:generator", f"roadtwin {__version__}")]
-    for build, part in zip(builds, parts, strict=False):
+    for part in parts:
+        build = part.carriageway.build
+        if build is None:  # built from OSM
+            continue
         for code, value in build.network.header.user_data:
             if code.startswith("roadtwin:self_consistency") or code in (
                 "roadtwin:method",

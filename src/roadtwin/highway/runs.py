@@ -28,7 +28,7 @@ the fused path.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -423,7 +423,11 @@ class FusedRun:
     path_pieces: tuple[tuple[str, int, int], ...] = ()
     disagreements: tuple[Disagreement, ...] = ()
     dropped_points: int = 0
-    warnings: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """One line per disagreement."""
+        return tuple(d.message() for d in self.disagreements)
 
 
 def _points_outside(
@@ -499,7 +503,6 @@ def fuse_runs(runs: list[MappingRun], *, config: HighwayConfig | None = None) ->
         dropped_lane_samples=sum(r.dropped_lane_samples for r in runs),
         input_files=tuple(dict.fromkeys(f for r in runs for f in r.input_files)),
     )
-    warnings = [d.message() for d in disagreements]
     log.info(
         "fused %d runs (%s): %d edge points, %d lane samples, %d disagreements",
         len(runs),
@@ -514,7 +517,6 @@ def fuse_runs(runs: list[MappingRun], *, config: HighwayConfig | None = None) ->
         tuple((names[k], a, b) for k, a, b in pieces),
         tuple(disagreements),
         dropped,
-        tuple(warnings),
     )
 
 
