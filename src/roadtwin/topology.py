@@ -407,6 +407,44 @@ def _driving_pairs(
 # ---------------------------------------------------------------------------
 
 
+def _offset_steps(road: Road, *, min_step_m: float = 1e-3) -> list[float]:
+    """Stations (metres) where ``road``'s lane offset jumps: the median-side edge steps
+    where lanes begin or end at full width beside the centre lane."""
+    out = []
+    for piece in road.lane_offset.pieces[1:]:
+        before, at = road.lane_offset.value(np.array([piece.s0 - 1e-9, piece.s0]))
+        if abs(at - before) > min_step_m:
+            out.append(float(piece.s0))
+    return out
+
+
+def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
+    """Consecutive parts of one road linked end to start (road and lane links by geometry).
+
+    A lane offset that steps inside a road is exact but is read as a gap by checkers that
+    evaluate a lane section's end with the offset record starting there (the ASAM rule
+    ``contact_point_no_horizontal_gaps``); a road that ends there and a road that starts
+    with the new offset say the same without that ambiguity."""
+    parts = list(parts)
+    for n in range(1, len(parts)):
+        up, down = parts[n - 1], parts[n]
+        links = _continuous(
+            match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side),
+            up,
+            up.length,
+            down,
+            0.0,
+        )
+        parts[n - 1] = _set_lane_links(
+            replace(up, successor=RoadLink("road", down.id, "start")), successors=links
+        )
+        parts[n] = _set_lane_links(
+            replace(down, predecessor=RoadLink("road", up.id, "end")),
+            predecessors={b: a for a, b in links.items()},
+        )
+    return parts
+
+
 @dataclass
 class _Zone:
     ramp: Ramp
@@ -692,11 +730,37 @@ def build_topology(
     ramp_ids: list[str] = []
     per_zone = 1 if direct else 3  # ramp road (+ two connecting roads)
     junction_ids = [str(n_main + per_zone * len(zones) + 1 + k) for k in range(len(zones))]
+    # the mainline between junctions is split where its lane offset steps (after
+    # the junctions' ids): the first part keeps the piece's id
+    steps = _offset_steps(mainline_road)
+    split_ids = itertools.count(n_main + (per_zone + 1) * len(zones) + 1)
+    tails: list[list[Road]] = []
+    for i in range(n_main):
+        inside = [x for x in steps if cuts[2 * i] + 1.0 < x < cuts[2 * i + 1] - 1.0]
+        if not inside:
+            tails.append([])
+            continue
+        ends = [cuts[2 * i], *inside, cuts[2 * i + 1]]
+        parts = [
+            replace(
+                cut_road(
+                    mainline_road,
+                    lo,
+                    hi,
+                    road_id=main_roads[i].id if j == 0 else str(next(split_ids)),
+                ),
+                name="mainline",
+            )
+            for j, (lo, hi) in enumerate(itertools.pairwise(ends))
+        ]
+        main_roads[i] = parts[0]
+        tails.append(parts[1:])
 
     for k, zone in enumerate(zones):
         ramp = zone.ramp
         jid = junction_ids[k]
-        up, down = main_roads[k], main_roads[k + 1]
+        up = tails[k][-1] if tails[k] else main_roads[k]
+        down = main_roads[k + 1]
         up_sec, down_sec = up.lane_sections[-1], down.lane_sections[0]
         ramp_id = new_id()
         ramp_ids.append(ramp_id)
@@ -818,10 +882,18 @@ def build_topology(
             road = replace(road, name=ramp.type)
             connectors.extend([through_road, conn_road])
             junctions.append(Junction(jid, tuple(conns), name=f"{ramp.type} {k + 1}"))
-        main_roads[k], main_roads[k + 1] = up, down
+        if tails[k]:
+            tails[k][-1] = up
+        else:
+            main_roads[k] = up
+        main_roads[k + 1] = down
         ramp_roads.append(road)
 
-    main_roads = [unlink_width_jumps(r) for r in main_roads]
+    main_roads = [
+        unlink_width_jumps(r)
+        for i, road in enumerate(main_roads)
+        for r in _chain_roads([road, *tails[i]], traffic_side)
+    ]
     roads, junctions_out = prune_zero_width_links(
         [true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors)], junctions
     )

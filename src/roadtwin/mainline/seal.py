@@ -1,0 +1,218 @@
+"""Lane borders that meet at every lane-section border of a road.
+
+Sections are fitted one by one and linked by geometry (:mod:`.sections`); where lanes
+that are *not* linked begin or end beside linked ones, their widths on the two sides of
+the border need not add up to the same. Every linked lane outside them then moves
+sideways at the border (a 17 mm sliver of a closing lane, a shoulder and a lane replaced
+by one lane 37 mm narrower, a lane re-fitted 0.35 m narrower after a gap in its marking),
+which consumers see as gaps (``roadtwin check`` rule ``lane_shift``, the ASAM rule
+``contact_point_no_horizontal_gaps``) and a car driving across sees as a jump.
+
+:func:`seal_lane_borders` closes these gaps on the final road: between two linked lanes
+(and between the centre lane and the first linked lane), the unlinked lanes of the section
+after the border start with widths scaled so that they fill what the unlinked lanes before
+it leave; where nothing begins there, the lanes that end close to what the next section
+needs (zero when they leave). The correction fades over the first (last) width piece, so
+the lanes keep their fitted widths away from the border.
+
+Offsets are metres; stations are metres along the road's reference line; widths are
+evaluated at the border from the sections' own starts.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+
+from ..model import CubicPiece, CubicProfile, Lane, Road
+
+log = logging.getLogger(__name__)
+
+_SEAL_TOLERANCE_M = 1e-6  # a mismatch below this is left alone (metres)
+_FADE_M = 20.0  # a correction fades out over this distance from the border (metres)
+_FADES_M = (_FADE_M, 10.0, 5.0, 2.0, 1.0, 0.5)  # shorter where a long one goes negative
+
+
+def _width_at(lane: Lane, ds: float) -> float:
+    return float(lane.width.value(np.array([ds]))[0])
+
+
+def _reexpanded(piece: CubicPiece, x0: float) -> CubicPiece:
+    """The same cubic written from ``x0`` on (section-local metres)."""
+    h = x0 - piece.s0
+    a, b, c, d = piece.a, piece.b, piece.c, piece.d
+    return CubicPiece(
+        x0, a + b * h + c * h**2 + d * h**3, b + 2 * c * h + 3 * d * h**2, c + 3 * d * h, d
+    )
+
+
+def _add_ramp(
+    profile: CubicProfile, x_from: float, x_to: float, v_from: float, v_to: float, length_m: float
+) -> CubicProfile:
+    """``profile`` plus a linear correction from ``v_from`` at ``x_from`` to ``v_to`` at
+    ``x_to`` (metres; zero outside), pieces split at both ends inside the section
+    (``length_m`` long)."""
+    pieces = list(profile.pieces) or [CubicPiece(0.0, 0.0)]
+    cuts = sorted({x for x in (x_from, x_to) if x < length_m} - {p.s0 for p in pieces})
+    for x in cuts:
+        k = max(i for i, p in enumerate(pieces) if p.s0 <= x) if x >= pieces[0].s0 else 0
+        if x > pieces[k].s0:
+            pieces.insert(k + 1, _reexpanded(pieces[k], x))
+    slope = (v_to - v_from) / (x_to - x_from)
+    out = []
+    for p in pieces:
+        if x_from - 1e-12 <= p.s0 < x_to - 1e-12:
+            p = replace(p, a=p.a + v_from + slope * (p.s0 - x_from), b=p.b + slope)
+        out.append(p)
+    return CubicProfile(tuple(out))
+
+
+def _with_start_width(lane: Lane, w_new: float, length_m: float, fade_m: float = _FADE_M) -> Lane:
+    delta = w_new - _width_at(lane, 0.0)
+    fade = min(fade_m, length_m)
+    if abs(delta) < 1e-12 or fade <= 0.0:
+        return lane
+    return replace(lane, width=_add_ramp(lane.width, 0.0, fade, delta, 0.0, length_m))
+
+
+def _with_end_width(lane: Lane, w_new: float, length_m: float, fade_m: float = _FADE_M) -> Lane:
+    delta = w_new - _width_at(lane, length_m)
+    fade = min(fade_m, length_m)
+    if abs(delta) < 1e-12 or fade <= 0.0:
+        return lane
+    return replace(
+        lane, width=_add_ramp(lane.width, length_m - fade, length_m, 0.0, delta, length_m)
+    )
+
+
+def _min_width(lane: Lane, length_m: float) -> float:
+    ds = np.linspace(0.0, max(length_m, 0.0), 801)
+    return float(np.min(lane.width.value(ds)))
+
+
+def _scaled(
+    lanes: list[Lane], widths: list[float], target: float, *, at_start: bool, length_m: float
+) -> list[Lane] | None:
+    """``lanes`` with their widths at one end scaled to sum to ``target`` (metres); None
+    if that would make one negative anywhere in the section."""
+    total = sum(widths)
+    if total <= 0.0 or target < 0.0:
+        return None
+    out = []
+    for lane, w in zip(lanes, widths, strict=True):
+        w_new = w * target / total
+        # a lane that has (nearly) closed before the border would dip below zero under
+        # a long correction: the shortest fade that keeps it non-negative
+        for fade in _FADES_M:
+            fixed = (
+                _with_start_width(lane, w_new, length_m, fade)
+                if at_start
+                else _with_end_width(lane, w_new, length_m, fade)
+            )
+            if _min_width(fixed, length_m) >= -1e-9:
+                break
+        else:
+            return None
+        out.append(fixed)
+    return out
+
+
+def _seal_side(
+    prev: tuple[Lane, ...],
+    cur: tuple[Lane, ...],
+    prev_len: float,
+    cur_len: float,
+    offset_jump: float,
+) -> tuple[tuple[Lane, ...], tuple[Lane, ...], float]:
+    """One side of one border: ``(prev lanes, cur lanes, largest shift sealed)``.
+
+    ``offset_jump`` is the centre lane's offset after minus before the border, outwards
+    positive (metres)."""
+    prev_l, cur_l = list(prev), list(cur)
+    index_prev = {ln.id: j for j, ln in enumerate(prev_l)}
+    pairs = sorted(
+        (i, index_prev[ln.predecessor])
+        for i, ln in enumerate(cur_l)
+        if ln.predecessor is not None and ln.predecessor in index_prev
+    )
+    worst = 0.0
+    i_last, j_last = -1, -1
+    for i, j in pairs:
+        if j <= j_last:  # links that cross each other: nothing consistent to seal
+            continue
+        # linked lanes continue with the width they had
+        cur_l[i] = _with_start_width(cur_l[i], _width_at(prev_l[j], prev_len), cur_len)
+        run_cur = list(range(i_last + 1, i))
+        run_prev = list(range(j_last + 1, j))
+        w_cur = [_width_at(cur_l[k], 0.0) for k in run_cur]
+        w_prev = [_width_at(prev_l[k], prev_len) for k in run_prev]
+        inner_cur = (offset_jump if i_last < 0 else 0.0) + sum(w_cur)
+        inner_prev = sum(w_prev)
+        mismatch = inner_cur - inner_prev
+        if abs(mismatch) > _SEAL_TOLERANCE_M:
+            fixed = _scaled(
+                [cur_l[k] for k in run_cur],
+                w_cur,
+                sum(w_cur) - mismatch,
+                at_start=True,
+                length_m=cur_len,
+            )
+            if fixed is not None:
+                for k, ln in zip(run_cur, fixed, strict=True):
+                    cur_l[k] = ln
+                worst = max(worst, abs(mismatch))
+            else:
+                fixed = _scaled(
+                    [prev_l[k] for k in run_prev],
+                    w_prev,
+                    sum(w_prev) + mismatch,
+                    at_start=False,
+                    length_m=prev_len,
+                )
+                if fixed is not None:
+                    for k, ln in zip(run_prev, fixed, strict=True):
+                        prev_l[k] = ln
+                    worst = max(worst, abs(mismatch))
+        i_last, j_last = i, j
+    return tuple(prev_l), tuple(cur_l), worst
+
+
+def seal_lane_borders(road: Road) -> Road:
+    """``road`` with the lanes linked across each lane-section border joined there.
+
+    Parameters
+    ----------
+    road
+        A road whose lanes are linked between its sections (predecessor / successor ids).
+
+    Returns
+    -------
+    Road
+        The same road; only width pieces next to section borders change (see module
+        docstring). Borders inside a road are then continuous to floating-point precision
+        for every pair of linked lanes whose links do not cross.
+    """
+    sections = list(road.lane_sections)
+    if len(sections) < 2:
+        return road
+    for n in range(1, len(sections)):
+        prev, cur = sections[n - 1], sections[n]
+        s_b = cur.s0
+        prev_len = s_b - prev.s0
+        nxt = sections[n + 1].s0 if n + 1 < len(sections) else road.length
+        cur_len = nxt - s_b
+        off = road.lane_offset.value(np.array([s_b - 1e-9, s_b]))
+        jump = float(off[1] - off[0])  # left positive
+        p_r, c_r, worst_r = _seal_side(prev.right, cur.right, prev_len, cur_len, -jump)
+        p_l, c_l, worst_l = _seal_side(prev.left, cur.left, prev_len, cur_len, jump)
+        worst = max(worst_r, worst_l)
+        if worst > 1e-3:
+            log.debug("road %s: lanes joined at s=%.2f m (shift %.3f m)", road.id, s_b, worst)
+        sections[n - 1] = replace(prev, right=p_r, left=p_l)
+        sections[n] = replace(cur, right=c_r, left=c_l)
+    return replace(road, lane_sections=tuple(sections))
+
+
+__all__ = ["seal_lane_borders"]

@@ -1,0 +1,130 @@
+"""Lane borders joined at lane-section borders (mainline.seal)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roadtwin.check import check_network
+from roadtwin.mainline.seal import seal_lane_borders
+from roadtwin.model import (
+    CubicPiece,
+    CubicProfile,
+    Header,
+    Lane,
+    LaneSection,
+    Line,
+    Road,
+    RoadNetwork,
+)
+
+
+def _lane(lid, w, pred=None, succ=None, kind="driving", slope=0.0):
+    return Lane(
+        lid, kind, CubicProfile((CubicPiece(0.0, w, slope),)), predecessor=pred, successor=succ
+    )
+
+
+def _road(first: LaneSection, second: LaneSection, offset: float = 0.0) -> Road:
+    return Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, 200.0),),
+        (first, second),
+        lane_offset=CubicProfile((CubicPiece(0.0, offset),)),
+    )
+
+
+def _shift_mm(road: Road) -> float:
+    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_shift"]
+    return max((f.value for f in found), default=0.0)
+
+
+def _jump_mm(road: Road, lane_before: int, lane_after: int, s: float) -> float:
+    before = road.lane_border_t(np.array([s - 1e-9]), lane_before)[0]
+    after = road.lane_border_t(np.array([s]), lane_after)[0]
+    return 1000.0 * abs(after - before)
+
+
+def test_a_closing_lane_left_17_mm_wide_closes_to_zero():
+    # lane -2 tapers out but its fit ends 17 mm wide; lane -3 continues as lane -2
+    first = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 1.0, succ=-1, kind="shoulder"),
+            _lane(-2, 3.5, slope=-(3.5 - 0.0172) / 100.0),
+            _lane(-3, 3.5, succ=-2),
+        ),
+    )
+    second = LaneSection(
+        100.0, right=(_lane(-1, 1.0, pred=-1, kind="shoulder"), _lane(-2, 3.5, pred=-3))
+    )
+    road = _road(first, second)
+    assert _shift_mm(road) == pytest.approx(17.2, abs=0.1)
+    sealed = seal_lane_borders(road)
+    assert _shift_mm(sealed) == 0.0
+    assert _jump_mm(sealed, -3, -2, 100.0) < 1e-6
+    closing = sealed.lane_sections[0].right[1]
+    assert float(closing.width.value(np.array([100.0]))[0]) == pytest.approx(0.0, abs=1e-9)
+    # 20 m before the border the lane is as fitted
+    for ds in (10.0, 50.0, 79.9):
+        assert float(closing.width.value(np.array([ds]))[0]) == pytest.approx(
+            3.5 - (3.5 - 0.0172) * ds / 100.0, abs=1e-9
+        )
+
+
+def test_a_shoulder_and_lane_replaced_by_one_lane_keep_the_outer_lanes_in_place():
+    # Town06-like: shoulder 0.386 m + lane 3.027 m end, one lane 3.376 m begins; the
+    # hard shoulder beyond continues: it moved 37 mm sideways
+    first = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 3.5, succ=-1),
+            _lane(-2, 0.386, kind="shoulder"),
+            _lane(-3, 3.027),
+            _lane(-4, 0.66, succ=-3, kind="shoulder"),
+        ),
+    )
+    second = LaneSection(
+        100.0,
+        right=(
+            _lane(-1, 3.5, pred=-1),
+            _lane(-2, 3.376),
+            _lane(-3, 0.66, pred=-4, kind="shoulder"),
+        ),
+    )
+    road = _road(first, second)
+    assert _shift_mm(road) == pytest.approx(37.0, abs=0.1)
+    sealed = seal_lane_borders(road)
+    assert _shift_mm(sealed) == 0.0
+    assert _jump_mm(sealed, -4, -3, 100.0) < 1e-6
+    new_lane = sealed.lane_sections[1].right[1]
+    assert float(new_lane.width.value(np.array([0.0]))[0]) == pytest.approx(3.413, abs=1e-9)
+    # the correction fades out within 20 m of the border
+    for ds in (20.0, 50.0, 99.0):
+        assert float(new_lane.width.value(np.array([ds]))[0]) == pytest.approx(3.376, abs=1e-9)
+
+
+def test_a_step_of_the_lane_offset_is_taken_up_by_the_lanes_that_begin():
+    # the centre lane's offset steps 0.2 m to the left (a median-side edge step); an
+    # inner shoulder begins there and lane -1 continues as lane -2
+    first = LaneSection(0.0, right=(_lane(-1, 3.5, succ=-2),))
+    second = LaneSection(100.0, right=(_lane(-1, 0.5, kind="shoulder"), _lane(-2, 3.5, pred=-1)))
+    road = Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, 200.0),),
+        (first, second),
+        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(100.0, 0.2))),
+    )
+    assert _jump_mm(road, -1, -2, 100.0) == pytest.approx(300.0, abs=1e-6)
+    sealed = seal_lane_borders(road)
+    assert _jump_mm(sealed, -1, -2, 100.0) < 1e-6
+    assert float(sealed.lane_sections[1].right[0].width.value(np.array([0.0]))[0]) == (
+        pytest.approx(0.2, abs=1e-9)
+    )
+
+
+def test_nothing_changes_where_the_borders_already_meet():
+    first = LaneSection(0.0, right=(_lane(-1, 1.0, succ=-1), _lane(-2, 3.5, succ=-2)))
+    second = LaneSection(100.0, right=(_lane(-1, 1.0, pred=-1), _lane(-2, 3.5, pred=-2)))
+    road = _road(first, second)
+    assert seal_lane_borders(road) == road
