@@ -517,3 +517,30 @@ def test_lanes_linked_across_a_lane_offset_step_stay_joined():
     )
     assert abs(gap) > 0.015
     assert joined.lane_offset.pieces[0].a == 0.0
+
+
+def test_inferred_median_side_lanes_end_where_the_innermost_marking_does():
+    """Oakland-like: the two innermost markings end and the median-side edge steps 3 m
+    later (the carriageway splits on the median side); the line inferred from the
+    innermost one must not jump a lane inwards with the next marking for its last metres
+    (it bent every lane by 1.5-1.9 m there)."""
+    from roadtwin.mainline.markings import _add_hidden_lanes, _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 400.5, cfg.grid_step_m)
+
+    def track(tid: int, d: float, hi: float) -> _Track:
+        s = grid[grid <= hi]
+        return _Track(tid, 0.0, hi, s, np.full(s.size, d), "broken", s.size, s)
+
+    observed = [track(0, 4.8, 370.0), track(1, 8.5, 371.0), track(2, 12.0, 400.0)]
+    observed += [track(3, 15.6, 400.0)]
+    # the median-side edge steps to the through lanes where the split is complete
+    d_median = np.where(grid < 373.9, 0.0, 11.66)
+    out = _add_hidden_lanes(observed, grid, np.full(grid.size, 18.5), d_median, cfg)
+    inferred = [tr for tr in out if tr.n == 0 and float(np.median(tr.d)) < 4.8]
+    assert inferred, "the inner shoulder's edge line between median edge and 4.8 m"
+    for tr in inferred:
+        assert float(np.max(np.abs(np.diff(tr.d)))) < 0.1
+        assert tr.hi <= 371.0
+        assert float(np.max(tr.d)) < 4.8 - 2.5

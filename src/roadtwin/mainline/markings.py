@@ -357,12 +357,25 @@ def typical_lane_width(tracks: list[_Track], grid: FloatArray, default_m: float 
     return float(np.median(w)) if w.size else default_m
 
 
-def _runs_of(values: NDArray[np.int64]) -> list[tuple[int, int, int]]:
-    """``(start, stop, value)`` of the runs of equal values."""
-    cut = np.flatnonzero(np.diff(values)) + 1
+def _runs_of(
+    values: NDArray[np.int64], splits: NDArray[np.bool_] | None = None
+) -> list[tuple[int, int, int]]:
+    """``(start, stop, value)`` of the runs of equal values; a run also ends before each
+    index ``i`` with ``splits[i - 1]`` true (``splits`` has ``values.size - 1`` entries)."""
+    change = np.diff(values) != 0
+    if splits is not None:
+        change |= splits
+    cut = np.flatnonzero(change) + 1
     starts = np.concatenate([[0], cut])
     stops = np.concatenate([cut, [values.size]])
     return [(int(a), int(b), int(values[a])) for a, b in zip(starts, stops, strict=True)]
+
+
+def _extreme_jumps(d_extreme: FloatArray, lane_m: float) -> NDArray[np.bool_]:
+    """Where the extreme marking (metres, on the grid) moves by half a lane or more from
+    one station to the next: another marking has become the extreme one."""
+    step = np.abs(np.diff(d_extreme))
+    return np.isfinite(step) & (step >= 0.5 * lane_m)
 
 
 def _hidden_lane_count(
@@ -434,7 +447,9 @@ def _add_hidden_lanes(
         n_out = _hidden_lane_count(
             outer_gap - shoulder, lane_m, cfg.hidden_lane_min_m - lane_m, cfg.grid_step_m
         )
-        for a, b, n in _runs_of(n_out):
+        # a run ends where the outermost marking is another one (a track ending): lanes
+        # inferred from it would jump by a lane there
+        for a, b, n in _runs_of(n_out, _extreme_jumps(d_last, lane_m)):
             if n == 0 or b - a < min_run:
                 continue
             inner, outer = d_last[a:b], d_edge[a:b] - shoulder
@@ -450,7 +465,7 @@ def _add_hidden_lanes(
     # the inner shoulder
     inner_gap = d_first - d_median
     n_in = _hidden_lane_count(inner_gap, lane_m, cfg.hidden_lane_min_m - 1.4, cfg.grid_step_m)
-    for a, b, n in _runs_of(n_in):
+    for a, b, n in _runs_of(n_in, _extreme_jumps(d_first, lane_m)):
         if n == 0 or b - a < min_run:
             continue
         first, median = d_first[a:b], d_median[a:b]
