@@ -544,3 +544,112 @@ def test_inferred_median_side_lanes_end_where_the_innermost_marking_does():
         assert float(np.max(np.abs(np.diff(tr.d)))) < 0.1
         assert tr.hi <= 371.0
         assert float(np.max(tr.d)) < 4.8 - 2.5
+
+
+def test_an_inferred_line_continues_the_observed_one_it_takes_over_from():
+    """The inner edge line is seen for 300 m, then the car moves out and only the markings
+    near it are seen: the line inferred on from there is the same line, not a new one (a
+    new track started a lane there that opened over 100 m, copying a neighbour's taper)."""
+    from roadtwin.mainline.markings import _add_hidden_lanes, _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+
+    def track(tid: int, d: float, hi: float) -> _Track:
+        s = grid[grid <= hi]
+        return _Track(tid, 0.0, hi, s, np.full(s.size, d), "broken", s.size, s)
+
+    observed = [track(0, 1.2, 300.0), track(1, 4.8, 600.0), track(2, 8.4, 600.0)]
+    out = _add_hidden_lanes(observed, grid, np.full(grid.size, 14.5), np.zeros(grid.size), cfg)
+    assert len(out) == 3
+    inner = out[0]
+    assert inner.n > 0
+    assert inner.hi == pytest.approx(600.0, abs=1.0)
+    assert float(np.max(np.abs(inner.d - 1.2))) < 0.05
+
+
+def _const_track(tid, grid, d, lo, hi, n=100):
+    from roadtwin.mainline.markings import _Track
+
+    s = grid[(grid >= lo) & (grid <= hi)]
+    dd = d(s) if callable(d) else np.full(s.size, d)
+    return _Track(tid, lo, hi, s, dd, "broken", n, s)
+
+
+def test_a_line_ending_where_a_lane_drop_taper_begins_runs_on_to_where_the_lane_closes():
+    """Town06: the broken line between the lane that goes on and the one that drops ends
+    where the taper begins; the edge line beyond converges onto it over 30 m. Without the
+    line the two lanes were one lane 7 m wide; continued, the outer lane closes to zero."""
+    from roadtwin.mainline.markings import _continue_to_convergence
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+
+    def converging(s):
+        return np.interp(s, [0.0, 300.0, 330.0, 600.0], [11.8, 11.8, 8.3, 8.3])
+
+    tracks = [
+        _const_track(0, grid, 4.8, 0.0, 600.0),
+        _const_track(1, grid, 8.3, 0.0, 300.0),
+        _const_track(2, grid, converging, 0.0, 600.0),
+    ]
+    out = _continue_to_convergence(tracks, grid, cfg)
+    ended = out[1]
+    assert ended.hi == pytest.approx(330.0, abs=2.0)
+    assert float(np.max(np.abs(ended.d - 8.3))) < 1e-9
+    # the lane between the continued line and the edge line closes to zero at its end
+    assert abs(float(np.interp(ended.hi, out[2].s, out[2].d)) - 8.3) < 0.3
+    # the others are unchanged
+    assert out[0] is tracks[0]
+    assert out[2] is tracks[2]
+
+
+def test_a_line_ending_at_an_exit_is_not_continued():
+    """At an exit the line beyond the ended one leaves (diverges): no taper to continue."""
+    from roadtwin.mainline.markings import _continue_to_convergence
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+
+    def diverging(s):
+        return np.interp(s, [0.0, 300.0, 400.0, 600.0], [11.8, 11.8, 20.0, 30.0])
+
+    tracks = [
+        _const_track(0, grid, 4.8, 0.0, 600.0),
+        _const_track(1, grid, 8.3, 0.0, 300.0),
+        _const_track(2, grid, diverging, 0.0, 600.0),
+    ]
+    out = _continue_to_convergence(tracks, grid, cfg)
+    assert out[1].hi == 300.0
+
+
+def test_a_driving_lane_refitted_0_4_m_wider_after_a_section_border_goes_on():
+    """Town06 inner entry: the outer driving lane is 3.42 m wide before the border and
+    3.83 m after it (its outer line seen again). Its outer borders differ by 0.41 m, more
+    than the border tolerance, yet it is the same lane: linked, it continues with the
+    width it had; unlinked, a car in it had nowhere to go."""
+    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+
+    def lane(lid, w, kind="driving"):
+        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+
+    first = LaneSection(
+        0.0, right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.5), lane(-3, 3.42), lane(-4, 0.5))
+    )
+    second = LaneSection(
+        100.0, right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.5), lane(-3, 3.83), lane(-4, 0.5))
+    )
+    linked = _link_sections([first, second], [[], []], at_step=[False, False])
+    after = linked[1].right
+    assert after[2].predecessor == -3
+    assert linked[0].right[2].successor == -3
+    assert float(after[2].width.value(np.array([0.0]))[0]) == pytest.approx(3.42, abs=1e-9)
+    # a shoulder is no driving lane: a hard shoulder starting beside a gore stays unlinked
+    third = LaneSection(
+        100.0, right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.5), lane(-3, 3.83, "shoulder"))
+    )
+    assert (
+        _link_sections([first, third], [[], []], at_step=[False, False])[1].right[2].predecessor
+        is None
+    )

@@ -252,7 +252,113 @@ def _tracks_from_samples(
         ss, dd = ss[within], dd[within]  # sorted by station already
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
-    return _merge_collinear(final, cfg, grid, d_edge), evidence
+    return _continue_to_convergence(_merge_collinear(final, cfg, grid, d_edge), grid, cfg), evidence
+
+
+_MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
+
+
+def _meeting_station(
+    tr: _Track, nb: _Track, grid: FloatArray, cfg: MainlineConfig, *, forward: bool
+) -> float | None:
+    """Where ``nb`` reaches the offset ``tr`` ends (starts) with, converging onto it after
+    ``tr`` ends (diverging from it before ``tr`` starts) within ``lane_taper_max_m``;
+    None if it does not."""
+    s_end = tr.hi if forward else tr.lo
+    d_end = float(tr.d[-1] if forward else tr.d[0])
+    if forward:
+        probe = grid[(grid > s_end) & (grid <= min(s_end + cfg.lane_taper_max_m, nb.hi))]
+    else:
+        probe = grid[(grid < s_end) & (grid >= max(s_end - cfg.lane_taper_max_m, nb.lo))][::-1]
+    if probe.size < 2:
+        return None
+    gap = np.abs(np.interp(probe, nb.s, nb.d) - d_end)
+    met = np.flatnonzero(gap <= _MEET_M)
+    if met.size == 0:
+        return None
+    i = int(met[0])
+    # converging all the way: the gap shrinks from the end to the meeting point
+    if i > 0 and float(np.max(np.diff(gap[: i + 1]))) > 0.05:
+        return None
+    return float(probe[i])
+
+
+def _continue_to_convergence(
+    tracks: list[_Track], grid: FloatArray, cfg: MainlineConfig
+) -> list[_Track]:
+    """Lane lines that end where a lane's taper begins, continued to where it closes.
+
+    Where a lane ends by a taper (an acceleration lane, a lane drop), the broken line
+    between it and the lane that goes on often ends where the taper begins, and the line
+    beyond it converges onto that position over the taper; a lane that begins mirrors it.
+    Without the ended line the taper's two lanes are built as one lane up to twice as wide
+    (7 m on Town06). A line that ends (begins) is continued at the offset it ended with to
+    where its neighbour meets that offset, if that neighbour converges onto it (diverges
+    from it) all the way within ``lane_taper_max_m`` and no other line lies there: the
+    lane between them then closes (opens) to zero width there, a taper.
+
+    Stations and offsets are metres (offsets from the reference edge towards the
+    carriageway); the continued part has no samples of its own.
+    """
+    if len(tracks) < 2:
+        return tracks
+    lane_m = typical_lane_width(tracks, grid)
+    out = list(tracks)
+    for k, tr in enumerate(tracks):
+        if tr.n == 0:
+            continue
+        for forward in (True, False):
+            s_end = tr.hi if forward else tr.lo
+            if (forward and s_end >= grid[-1] - 1.0) or (not forward and s_end <= grid[0] + 1.0):
+                continue
+            d_end = float(tr.d[-1] if forward else tr.d[0])
+            # the adjacent lines either side that run on past the end
+            beside = []
+            for j, nb in enumerate(tracks):
+                if j == k or nb.lo > s_end - 1.0 or nb.hi < s_end + 1.0:
+                    continue
+                gap = abs(float(np.interp(s_end, nb.s, nb.d)) - d_end)
+                if 0.6 * lane_m <= gap <= 1.5 * lane_m:
+                    beside.append((gap, j))
+            for _, j in sorted(beside):
+                s_meet = _meeting_station(tr, tracks[j], grid, cfg, forward=forward)
+                if s_meet is None:
+                    continue
+                lo, hi = (s_end, s_meet) if forward else (s_meet, s_end)
+                occupied = any(
+                    other.lo < hi
+                    and other.hi > lo
+                    and np.any(np.abs(other.d[(other.s > lo) & (other.s < hi)] - d_end) < 0.5)
+                    for i2, other in enumerate(tracks)
+                    if i2 not in (k, j)
+                )
+                if occupied:
+                    continue
+                cur = out[k]
+                if forward:
+                    g = grid[(grid > cur.hi) & (grid <= s_meet)]
+                    out[k] = replace(
+                        cur,
+                        hi=float(g[-1]),
+                        s=np.concatenate([cur.s, g]),
+                        d=np.concatenate([cur.d, np.full(g.size, d_end)]),
+                    )
+                else:
+                    g = grid[(grid < cur.lo) & (grid >= s_meet)]
+                    out[k] = replace(
+                        cur,
+                        lo=float(g[0]),
+                        s=np.concatenate([g, cur.s]),
+                        d=np.concatenate([np.full(g.size, d_end), cur.d]),
+                    )
+                log.debug(
+                    "mainline: line at %.1f m continued %s to s=%.0f m (a taper)",
+                    d_end,
+                    "on" if forward else "back",
+                    s_meet,
+                )
+                break
+    return out
 
 
 def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
@@ -397,6 +503,10 @@ def _hidden_lane_count(
 _HIDDEN_SMOOTH_M = 40.0  # window of the moving median of the extreme markings (metres)
 
 
+_HANDOVER_M = 5.0  # an inferred line starting this close after an observed one ends ...
+_HANDOVER_D_M = 0.5  # ... this close to its offset continues it (metres)
+
+
 def _add_hidden_lanes(
     tracks: list[_Track],
     grid: FloatArray,
@@ -438,6 +548,28 @@ def _add_hidden_lanes(
 
     def add(a: int, b: int, d: FloatArray, mark: str) -> None:
         g = grid[a:b]
+        # where an observed marking stops being seen (the car changed lanes, an
+        # occlusion) and the same line is inferred on from there, or two stretches of
+        # inference meet, it is one line: a new track would start a lane there
+        for k, tr in enumerate(out):
+            if 0.0 < g[0] - tr.hi <= _HANDOVER_M and abs(tr.d[-1] - d[0]) < _HANDOVER_D_M:
+                keep = g > tr.hi
+                out[k] = replace(
+                    tr,
+                    hi=float(g[-1]),
+                    s=np.concatenate([tr.s, g[keep]]),
+                    d=np.concatenate([tr.d, d[keep]]),
+                )
+                return
+            if 0.0 < tr.lo - g[-1] <= _HANDOVER_M and abs(tr.d[0] - d[-1]) < _HANDOVER_D_M:
+                keep = g < tr.lo
+                out[k] = replace(
+                    tr,
+                    lo=float(g[0]),
+                    s=np.concatenate([g[keep], tr.s]),
+                    d=np.concatenate([d[keep], tr.d]),
+                )
+                return
         out.append(_Track(len(out), float(g[0]), float(g[-1]), g, d, mark, 0, g[:0]))
 
     # outer side: the run's typical hard shoulder stays, whole lanes fill the rest

@@ -42,6 +42,7 @@ _GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that
 _RESIDUAL_WIDTH_M = 1.0  # a lane beginning/ending narrower than this is a taper's rest
 
 _LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across sections
+_WIDTH_JUMP_M = 0.6  # a driving lane this much narrower/wider beyond a border is the same
 
 
 def _taper(
@@ -469,6 +470,24 @@ def _link_sections(
             if i not in mapping and j not in used:
                 mapping[i] = j
                 used.add(j)
+        # a driving lane whose inner border meets one that ends there and whose width
+        # differs by less than _WIDTH_JUMP_M is that lane fitted anew (the outer border
+        # is a marking seen again after a gap, a gore's section border): it goes on, with
+        # the width it had; left unlinked, a car in it had nowhere to go
+        for i in range(len(cur_lanes)):
+            if i in mapping or cur_lanes[i].type != "driving" or w_cur[i] < 0.3:
+                continue
+            for j in range(len(prev_lanes)):
+                if (
+                    j not in used
+                    and prev_lanes[j].type == "driving"
+                    and w_prev[j] >= 0.3
+                    and abs(b_cur[i] - b_prev[j]) <= _LINK_TOLERANCE_M
+                    and abs(w_cur[i] - w_prev[j]) <= _WIDTH_JUMP_M
+                ):
+                    mapping[i] = j
+                    used.add(j)
+                    break
         for i, j in mapping.items():
             hard_shoulder = (prev_lanes[j].type == "shoulder" and j == len(prev_lanes) - 1) or (
                 cur_lanes[i].type == "shoulder" and i == len(cur_lanes) - 1
