@@ -92,6 +92,16 @@ RUNS: tuple[RealRun, ...] = (
     RealRun("soderleden-s1", "xodr", "soderleden.xodr", 1),
     # our own real-geometry scenario
     RealRun("real_a9", "scenario", "real_a9", 9),
+    # added 2026-11-24 as a fresh holdout (new seeds, and e6mini, a source the benchmark
+    # did not have): measured, not debugged
+    RealRun("e6mini-s1", "xodr", "e6mini.xodr", 1, holdout=True),
+    RealRun("a9-10959882-s3", "osm", "north-bayreuth-a9.osm.gz", 3, 10959882, holdout=True),
+    RealRun("oakland-11197879-s3", "osm", "west-oakland-i880.osm.bz2", 3, 11197879, holdout=True),
+    RealRun("kotka-37952515-s4", "osm", "kotka-e18.osm.pbf", 4, 37952515, holdout=True),
+    RealRun("krems-46762523-s2", "osm", "krems-s5-trunk.osm.gz", 2, 46762523, holdout=True),
+    RealRun("melbourne-408-s3", "osm", "melbourne-lht.osm.pbf", 3, 408, holdout=True),
+    RealRun("soderleden-s2", "xodr", "soderleden.xodr", 2, holdout=True),
+    RealRun("town06-auto-s3", "xodr", "Town06.xodr", 3, holdout=True),
 )
 
 

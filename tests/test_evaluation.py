@@ -517,3 +517,19 @@ def test_preselected_projection_equals_brute_force(truth):
         assert set(np.unique(fast.status).tolist()) == {0, 1, 2}
         assert fast.status[-2:].tolist() == [2, 2]
         assert project_points(roads, bad).status.tolist() == [2, 2]
+
+
+def test_markings_painted_on_a_road_edge_are_on_a_boundary(truth):
+    """A two-way road's centre line lies on the reference line (e6mini): its samples are
+    on the map's border there, not 'off every lane boundary' (self-consistency 2.26 m)."""
+    run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=3)
+    on_edge = run.edges[: run.edges.shape[0] // 2]
+    run = replace(
+        run,
+        lane_samples=np.vstack([run.lane_samples, on_edge]),
+        lane_sample_frame=np.concatenate(
+            [run.lane_sample_frame, np.zeros(on_edge.shape[0], dtype=np.int64)]
+        ),
+    )
+    sc = self_consistency(truth, run, config=EvaluationConfig(self_consistency_scope="mainline"))
+    assert sc["lane_boundary_rmse_m"] < 0.01

@@ -562,3 +562,56 @@ def test_prune_zero_width_links_everywhere():
     assert (s1.right[0].successor, rb.lane_sections[0].right[0].predecessor) == (-1, -1)
     # junction: only the lane with width is linked
     assert junctions[0].connections[0].lane_links == (LaneLink(-1, -1),)
+
+
+def test_mainline_is_split_into_linked_roads_where_its_lane_offset_steps():
+    """A left exit without a junction (OSM has no ramp there): the lane offset steps by a
+    lane width at s=500. The ASAM checker evaluates a section's end with the offset record
+    starting there and saw a 3.75 m gap; two roads linked end to start say the same with
+    every linked lane border meeting exactly."""
+    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
+    before = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid", succ=-1),
+            _lane(-2, W),
+            _lane(-3, W, succ=-2),
+            _lane(-4, W, succ=-3),
+            _lane(-5, 2.5, "shoulder", "none", succ=-4),
+        ),
+    )
+    after = LaneSection(
+        500.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid", pred=-1),
+            _lane(-2, W, pred=-3),
+            _lane(-3, W, pred=-4),
+            _lane(-4, 2.5, "shoulder", "none", pred=-5),
+        ),
+    )
+    offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
+    road = Road("1", line, (before, after), name="mainline", lane_offset=offset)
+    topo = build_topology(road, [])
+    mains = [r for r in topo.roads if r.name == "mainline"]
+    assert len(mains) == 2
+    first, second = mains
+    assert first.length == pytest.approx(500.0)
+    assert second.length == pytest.approx(500.0)
+    assert first.successor.element_type == "road"
+    assert first.successor.element_id == second.id
+    assert second.predecessor.element_id == first.id
+    # each road's lane offset is one level: no step inside a road
+    for r in mains:
+        values = r.lane_offset.value(np.linspace(0.0, r.length, 101))
+        assert float(np.ptp(values)) < 1e-9
+    # the through lanes are linked by geometry and their borders meet at the link
+    links = {ln.id: ln.successor for ln in first.lane_sections[-1].right}
+    assert links[-3] == -2
+    assert links[-4] == -3
+    assert links[-2] is None  # the lane that leaves on the median side
+    for a, b in ((-3, -2), (-4, -3)):
+        end = _lane_border_xy(first, first.length, a)
+        start = _lane_border_xy(second, 0.0, b)
+        assert float(np.max(np.abs(end - start))) < 1e-6
+    findings = check_network(_network(topo))
+    assert not [f for f in findings if f.severity == "error"]

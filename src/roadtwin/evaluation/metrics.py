@@ -166,7 +166,7 @@ def self_consistency_errors(
     -------
     edge_errors, lane_errors, counts
         Errors of road-edge points against the nearest road edge and of lane samples
-        against the nearest lane boundary, and extras: ``excluded_beyond_ends``,
+        against the nearest lane border (road edges included), and extras: ``excluded_beyond_ends``,
         ``excluded_no_road`` (points on no road), ``ramp_points`` (points whose nearest
         boundary is on a ramp road), ``height_rmse_m`` (RMS of measured z minus the map's
         surface height at the points on mainline roads, metres).
@@ -182,12 +182,15 @@ def self_consistency_errors(
         spread = _row_spread(run, kind)
         kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
         proj = project_points(main, pts, **kw)
-        err, lane = _errors_full(main, proj, kind)
+        # a marking may be painted on a road edge (a two-way road's centre line on its
+        # reference line, an edge line without a shoulder): lane samples match any border
+        match = EDGE if kind == EDGE else None
+        err, lane = _errors_full(main, proj, match)
         status = proj.status
         use_r = np.zeros(err.size, dtype=bool)
         if ramps:
             proj_r = project_points(ramps, pts, **kw)
-            err_r, lane_r = _errors_full(ramps, proj_r, kind)
+            err_r, lane_r = _errors_full(ramps, proj_r, match)
             use_r = np.isfinite(err_r) & ~(np.abs(err) <= np.abs(err_r))
             err = np.where(use_r, err_r, err)
             lane = np.where(use_r, lane_r, lane)

@@ -280,8 +280,9 @@ def self_consistency(road: Road, run: MappingRun) -> dict[str, float]:
     """RMSE of ``e = |t_measured - t_boundary(s)|`` (the paper's Table 4), metres.
 
     Edge points are compared with the nearer of the two road edges (reference line and
-    the outer border of the outermost lane), lane samples with the nearest lane boundary
-    (outer borders of all lanes but the outermost) at their station. Only points between
+    the outer border of the outermost lane), lane samples with the nearest lane border at
+    their station (the road edges included: a marking painted on an edge, e.g. the centre
+    line of a two-way road on its reference line, is on a lane boundary). Only points between
     the two road edges (plus 1 m for edge points, 0.5 m for lane samples) count, as in the
     paper's corridor; ``<kind>_fraction_used`` says how many did.
     """
@@ -308,13 +309,15 @@ def _border_matrix(road: Road, s: FloatArray, *, edges: bool) -> FloatArray:
         sec = road.lane_sections[int(k)]
         sel = sec_idx == k
         side = sec.right if sec.right else sec.left
-        n = len(side)
         ids = [ln.id for ln in side]
         if edges:
             rows[0, sel] = road.lane_border_t(s[sel], 0)
             if ids:
                 rows[1, sel] = road.lane_border_t(s[sel], ids[-1])
         else:
-            for j, lid in enumerate(ids[: n - 1]):
-                rows[j, sel] = road.lane_border_t(s[sel], lid)
+            # every lane border, the road edges too: a centre line painted on a two-way
+            # road's reference line, an edge line without a shoulder are lane markings
+            rows[0, sel] = road.lane_border_t(s[sel], 0)
+            for j, lid in enumerate(ids):
+                rows[j + 1, sel] = road.lane_border_t(s[sel], lid)
     return rows
