@@ -519,19 +519,26 @@ def test_lanes_linked_across_a_lane_offset_step_stay_joined():
     assert joined.lane_offset.pieces[0].a == 0.0
 
 
+def _const_track(tid, grid, d, lo, hi, n=100):
+    from roadtwin.mainline.markings import _Track
+
+    s = grid[(grid >= lo) & (grid <= hi)]
+    dd = d(s) if callable(d) else np.full(s.size, d)
+    return _Track(tid, lo, hi, s, dd, "broken", n, s)
+
+
 def test_inferred_median_side_lanes_end_where_the_innermost_marking_does():
     """Oakland-like: the two innermost markings end and the median-side edge steps 3 m
     later (the carriageway splits on the median side); the line inferred from the
     innermost one must not jump a lane inwards with the next marking for its last metres
     (it bent every lane by 1.5-1.9 m there)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes, _Track
+    from roadtwin.mainline.markings import _add_hidden_lanes
 
     cfg = MainlineConfig()
     grid = np.arange(0.0, 400.5, cfg.grid_step_m)
 
-    def track(tid: int, d: float, hi: float) -> _Track:
-        s = grid[grid <= hi]
-        return _Track(tid, 0.0, hi, s, np.full(s.size, d), "broken", s.size, s)
+    def track(tid: int, d: float, hi: float):
+        return _const_track(tid, grid, d, 0.0, hi)
 
     observed = [track(0, 4.8, 370.0), track(1, 8.5, 371.0), track(2, 12.0, 400.0)]
     observed += [track(3, 15.6, 400.0)]
@@ -550,14 +557,13 @@ def test_an_inferred_line_continues_the_observed_one_it_takes_over_from():
     """The inner edge line is seen for 300 m, then the car moves out and only the markings
     near it are seen: the line inferred on from there is the same line, not a new one (a
     new track started a lane there that opened over 100 m, copying a neighbour's taper)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes, _Track
+    from roadtwin.mainline.markings import _add_hidden_lanes
 
     cfg = MainlineConfig()
     grid = np.arange(0.0, 600.5, cfg.grid_step_m)
 
-    def track(tid: int, d: float, hi: float) -> _Track:
-        s = grid[grid <= hi]
-        return _Track(tid, 0.0, hi, s, np.full(s.size, d), "broken", s.size, s)
+    def track(tid: int, d: float, hi: float):
+        return _const_track(tid, grid, d, 0.0, hi)
 
     observed = [track(0, 1.2, 300.0), track(1, 4.8, 600.0), track(2, 8.4, 600.0)]
     out = _add_hidden_lanes(observed, grid, np.full(grid.size, 14.5), np.zeros(grid.size), cfg)
@@ -568,32 +574,32 @@ def test_an_inferred_line_continues_the_observed_one_it_takes_over_from():
     assert float(np.max(np.abs(inner.d - 1.2))) < 0.05
 
 
-def _const_track(tid, grid, d, lo, hi, n=100):
-    from roadtwin.mainline.markings import _Track
+def _line_ending_at_300(outer_offsets):
+    """Lines at 4.8 m (on), 8.3 m (ends at s=300) and one beyond whose offset follows
+    ``outer_offsets`` at s = 0, 300, 330/400, 600; returns the tracks and the result of
+    continuing ended lines."""
+    from roadtwin.mainline.markings import _continue_to_convergence
 
-    s = grid[(grid >= lo) & (grid <= hi)]
-    dd = d(s) if callable(d) else np.full(s.size, d)
-    return _Track(tid, lo, hi, s, dd, "broken", n, s)
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+    stations, offsets = outer_offsets
+
+    def outer(s):
+        return np.interp(s, stations, offsets)
+
+    tracks = [
+        _const_track(0, grid, 4.8, 0.0, 600.0),
+        _const_track(1, grid, 8.3, 0.0, 300.0),
+        _const_track(2, grid, outer, 0.0, 600.0),
+    ]
+    return tracks, _continue_to_convergence(tracks, grid, cfg)
 
 
 def test_a_line_ending_where_a_lane_drop_taper_begins_runs_on_to_where_the_lane_closes():
     """Town06: the broken line between the lane that goes on and the one that drops ends
     where the taper begins; the edge line beyond converges onto it over 30 m. Without the
     line the two lanes were one lane 7 m wide; continued, the outer lane closes to zero."""
-    from roadtwin.mainline.markings import _continue_to_convergence
-
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
-
-    def converging(s):
-        return np.interp(s, [0.0, 300.0, 330.0, 600.0], [11.8, 11.8, 8.3, 8.3])
-
-    tracks = [
-        _const_track(0, grid, 4.8, 0.0, 600.0),
-        _const_track(1, grid, 8.3, 0.0, 300.0),
-        _const_track(2, grid, converging, 0.0, 600.0),
-    ]
-    out = _continue_to_convergence(tracks, grid, cfg)
+    tracks, out = _line_ending_at_300(([0.0, 300.0, 330.0, 600.0], [11.8, 11.8, 8.3, 8.3]))
     ended = out[1]
     assert ended.hi == pytest.approx(330.0, abs=2.0)
     assert float(np.max(np.abs(ended.d - 8.3))) < 1e-9
@@ -606,20 +612,7 @@ def test_a_line_ending_where_a_lane_drop_taper_begins_runs_on_to_where_the_lane_
 
 def test_a_line_ending_at_an_exit_is_not_continued():
     """At an exit the line beyond the ended one leaves (diverges): no taper to continue."""
-    from roadtwin.mainline.markings import _continue_to_convergence
-
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
-
-    def diverging(s):
-        return np.interp(s, [0.0, 300.0, 400.0, 600.0], [11.8, 11.8, 20.0, 30.0])
-
-    tracks = [
-        _const_track(0, grid, 4.8, 0.0, 600.0),
-        _const_track(1, grid, 8.3, 0.0, 300.0),
-        _const_track(2, grid, diverging, 0.0, 600.0),
-    ]
-    out = _continue_to_convergence(tracks, grid, cfg)
+    _, out = _line_ending_at_300(([0.0, 300.0, 400.0, 600.0], [11.8, 11.8, 20.0, 30.0]))
     assert out[1].hi == 300.0
 
 

@@ -45,6 +45,19 @@ def _jump_mm(road: Road, lane_before: int, lane_after: int, s: float) -> float:
     return 1000.0 * abs(after - before)
 
 
+def _sealed_checked(
+    first: LaneSection, second: LaneSection, shift_mm: float, before: int, after: int
+) -> Road:
+    """Seal the two-section road; the check finds ``shift_mm`` before and nothing after,
+    and lane ``before`` meets lane ``after`` at the border."""
+    road = _road(first, second)
+    assert _shift_mm(road) == pytest.approx(shift_mm, abs=0.1)
+    sealed = seal_lane_borders(road)
+    assert _shift_mm(sealed) == 0.0
+    assert _jump_mm(sealed, before, after, second.s0) < 1e-6
+    return sealed
+
+
 def test_a_closing_lane_left_17_mm_wide_closes_to_zero():
     # lane -2 tapers out but its fit ends 17 mm wide; lane -3 continues as lane -2
     first = LaneSection(
@@ -58,11 +71,7 @@ def test_a_closing_lane_left_17_mm_wide_closes_to_zero():
     second = LaneSection(
         100.0, right=(_lane(-1, 1.0, pred=-1, kind="shoulder"), _lane(-2, 3.5, pred=-3))
     )
-    road = _road(first, second)
-    assert _shift_mm(road) == pytest.approx(17.2, abs=0.1)
-    sealed = seal_lane_borders(road)
-    assert _shift_mm(sealed) == 0.0
-    assert _jump_mm(sealed, -3, -2, 100.0) < 1e-6
+    sealed = _sealed_checked(first, second, 17.2, -3, -2)
     closing = sealed.lane_sections[0].right[1]
     assert float(closing.width.value(np.array([100.0]))[0]) == pytest.approx(0.0, abs=1e-9)
     # 20 m before the border the lane is as fitted
@@ -92,11 +101,7 @@ def test_a_shoulder_and_lane_replaced_by_one_lane_keep_the_outer_lanes_in_place(
             _lane(-3, 0.66, pred=-4, kind="shoulder"),
         ),
     )
-    road = _road(first, second)
-    assert _shift_mm(road) == pytest.approx(37.0, abs=0.1)
-    sealed = seal_lane_borders(road)
-    assert _shift_mm(sealed) == 0.0
-    assert _jump_mm(sealed, -4, -3, 100.0) < 1e-6
+    sealed = _sealed_checked(first, second, 37.0, -4, -3)
     new_lane = sealed.lane_sections[1].right[1]
     assert float(new_lane.width.value(np.array([0.0]))[0]) == pytest.approx(3.413, abs=1e-9)
     # the correction fades out within 20 m of the border

@@ -308,6 +308,13 @@ def _continuous(
     return out
 
 
+def _end_to_start_links(up: Road, down: Road, traffic_side: TrafficSide) -> dict[int, int]:
+    """Lanes of ``up`` at its end -> lanes of ``down`` at its start: their borders meet
+    (:func:`match_lanes_at`) and their widths go on (:func:`_continuous`)."""
+    pairs = match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side)
+    return _continuous(pairs, up, up.length, down, 0.0)
+
+
 def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_start: bool) -> Road:
     """``road`` whose first section's lanes linked from ``before``'s last section (``links``:
     lane of ``before`` -> lane of ``road``) start with the widths those lanes end with, so
@@ -428,13 +435,7 @@ def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
     parts = list(parts)
     for n in range(1, len(parts)):
         up, down = parts[n - 1], parts[n]
-        links = _continuous(
-            match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side),
-            up,
-            up.length,
-            down,
-            0.0,
-        )
+        links = _end_to_start_links(up, down, traffic_side)
         parts[n - 1] = _set_lane_links(
             replace(up, successor=RoadLink("road", down.id, "start")), successors=links
         )
@@ -790,13 +791,7 @@ def build_topology(
         up = replace(up, successor=RoadLink("junction", jid))
         down = replace(down, predecessor=RoadLink("junction", jid))
         if direct:
-            through = _continuous(
-                match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side),
-                up,
-                up.length,
-                down,
-                0.0,
-            )
+            through = _end_to_start_links(up, down, traffic_side)
             conns = [
                 Connection(
                     "0",
@@ -833,22 +828,8 @@ def build_topology(
                 predecessor=RoadLink("road", up.id, "end"),
                 successor=RoadLink("road", down.id, "start"),
             )
-            into = _continuous(
-                match_lanes_at(up, up.length, through_road, 0.0, traffic_side=traffic_side),
-                up,
-                up.length,
-                through_road,
-                0.0,
-            )
-            out_of = _continuous(
-                match_lanes_at(
-                    through_road, through_road.length, down, 0.0, traffic_side=traffic_side
-                ),
-                through_road,
-                through_road.length,
-                down,
-                0.0,
-            )
+            into = _end_to_start_links(up, through_road, traffic_side)
+            out_of = _end_to_start_links(through_road, down, traffic_side)
             through_road = _set_lane_links(
                 _continue_widths(through_road, up, into, at_start=True),
                 predecessors={v: u for u, v in into.items()},

@@ -152,29 +152,20 @@ def _seal_side(
         inner_prev = sum(w_prev)
         mismatch = inner_cur - inner_prev
         if abs(mismatch) > _SEAL_TOLERANCE_M:
-            fixed = _scaled(
-                [cur_l[k] for k in run_cur],
-                w_cur,
-                sum(w_cur) - mismatch,
-                at_start=True,
-                length_m=cur_len,
+            # the lanes that begin take it up; where none can, the ones that end
+            options = (
+                (cur_l, run_cur, w_cur, sum(w_cur) - mismatch, True, cur_len),
+                (prev_l, run_prev, w_prev, sum(w_prev) + mismatch, False, prev_len),
             )
-            if fixed is not None:
-                for k, ln in zip(run_cur, fixed, strict=True):
-                    cur_l[k] = ln
-                worst = max(worst, abs(mismatch))
-            else:
+            for lanes, run, widths, target, at_start, span in options:
                 fixed = _scaled(
-                    [prev_l[k] for k in run_prev],
-                    w_prev,
-                    sum(w_prev) + mismatch,
-                    at_start=False,
-                    length_m=prev_len,
+                    [lanes[k] for k in run], widths, target, at_start=at_start, length_m=span
                 )
                 if fixed is not None:
-                    for k, ln in zip(run_prev, fixed, strict=True):
-                        prev_l[k] = ln
+                    for k, ln in zip(run, fixed, strict=True):
+                        lanes[k] = ln
                     worst = max(worst, abs(mismatch))
+                    break
         i_last, j_last = i, j
     return tuple(prev_l), tuple(cur_l), worst
 
