@@ -260,6 +260,10 @@ def child_build(run_dir: Path, out_json: Path) -> None:
     from roadtwin.pipeline import build_map
     from roadtwin.xodr import write_xodr
 
+    try:
+        from roadtwin.inputs import load_runs_and_osm
+    except ImportError:  # a checkout from before the concurrent load
+        load_runs_and_osm = None
     stages: dict[str, dict[str, float]] = {}
     try:
         from roadtwin.progress import listening
@@ -299,13 +303,19 @@ def child_build(run_dir: Path, out_json: Path) -> None:
     t_all = time.perf_counter()
     try:
         with ctx:
-            run = timed("load run", lambda: load_run(run_dir, config=cfg.load))
-            osm = timed(
-                "load OSM",
-                lambda: load_osm(
-                    run.osm_path, frame=run.frame, around_xy=run.trajectory.xy, config=cfg.load
-                ),
-            )
+            if load_runs_and_osm is not None:  # the OSM parsed while the points load
+                runs, osm = timed(
+                    "load run and OSM", lambda: load_runs_and_osm([run_dir], cfg.load)
+                )
+                run = runs[0]
+            else:
+                run = timed("load run", lambda: load_run(run_dir, config=cfg.load))
+                osm = timed(
+                    "load OSM",
+                    lambda: load_osm(
+                        run.osm_path, frame=run.frame, around_xy=run.trajectory.xy, config=cfg.load
+                    ),
+                )
             result = timed("build map", lambda: build_map(run, osm, config=cfg))
             timed("write xodr", lambda: write_xodr(result.network, out / "map.xodr"))
         total_s = time.perf_counter() - t_all
@@ -532,6 +542,7 @@ _STAGES = (
     "load lane samples",
     "load run",
     "load OSM",
+    "load run and OSM",
     "mainline",
     "ramps",
     "topology",

@@ -605,3 +605,30 @@ def test_runs_in_other_frames_fuse_in_the_first_runs_frame(runs, tmp_path):
     assert np.abs(a.lane_samples[:, :2] - c.lane_samples[:, :2]).max() < 2e-3
     # heights: the UTM run's z is absolute, the local frame's relative to its altitude
     assert np.abs(a.edges[:, 2] - c.edges[:, 2]).max() < 2e-3
+
+
+def test_runs_and_osm_loaded_together_equal_the_sequential_load(runs):
+    """The OSM extract is parsed in a second thread while the points load: the runs and
+    the graph are the same as loaded one after the other (two passes: the graph lies
+    around both trajectories, in the first run's frame)."""
+    from roadtwin.config import LoadConfig
+    from roadtwin.inputs import load_runs_and_osm
+    from roadtwin.io import read_run_header
+
+    dirs = [runs["dirs"]["pass1"], runs["dirs"]["pass2"]]
+    header = read_run_header(dirs[0])
+    assert header.frame == runs["pass1"].frame
+    np.testing.assert_array_equal(header.trajectory.xyz, runs["pass1"].trajectory.xyz)
+    assert header.osm_path == runs["pass1"].osm_path
+    loaded, graph = load_runs_and_osm(dirs, LoadConfig())
+    for got, want in zip(loaded, (runs["pass1"], runs["pass2"]), strict=True):
+        np.testing.assert_array_equal(got.edges, want.edges)
+        np.testing.assert_array_equal(got.lane_samples, want.lane_samples)
+    sequential = load_osm(
+        runs["pass1"].osm_path,
+        frame=runs["pass1"].frame,
+        around_xy=np.vstack([runs["pass1"].trajectory.xy, runs["pass2"].trajectory.xy]),
+    )
+    assert sorted(graph.nodes) == sorted(sequential.nodes)
+    assert graph.number_of_edges() == sequential.number_of_edges()
+    assert graph.number_of_nodes() > 0

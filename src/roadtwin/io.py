@@ -201,6 +201,69 @@ heading follows its track to within a few degrees (side slip, antenna offsets)."
 _MAX_POSE_HEIGHT_M = 10.0
 
 
+@dataclass(frozen=True, repr=False)
+class RunHeader:
+    """What a mapping-run folder says before its points are read.
+
+    Attributes
+    ----------
+    root, manifest_path : the run folder and its ``run.toml``.
+    frame : the mapping frame.
+    trajectory : the poses (mapping frame, metres, radians), validated.
+    pose_height_m : height of the pose point above the road (metres).
+    traffic_side : ``"right"`` or ``"left"``.
+    files : the input files named in ``run.toml`` (``trajectory``, ``road_edges``,
+        ``lane_samples``, optional ``osm``).
+    """
+
+    root: Path
+    manifest_path: Path
+    frame: MappingFrame
+    trajectory: Trajectory
+    pose_height_m: float
+    traffic_side: Literal["right", "left"]
+    files: dict[str, Path]
+
+    @property
+    def osm_path(self) -> Path | None:
+        """The OSM file named in ``run.toml``, or None."""
+        return self.files.get("osm")
+
+
+def read_run_header(run_dir: str | Path, *, config: LoadConfig | None = None) -> RunHeader:
+    """Read and validate ``run.toml`` and the trajectory of a run folder, not its points.
+
+    What a later stage needs before the points (the frame and the path, e.g. to parse the
+    OSM extract around it while the points load) at the cost of reading the trajectory.
+    Raises :class:`~roadtwin._errors.InputError` as :func:`load_run` does.
+    """
+    cfg = config if config is not None else LoadConfig()
+    root = Path(run_dir)
+    if root.is_file() and root.suffix == ".toml":
+        manifest_path, root = root, root.parent
+    else:
+        manifest_path = root / "run.toml"
+    if not root.is_dir():
+        what = "not a folder" if root.exists() else "folder not found"
+        msg = f"{root}: {what} (expected a mapping-run folder with run.toml, or its run.toml)"
+        raise InputError(msg)
+    manifest = _read_manifest(manifest_path)
+    frame = _frame_from_manifest(manifest, manifest_path)
+    pose_height = _number(manifest, "vehicle", "pose_height", manifest_path, default=0.0)
+    if abs(pose_height) > _MAX_POSE_HEIGHT_M:
+        msg = (
+            f"{manifest_path}: [vehicle] pose_height = {pose_height:g}: expected the height of "
+            f"the pose point above the road in metres (at most {_MAX_POSE_HEIGHT_M:g})"
+        )
+        raise InputError(msg)
+    side = _traffic_side(manifest, manifest_path)
+    files = _files_from_manifest(manifest, manifest_path, root, cfg)
+
+    trajectory = read_trajectory(files["trajectory"], config=cfg)
+    _check_origin_distance(trajectory, frame, files["trajectory"], manifest_path, cfg)
+    return RunHeader(root, manifest_path, frame, trajectory, pose_height, side, files)
+
+
 def load_run(
     run_dir: str | Path, *, config: LoadConfig | None = None, reduce: bool = True
 ) -> MappingRun:
@@ -232,29 +295,10 @@ def load_run(
         With one line naming the file, row or field and what was expected.
     """
     cfg = config if config is not None else LoadConfig()
-    root = Path(run_dir)
-    if root.is_file() and root.suffix == ".toml":
-        manifest_path, root = root, root.parent
-    else:
-        manifest_path = root / "run.toml"
-    if not root.is_dir():
-        what = "not a folder" if root.exists() else "folder not found"
-        msg = f"{root}: {what} (expected a mapping-run folder with run.toml, or its run.toml)"
-        raise InputError(msg)
-    manifest = _read_manifest(manifest_path)
-    frame = _frame_from_manifest(manifest, manifest_path)
-    pose_height = _number(manifest, "vehicle", "pose_height", manifest_path, default=0.0)
-    if abs(pose_height) > _MAX_POSE_HEIGHT_M:
-        msg = (
-            f"{manifest_path}: [vehicle] pose_height = {pose_height:g}: expected the height of "
-            f"the pose point above the road in metres (at most {_MAX_POSE_HEIGHT_M:g})"
-        )
-        raise InputError(msg)
-    side = _traffic_side(manifest, manifest_path)
-    files = _files_from_manifest(manifest, manifest_path, root, cfg)
-
-    trajectory = read_trajectory(files["trajectory"], config=cfg)
-    _check_origin_distance(trajectory, frame, files["trajectory"], manifest_path, cfg)
+    header = read_run_header(run_dir, config=cfg)
+    root, manifest_path, files = header.root, header.manifest_path, header.files
+    frame, trajectory, side = header.frame, header.trajectory, header.traffic_side
+    pose_height = header.pose_height_m
     line = trajectory_line(trajectory.xy)
     edge_acc = _accumulator(line, cfg, kind="edges", reduce=reduce, n_groups=3)
     edge_path = files["road_edges"]

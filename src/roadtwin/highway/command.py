@@ -116,8 +116,8 @@ def build_info(result: HighwayResult) -> dict[str, Any]:
 
 
 def _inputs(args: argparse.Namespace, cfg):
-    """(runs, area): the mapping runs (in the first run's frame), or the OSM-only area."""
-    from ..io import load_run
+    """(runs, area, graph): the mapping runs (in the first run's frame) and the OSM graph
+    around them, or the OSM-only area (graph None: :func:`load_area_graph` reads it)."""
     from .area import area_from_bbox, is_osm_only_run, load_osm_area, parse_bbox
 
     if args.bbox is not None and args.osm is None and not args.run_dirs:
@@ -127,35 +127,22 @@ def _inputs(args: argparse.Namespace, cfg):
             raise InputError("build: give RUN_DIR(s), or --osm FILE --bbox ... for OSM alone")
         if args.bbox is None:
             raise InputError("build --osm FILE without RUN_DIR: give the area with --bbox")
-        return [], area_from_bbox(args.osm, parse_bbox(args.bbox), traffic_side=args.traffic)
+        return [], area_from_bbox(args.osm, parse_bbox(args.bbox), traffic_side=args.traffic), None
     if len(args.run_dirs) == 1 and is_osm_only_run(args.run_dirs[0]):
         area = load_osm_area(args.run_dirs[0])
         if args.bbox is not None:
             from dataclasses import replace
 
             area = replace(area, bbox=parse_bbox(args.bbox))
-        return [], area
+        return [], area, None
     if args.bbox is not None:
         raise InputError("build --bbox is for the OSM-only mode (no run with a trajectory)")
-    from .runs import run_in_frame
+    from ..inputs import load_runs_and_osm
 
-    runs = [load_run(d, config=cfg.load) for d in args.run_dirs]
-    # every run in the first run's frame, once (build_highway finds them there)
-    return [run_in_frame(r, runs[0].frame) for r in runs], None
-
-
-def _osm_graph(args: argparse.Namespace, runs, cfg):
-    """The OSM graph around every run (all in the first run's frame)."""
-    from ..osm import load_osm, load_osm_online
-
-    frame = runs[0].frame
-    around = np.vstack([r.trajectory.xy for r in runs])
-    if args.osm_online:
-        return load_osm_online(frame=frame, around_xy=around, config=cfg.load)
-    path = args.osm or next((r.osm_path for r in runs if r.osm_path is not None), None)
-    if path is None:
-        return None
-    return load_osm(path, frame=frame, around_xy=around, config=cfg.load)
+    runs, graph = load_runs_and_osm(
+        args.run_dirs, cfg.load, osm=args.osm, osm_online=args.osm_online
+    )
+    return runs, None, graph
 
 
 def cmd_build_highway(args: argparse.Namespace) -> int:
@@ -192,7 +179,7 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     bar.set_description("load")
-    runs, area = _inputs(args, cfg)
+    runs, area, graph = _inputs(args, cfg)
     if area is not None:
         out = args.output if args.output is not None else (area.root or Path(".")) / "out"
         if args.output is None and area.root is None:
@@ -212,7 +199,6 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
             input_dirs=[r.root for r in runs],
             names=NAMES,
         )
-        graph = _osm_graph(args, runs, cfg)
     times["load"] = time.perf_counter() - t0
     bar.update()
 

@@ -43,7 +43,7 @@ from ..fitting import (
     savgol_smooth,
     whittaker_smooth,
 )
-from ..frames import MappingFrame
+from ..inputs import run_in_frame
 from ..io import MappingRun, Trajectory
 from ..osm_roads.chains import shared_length_m
 
@@ -68,50 +68,6 @@ _MAX_RESIDUAL_M = 0.5  # edge points farther off the common fit are other levels
 # ---------------------------------------------------------------------------
 # one frame
 # ---------------------------------------------------------------------------
-
-
-def _same_frame(a: MappingFrame, b: MappingFrame) -> bool:
-    return a.geo_reference == b.geo_reference and a.z_offset_m == b.z_offset_m
-
-
-def _transform_xyz(xyz: FloatArray, src: MappingFrame, dst: MappingFrame) -> FloatArray:
-    """Points ``(N, 2+)`` from frame ``src`` to ``dst`` (through WGS84; z by the frames'
-    altitude offsets)."""
-    out = np.array(xyz, dtype=float, copy=True)
-    if out.shape[0] == 0:
-        return out
-    lon, lat = src.to_lonlat(out[:, 0], out[:, 1])
-    x, y = dst.from_lonlat(lon, lat)
-    out[:, 0], out[:, 1] = x, y
-    if out.shape[1] > 2:
-        out[:, 2] += src.z_offset_m - dst.z_offset_m
-    return out
-
-
-def run_in_frame(run: MappingRun, frame: MappingFrame) -> MappingRun:
-    """``run`` with its poses, edge points and lane samples in ``frame``.
-
-    Positions go through WGS84 with pyproj; heights keep their altitude (``local`` frames
-    count z from their origin's altitude); yaw turns with the grid (the direction to a
-    point 1 m ahead, transformed). A run already in ``frame`` is returned unchanged.
-    """
-    if _same_frame(run.frame, frame):
-        return run
-    traj = run.trajectory
-    ahead = traj.xy + np.column_stack([np.cos(traj.yaw), np.sin(traj.yaw)])
-    xyz = _transform_xyz(traj.xyz, run.frame, frame)
-    ahead_t = _transform_xyz(ahead, run.frame, frame)
-    d = ahead_t - xyz[:, :2]
-    yaw = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
-    # keep the unwrapped branch of the original yaw (only the grid convergence changes)
-    yaw += 2.0 * np.pi * np.round((traj.yaw[0] - yaw[0]) / (2.0 * np.pi))
-    return replace(
-        run,
-        frame=frame,
-        trajectory=replace(traj, xyz=xyz, yaw=yaw),
-        edges=_transform_xyz(run.edges, run.frame, frame),
-        lane_samples=_transform_xyz(run.lane_samples, run.frame, frame),
-    )
 
 
 # ---------------------------------------------------------------------------
