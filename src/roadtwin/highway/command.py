@@ -13,12 +13,14 @@ import argparse
 import json
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .._errors import InputError
-from .build import HighwayResult
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .build import HighwayResult
 
 NAMES = ("map.xodr", "map.kml", "map.geojson", "map.png", "build.json")
 
@@ -157,10 +159,7 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
         _print_build,
         progress,
     )
-    from ..export import plot_network, write_geojson, write_kml
-    from ..xodr import write_xodr
     from .area import load_area_graph
-    from .build import build_highway, build_osm_only
 
     started = time.perf_counter()
     cfg = _build_config(args)
@@ -203,6 +202,11 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
     bar.update()
 
     bar.set_description("build map")
+    # the building and writing modules load when their stage begins (start-up time)
+    from ..export import plot_network, write_geojson, write_kml
+    from ..xodr import write_xodr
+    from .build import build_highway, build_osm_only
+
     if area is not None:
         result = build_osm_only(
             graph,
