@@ -409,3 +409,30 @@ def test_a_linked_lane_moving_sideways_at_a_section_border_is_an_error():
     assert not [
         f for f in check_network(RoadNetwork(Header(), (road_ok,))) if f.code == "lane_shift"
     ]
+
+
+def test_a_driving_lane_ending_at_full_width_inside_a_road_is_a_dead_end():
+    def lane(lid, w, slope=0.0, pred=None, succ=None, kind="driving"):
+        return Lane(
+            lid,
+            kind,
+            CubicProfile((CubicPiece(0.0, w, slope),)),
+            predecessor=pred,
+            successor=succ,
+        )
+
+    line = (Line(0.0, 0.0, 0.0, 0.0, 100.0),)
+    second = LaneSection(50.0, right=(lane(-1, 3.5, pred=-1),))
+    # lane -2 ends 3.5 m wide: a car in it has nowhere to go
+    first = LaneSection(0.0, right=(lane(-1, 3.5, succ=-1), lane(-2, 3.5)))
+    road = Road("1", line, (first, second))
+    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_dead_end"]
+    assert len(found) == 1
+    assert found[0].severity == "warning"
+    assert found[0].value == pytest.approx(3.5)
+    # closing to zero width over the section (a taper) is no dead end
+    tapering = LaneSection(0.0, right=(lane(-1, 3.5, succ=-1), lane(-2, 3.5, -3.5 / 50.0)))
+    road_ok = Road("1", line, (tapering, second))
+    assert not [
+        f for f in check_network(RoadNetwork(Header(), (road_ok,))) if f.code == "lane_dead_end"
+    ]

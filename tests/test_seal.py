@@ -133,3 +133,40 @@ def test_nothing_changes_where_the_borders_already_meet():
     second = LaneSection(100.0, right=(_lane(-1, 1.0, pred=-1), _lane(-2, 3.5, pred=-2)))
     road = _road(first, second)
     assert seal_lane_borders(road) == road
+
+
+def test_a_lane_refitted_narrower_after_its_marking_reappears_is_linked_to_itself():
+    """Melbourne: inner lane 2 ends 3.74 m wide and a lane 2 begins 3.39 m wide at the same
+    border (its marking seen again after a gap; the borders met too loosely to link).
+    Sealed, it fills the same room and is the same lane: linked, so that a car in it goes
+    on (``lane_dead_end`` had it end and begin at full width)."""
+    first = LaneSection(
+        0.0,
+        left=(
+            _lane(1, 0.0, kind="shoulder"),
+            _lane(2, 3.7447),
+            _lane(3, 3.349, succ=3),
+        ),
+    )
+    second = LaneSection(
+        100.0,
+        left=(
+            _lane(1, 0.0, kind="shoulder"),
+            _lane(2, 3.3916),
+            _lane(3, 3.349, pred=3),
+        ),
+    )
+    road = _road(first, second)
+    dead = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_dead_end"]
+    assert len(dead) == 2  # ends and begins
+    sealed = seal_lane_borders(road)
+    before, after = sealed.lane_sections[0].left, sealed.lane_sections[1].left
+    assert before[1].successor == 2
+    assert after[1].predecessor == 2
+    # the closed shoulder stays unlinked (zero width)
+    assert before[0].successor is None
+    assert after[0].predecessor is None
+    assert _jump_mm(sealed, 2, 2, 100.0) < 1e-6
+    assert _jump_mm(sealed, 3, 3, 100.0) < 1e-6
+    findings = check_network(RoadNetwork(Header(), (sealed,)))
+    assert not [f for f in findings if f.code in ("lane_dead_end", "lane_shift", "width_jump")]

@@ -13,6 +13,9 @@ Own checks (:func:`check_network`, on the model):
   The heading jump compares reference-line headings (reversed for end-to-end and
   start-to-start contacts).
 * ``width_start``: a lane whose first width record does not start at the section's start.
+* ``lane_dead_end`` (warning): a driving lane that ends (begins) at least
+  ``dead_end_width_m`` wide at a lane-section border inside a road with no successor
+  (predecessor): a lane that leaves at a gore without a junction, a drop without a taper.
 * ``lane_shift``: a lane linked across a lane-section border whose inner or outer border
   moves there (thresholds of ``link_gap``).
 * ``negative_width`` (sampled every metre in each lane section) and ``width_jump`` between
@@ -105,6 +108,8 @@ class CheckConfig:
     negative_width_error_mm: float = 1.0
     zero_width_link_m: float = 1e-4
     """A lane end narrower than this (metres) counts as zero width: it must not be linked."""
+    dead_end_width_m: float = 1.0
+    """A driving lane ending (beginning) unlinked at least this wide (metres) is a dead end."""
     width_sample_step_m: float = 1.0
     consumer_timeout_s: float = 600.0
 
@@ -462,6 +467,7 @@ class _Checker:
                             s=b.s0,
                             value=jump_mm,
                         )
+            self._dead_ends(road, a, b, len_a)
             # lane links inside the road must resolve
             ids_b, ids_a = _lane_ids(b), _lane_ids(a)
             for ln in (*a.left, *a.right):
@@ -483,6 +489,31 @@ class _Checker:
                         f"previous lane section (s={a.s0:.2f}) does not have",
                         road=road.id,
                         s=b.s0,
+                    )
+
+    def _dead_ends(self, road: Road, a: LaneSection, b: LaneSection, len_a: float) -> None:
+        """A driving lane that ends at full width inside a road with no successor (or
+        begins so with no predecessor): a car in it has nowhere to go (a lane that leaves
+        at a gore with no junction, a lane drop without a taper)."""
+        wide = self.cfg.dead_end_width_m
+        for lanes, end, link, ds, s in (
+            ((*a.left, *a.right), "ends", "successor", len_a, b.s0),
+            ((*b.left, *b.right), "begins", "predecessor", 0.0, b.s0),
+        ):
+            for ln in lanes:
+                if ln.type != "driving" or getattr(ln, link) is not None:
+                    continue
+                w = float(ln.width.value(np.array([ds]))[0])
+                if w >= wide:
+                    where = "nowhere to go" if end == "ends" else "no way in"
+                    self.add(
+                        "warning",
+                        "lane_dead_end",
+                        f"driving lane {ln.id} {end} {w:.2f} m wide at s={s:.2f} with no "
+                        f"{link}: a car in it has {where}",
+                        road=road.id,
+                        s=s,
+                        value=w,
                     )
 
     def _zero_width_links(self, road: Road, sec: LaneSection, lane: Lane, w, ds) -> None:

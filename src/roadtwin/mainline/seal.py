@@ -31,6 +31,8 @@ from ..model import CubicPiece, CubicProfile, Lane, Road
 log = logging.getLogger(__name__)
 
 _SEAL_TOLERANCE_M = 1e-6  # a mismatch below this is left alone (metres)
+_SAME_ROOM_M = 0.01  # unlinked lanes this close in width at a sealed border are one (metres)
+_ZERO_WIDTH_M = 1e-3  # narrower than this a lane has closed (metres)
 _FADE_M = 20.0  # a correction fades out over this distance from the border (metres)
 _FADES_M = (_FADE_M, 10.0, 5.0, 2.0, 1.0, 0.5)  # shorter where a long one goes negative
 
@@ -166,8 +168,38 @@ def _seal_side(
                         lanes[k] = ln
                     worst = max(worst, abs(mismatch))
                     break
+        _link_same_room(prev_l, cur_l, run_prev, run_cur, prev_len, cur_len)
         i_last, j_last = i, j
     return tuple(prev_l), tuple(cur_l), worst
+
+
+def _link_same_room(
+    prev_l: list[Lane],
+    cur_l: list[Lane],
+    run_prev: list[int],
+    run_cur: list[int],
+    prev_len: float,
+    cur_len: float,
+) -> None:
+    """Link (in place) the unlinked lanes of a sealed run that fill the same room: as many
+    on both sides, of the same types, each as wide as its partner (a lane re-fitted after
+    a gap in its marking is the lane it was; left unlinked, a car in it had nowhere to go).
+    Lanes of zero width stay unlinked (OpenDRIVE: a lane that closes has no successor)."""
+    if not run_cur or len(run_cur) != len(run_prev):
+        return
+    w_prev = [_width_at(prev_l[k], prev_len) for k in run_prev]
+    w_cur = [_width_at(cur_l[k], 0.0) for k in run_cur]
+    same = all(
+        prev_l[b].type == cur_l[a].type and abs(wp - wc) <= _SAME_ROOM_M
+        for a, b, wp, wc in zip(run_cur, run_prev, w_prev, w_cur, strict=True)
+    )
+    if not same:
+        return
+    for a, b, wp in zip(run_cur, run_prev, w_prev, strict=True):
+        if wp < _ZERO_WIDTH_M:
+            continue
+        cur_l[a] = replace(_with_start_width(cur_l[a], wp, cur_len), predecessor=prev_l[b].id)
+        prev_l[b] = replace(prev_l[b], successor=cur_l[a].id)
 
 
 def seal_lane_borders(road: Road) -> Road:
