@@ -646,3 +646,14 @@ def test_a_driving_lane_refitted_0_4_m_wider_after_a_section_border_goes_on():
         _link_sections([first, third], [[], []], at_step=[False, False])[1].right[2].predecessor
         is None
     )
+
+
+def test_a_line_is_continued_to_where_the_converging_line_settles_beside_it():
+    """The line beyond converges and settles 0.7 m outside the ended line's offset (the
+    lane that goes on is a little wider after the drop): it met it where it came nearest,
+    within a quarter lane."""
+    _, out = _line_ending_at_300(([0.0, 300.0, 330.0, 600.0], [11.8, 11.8, 9.0, 9.0]))
+    assert out[1].hi == pytest.approx(330.0, abs=2.0)
+    # settling a lane away is no meeting
+    _, apart = _line_ending_at_300(([0.0, 300.0, 330.0, 600.0], [11.8, 11.8, 10.0, 10.0]))
+    assert apart[1].hi == 300.0

@@ -256,10 +256,17 @@ def _tracks_from_samples(
 
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
+_MEET_LANE_SHARE = 0.25  # ... or settles this share of a lane beside it
 
 
 def _meeting_station(
-    tr: _Track, nb: _Track, grid: FloatArray, cfg: MainlineConfig, *, forward: bool
+    tr: _Track,
+    nb: _Track,
+    grid: FloatArray,
+    cfg: MainlineConfig,
+    *,
+    forward: bool,
+    lane_m: float,
 ) -> float | None:
     """Where ``nb`` reaches the offset ``tr`` ends (starts) with, converging onto it after
     ``tr`` ends (diverging from it before ``tr`` starts) within ``lane_taper_max_m``;
@@ -274,9 +281,15 @@ def _meeting_station(
         return None
     gap = np.abs(np.interp(probe, nb.s, nb.d) - d_end)
     met = np.flatnonzero(gap <= _MEET_M)
-    if met.size == 0:
-        return None
-    i = int(met[0])
+    if met.size:
+        i = int(met[0])
+    else:
+        # the neighbour settles beside the ended line's offset, not on it (the lane that
+        # goes on is a little narrower or wider after the drop): it met it where it came
+        # nearest, if that is within a quarter lane (the rest closes as a taper's rest)
+        i = int(np.argmin(gap))
+        if gap[i] > _MEET_LANE_SHARE * lane_m:
+            return None
     # converging all the way: the gap shrinks from the end to the meeting point
     if i > 0 and float(np.max(np.diff(gap[: i + 1]))) > 0.05:
         return None
@@ -321,7 +334,7 @@ def _continue_to_convergence(
                 if 0.6 * lane_m <= gap <= 1.5 * lane_m:
                     beside.append((gap, j))
             for _, j in sorted(beside):
-                s_meet = _meeting_station(tr, tracks[j], grid, cfg, forward=forward)
+                s_meet = _meeting_station(tr, tracks[j], grid, cfg, forward=forward, lane_m=lane_m)
                 if s_meet is None:
                     continue
                 lo, hi = (s_end, s_meet) if forward else (s_meet, s_end)
