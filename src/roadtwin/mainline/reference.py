@@ -265,6 +265,20 @@ def fit_median_edge(
     return MedianEdge(frame.xy, steps)
 
 
+def _bin_sums(
+    b: NDArray[np.int64], w: FloatArray, t: FloatArray, z: FloatArray, n: int
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Weighted sums per bin ``b`` (of ``n``): ``w``, ``w t``, ``w z``, ``w t^2``, ``w t z``
+    (the moments of a per-bin line z = e + g t; t lateral and z height, metres)."""
+    return (
+        np.bincount(b, w, n),
+        np.bincount(b, w * t, n),
+        np.bincount(b, w * z, n),
+        np.bincount(b, w * t * t, n),
+        np.bincount(b, w * t * z, n),
+    )
+
+
 def fit_elevation(
     frame: PolylineFrame,
     points: FloatArray,
@@ -304,12 +318,7 @@ def fit_elevation(
     e = g = np.zeros(n)
     lam = _lam(cfg.elevation_smoothing_m, step)
     for _ in range(2):
-        w = keep.astype(float)
-        sw = np.bincount(b, w, n)
-        st = np.bincount(b, w * t, n)
-        sz = np.bincount(b, w * z, n)
-        stt = np.bincount(b, w * t * t, n)
-        stz = np.bincount(b, w * t * z, n)
+        sw, st, sz, stt, stz = _bin_sums(b, keep.astype(float), t, z, n)
         with np.errstate(invalid="ignore", divide="ignore"):
             mt, mz = st / sw, sz / sw
             vt = stt / sw - mt * mt
@@ -324,12 +333,7 @@ def fit_elevation(
         keep = np.abs(res) <= max(4.0 * mad, 0.05)
     elevation = fit_cubic_profile(grid, e, tolerance=cfg.elevation_tolerance_m)
     # cross slope per bin and its weight sum_w (t - mean t)^2 (kept points only)
-    w = keep.astype(float)
-    sw = np.bincount(b, w, n)
-    st = np.bincount(b, w * t, n)
-    sz = np.bincount(b, w * z, n)
-    stt = np.bincount(b, w * t * t, n)
-    stz = np.bincount(b, w * t * z, n)
+    sw, st, sz, stt, stz = _bin_sums(b, keep.astype(float), t, z, n)
     with np.errstate(invalid="ignore", divide="ignore"):
         mt, mz = st / sw, sz / sw
         sxx = np.where(sw > 0, stt - sw * mt * mt, 0.0)
