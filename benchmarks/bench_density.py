@@ -303,7 +303,7 @@ def child_build(run_dir: Path, out_json: Path) -> None:
     t_all = time.perf_counter()
     try:
         with ctx:
-            if load_runs_and_osm is not None:  # the OSM parsed while the points load
+            if load_runs_and_osm is not None:  # what roadtwin build calls
                 runs, osm = timed(
                     "load run and OSM", lambda: load_runs_and_osm([run_dir], cfg.load)
                 )

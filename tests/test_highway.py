@@ -607,10 +607,10 @@ def test_runs_in_other_frames_fuse_in_the_first_runs_frame(runs, tmp_path):
     assert np.abs(a.edges[:, 2] - c.edges[:, 2]).max() < 2e-3
 
 
-def test_runs_and_osm_loaded_together_equal_the_sequential_load(runs):
-    """The OSM extract is parsed in a second thread while the points load: the runs and
-    the graph are the same as loaded one after the other (two passes: the graph lies
-    around both trajectories, in the first run's frame)."""
+def test_load_runs_and_osm_equals_loading_each(runs):
+    """The runs and the OSM graph of load_runs_and_osm are those of load_run, run_in_frame
+    and load_osm (two passes: the graph lies around both trajectories, in the first run's
+    frame); read_run_header gives the run's frame, trajectory and OSM file alone."""
     from roadtwin.config import LoadConfig
     from roadtwin.inputs import load_runs_and_osm
     from roadtwin.io import read_run_header

@@ -530,7 +530,6 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     step("load run and OSM")
-    # the OSM extract is parsed while the points load
     runs, osm_graph = load_runs_and_osm(
         [args.run_dir], cfg.load, osm=args.osm, osm_online=args.osm_online
     )

@@ -2,7 +2,7 @@
 
 Runs may come in different mapping frames (origins, CRS): everything goes to the first
 run's frame (:func:`run_in_frame`, pyproj through WGS84). :func:`load_runs_and_osm` reads
-the runs and parses the OSM extract around their trajectories at the same time.
+the runs and then the OSM extract around their trajectories.
 
 Coordinates are mapping-frame metres.
 """
@@ -78,43 +78,31 @@ def load_runs_and_osm(
 ):
     """The mapping runs (moved into the first run's frame) and the OSM graph around them.
 
-    The OSM extract (``osm``, else the first run's ``run.toml`` names it; or the online
-    download) is parsed in a second thread while the points are read: it needs only the
-    frame and the trajectories, and the points' decompression and reduction leave the
-    interpreter free (a 10 M point run: 1.1 s of 3.7 s hidden).
+    The OSM extract is ``osm``, else the one the first run's ``run.toml`` names (or the
+    online download with ``osm_online``); it is read around every run's trajectory.
+
+    The two are read one after the other. Parsing the OSM extract in a second thread while
+    the points load saved 0.5 s on a 10 M point run, but a SIGTERM during the parse could
+    then hang the command at exit or leave the parse's temporary folder behind.
 
     Returns
     -------
     (runs, graph)
         ``graph`` is None where no OSM source is given.
     """
-    from concurrent.futures import ThreadPoolExecutor
-
-    from .io import load_run, read_run_header
+    from .io import load_run
     from .osm import load_osm, load_osm_online
 
-    headers = [read_run_header(d, config=config) for d in run_dirs]
-    frame = headers[0].frame
-    around = np.vstack(
-        [
-            h.trajectory.xy
-            if same_frame(h.frame, frame)
-            else points_in_frame(h.trajectory.xy, h.frame, frame)
-            for h in headers
-        ]
-    )
-    path = osm or next((h.osm_path for h in headers if h.osm_path is not None), None)
-
-    def graph():
-        if osm_online:
-            return load_osm_online(frame=frame, around_xy=around, config=config)
-        if path is None:
-            return None
-        return load_osm(path, frame=frame, around_xy=around, config=config)
-
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="roadtwin-osm") as pool:
-        pending = pool.submit(graph)
-        runs = [load_run(d, config=config) for d in run_dirs]
-        osm_graph = pending.result()
+    loaded = [load_run(d, config=config) for d in run_dirs]
+    frame = loaded[0].frame
     # every run in the first run's frame, once (build_highway finds them there)
-    return [run_in_frame(r, frame) for r in runs], osm_graph
+    runs = [run_in_frame(r, frame) for r in loaded]
+    around = np.vstack([r.trajectory.xy for r in runs])
+    path = osm or next((r.osm_path for r in runs if r.osm_path is not None), None)
+    if osm_online:
+        graph = load_osm_online(frame=frame, around_xy=around, config=config)
+    elif path is None:
+        graph = None
+    else:
+        graph = load_osm(path, frame=frame, around_xy=around, config=config)
+    return runs, graph

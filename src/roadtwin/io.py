@@ -233,8 +233,8 @@ class RunHeader:
 def read_run_header(run_dir: str | Path, *, config: LoadConfig | None = None) -> RunHeader:
     """Read and validate ``run.toml`` and the trajectory of a run folder, not its points.
 
-    What a later stage needs before the points (the frame and the path, e.g. to parse the
-    OSM extract around it while the points load) at the cost of reading the trajectory.
+    What a later stage needs before the points (the frame, the trajectory, the OSM file)
+    at the cost of reading the trajectory.
     Raises :class:`~roadtwin._errors.InputError` as :func:`load_run` does.
     """
     cfg = config if config is not None else LoadConfig()
