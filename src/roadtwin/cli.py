@@ -507,7 +507,7 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
 
     # only what the first stage needs is imported before it starts (start-up time); the
     # later stages import their modules when they begin
-    from .inputs import load_runs_and_osm
+    from .inputs import load_osm_around, load_runs
 
     started = time.perf_counter()
     cfg = _build_config(args)
@@ -517,7 +517,7 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
         from .drive import find_esmini
 
         tools = find_esmini(args.esmini)
-    steps = ["load run and OSM", "build map", "write files"]
+    steps = ["load run", "load OSM", "build map", "write files"]
     if not args.no_check:
         steps.append("check")
     if tools is not None:
@@ -529,14 +529,17 @@ def _cmd_build_run(args: argparse.Namespace) -> int:
         bar.set_description(name)
 
     t0 = time.perf_counter()
-    step("load run and OSM")
-    runs, osm_graph = load_runs_and_osm(
-        [args.run_dir], cfg.load, osm=args.osm, osm_online=args.osm_online
-    )
-    run = runs[0]
+    step("load run")
+    (run,) = load_runs([args.run_dir], cfg.load)
     out = args.output if args.output is not None else run.root / "out"
     check_output_dir(out, inputs=run.input_files, input_dirs=[run.root], names=names)
-    times["load run and OSM"] = time.perf_counter() - t0
+    times["load run"] = time.perf_counter() - t0
+    bar.update()
+
+    t0 = time.perf_counter()
+    step("load OSM")
+    osm_graph = load_osm_around([run], cfg.load, osm_online=args.osm_online)
+    times["load OSM"] = time.perf_counter() - t0
     bar.update()
 
     from .pipeline import build_map

@@ -21,7 +21,14 @@ from .io import MappingRun
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["load_runs_and_osm", "points_in_frame", "run_in_frame", "same_frame"]
+__all__ = [
+    "load_osm_around",
+    "load_runs",
+    "load_runs_and_osm",
+    "points_in_frame",
+    "run_in_frame",
+    "same_frame",
+]
 
 
 def same_frame(a: MappingFrame, b: MappingFrame) -> bool:
@@ -69,6 +76,36 @@ def run_in_frame(run: MappingRun, frame: MappingFrame) -> MappingRun:
     )
 
 
+def load_runs(run_dirs: list[str | Path], config: LoadConfig) -> list[MappingRun]:
+    """The mapping runs of ``run_dirs``, every one moved into the first run's frame."""
+    from .io import load_run
+
+    loaded = [load_run(d, config=config) for d in run_dirs]
+    return [run_in_frame(r, loaded[0].frame) for r in loaded]
+
+
+def load_osm_around(
+    runs: list[MappingRun],
+    config: LoadConfig,
+    *,
+    osm: str | Path | None = None,
+    osm_online: bool = False,
+):
+    """The OSM graph around every run's trajectory, in the first run's frame (the runs
+    already there, :func:`load_runs`): from ``osm``, else the file the first run's
+    ``run.toml`` names, or downloaded with ``osm_online``; None without a source."""
+    from .osm import load_osm, load_osm_online
+
+    frame = runs[0].frame
+    around = np.vstack([r.trajectory.xy for r in runs])
+    if osm_online:
+        return load_osm_online(frame=frame, around_xy=around, config=config)
+    path = osm or next((r.osm_path for r in runs if r.osm_path is not None), None)
+    if path is None:
+        return None
+    return load_osm(path, frame=frame, around_xy=around, config=config)
+
+
 def load_runs_and_osm(
     run_dirs: list[str | Path],
     config: LoadConfig,
@@ -76,33 +113,11 @@ def load_runs_and_osm(
     osm: str | Path | None = None,
     osm_online: bool = False,
 ):
-    """The mapping runs (moved into the first run's frame) and the OSM graph around them.
-
-    The OSM extract is ``osm``, else the one the first run's ``run.toml`` names (or the
-    online download with ``osm_online``); it is read around every run's trajectory.
+    """:func:`load_runs`, then :func:`load_osm_around` them: ``(runs, graph)``.
 
     The two are read one after the other. Parsing the OSM extract in a second thread while
     the points load saved 0.5 s on a 10 M point run, but a SIGTERM during the parse could
     then hang the command at exit or leave the parse's temporary folder behind.
-
-    Returns
-    -------
-    (runs, graph)
-        ``graph`` is None where no OSM source is given.
     """
-    from .io import load_run
-    from .osm import load_osm, load_osm_online
-
-    loaded = [load_run(d, config=config) for d in run_dirs]
-    frame = loaded[0].frame
-    # every run in the first run's frame, once (build_highway finds them there)
-    runs = [run_in_frame(r, frame) for r in loaded]
-    around = np.vstack([r.trajectory.xy for r in runs])
-    path = osm or next((r.osm_path for r in runs if r.osm_path is not None), None)
-    if osm_online:
-        graph = load_osm_online(frame=frame, around_xy=around, config=config)
-    elif path is None:
-        graph = None
-    else:
-        graph = load_osm(path, frame=frame, around_xy=around, config=config)
-    return runs, graph
+    runs = load_runs(run_dirs, config)
+    return runs, load_osm_around(runs, config, osm=osm, osm_online=osm_online)

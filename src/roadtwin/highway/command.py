@@ -118,8 +118,7 @@ def build_info(result: HighwayResult) -> dict[str, Any]:
 
 
 def _inputs(args: argparse.Namespace, cfg):
-    """(runs, area, graph): the mapping runs (in the first run's frame) and the OSM graph
-    around them, or the OSM-only area (graph None: :func:`load_area_graph` reads it)."""
+    """(runs, area): the mapping runs (in the first run's frame), or the OSM-only area."""
     from .area import area_from_bbox, is_osm_only_run, load_osm_area, parse_bbox
 
     if args.bbox is not None and args.osm is None and not args.run_dirs:
@@ -129,22 +128,19 @@ def _inputs(args: argparse.Namespace, cfg):
             raise InputError("build: give RUN_DIR(s), or --osm FILE --bbox ... for OSM alone")
         if args.bbox is None:
             raise InputError("build --osm FILE without RUN_DIR: give the area with --bbox")
-        return [], area_from_bbox(args.osm, parse_bbox(args.bbox), traffic_side=args.traffic), None
+        return [], area_from_bbox(args.osm, parse_bbox(args.bbox), traffic_side=args.traffic)
     if len(args.run_dirs) == 1 and is_osm_only_run(args.run_dirs[0]):
         area = load_osm_area(args.run_dirs[0])
         if args.bbox is not None:
             from dataclasses import replace
 
             area = replace(area, bbox=parse_bbox(args.bbox))
-        return [], area, None
+        return [], area
     if args.bbox is not None:
         raise InputError("build --bbox is for the OSM-only mode (no run with a trajectory)")
-    from ..inputs import load_runs_and_osm
+    from ..inputs import load_runs
 
-    runs, graph = load_runs_and_osm(
-        args.run_dirs, cfg.load, osm=args.osm, osm_online=args.osm_online
-    )
-    return runs, None, graph
+    return load_runs(args.run_dirs, cfg.load), None
 
 
 def cmd_build_highway(args: argparse.Namespace) -> int:
@@ -178,7 +174,7 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
 
     t0 = time.perf_counter()
     bar.set_description("load")
-    runs, area, graph = _inputs(args, cfg)
+    runs, area = _inputs(args, cfg)
     if area is not None:
         out = args.output if args.output is not None else (area.root or Path(".")) / "out"
         if args.output is None and area.root is None:
@@ -198,6 +194,9 @@ def cmd_build_highway(args: argparse.Namespace) -> int:
             input_dirs=[r.root for r in runs],
             names=NAMES,
         )
+        from ..inputs import load_osm_around
+
+        graph = load_osm_around(runs, cfg.load, osm=args.osm, osm_online=args.osm_online)
     times["load"] = time.perf_counter() - t0
     bar.update()
 
