@@ -526,3 +526,138 @@ def test_zero_width_mainline_shoulder_is_not_continued():
     lanes = ramp.road.lane_sections[0].right
     w0 = [float(x.width.value(np.array([0.0]))[0]) for x in lanes]
     assert w0 == pytest.approx([0.0, 3.5, 0.0], abs=1e-6)
+
+
+# ---------------------------------------------------------------------------
+# a flyover: another motorway crosses the carriageway and joins it as a link
+# ---------------------------------------------------------------------------
+
+
+def _flyover_graph():
+    """A straight carriageway (x east, RHT) and a motorway branch that comes from the
+    median side, crosses over the carriageway and ends 5 m off it on the traffic side,
+    aligned with it, at x=400, where a 90 m link goes on to join it at x=490."""
+    graph = nx.MultiDiGraph(crs="local")
+    traj = np.stack([np.linspace(0.0, 1000.0, 1001), np.zeros(1001)], axis=1)
+    for i, x in enumerate((0.0, 490.0, 1000.0)):
+        graph.add_node(i, x=x, y=0.0)
+    graph.add_edge(0, 1, highway="motorway", osmid=1, geometry=LineString([(0, 0), (490, 0)]))
+    graph.add_edge(1, 2, highway="motorway", osmid=1, geometry=LineString([(490, 0), (1e3, 0)]))
+    # the branch: from 60 m left of the carriageway (the median side), across it
+    xs = np.linspace(150.0, 400.0, 26)
+    ys = 60.0 - 65.0 * np.clip((xs - 150.0) / 200.0, 0.0, 1.0)
+    graph.add_node(10, x=150.0, y=60.0)
+    graph.add_node(11, x=400.0, y=-5.0)
+    graph.add_edge(10, 11, highway="motorway", osmid=7, geometry=LineString(np.c_[xs, ys]))
+    xl = np.linspace(400.0, 490.0, 10)
+    graph.add_edge(11, 1, highway="motorway_link", osmid=8,
+                   geometry=LineString(np.c_[xl, -5.0 + 5.0 * (xl - 400.0) / 90.0]))  # fmt: skip
+    return graph, traj
+
+
+def test_flyover_joining_as_a_link_is_one_outer_entry():
+    graph, traj = _flyover_graph()
+    chains, rejected = extract_ramp_chains(graph, traj)
+    # the branch's last node lies near the drive with its heading, but the carriageway
+    # does not run through it: the link is no part of the carriageway
+    assert not any("both ends" in why for _, why in rejected)
+    assert len(chains) == 1
+    chain = chains[0]
+    assert chain.type == "entry"
+    assert chain.osm_way_ids == (7, 8)  # the branch and its link: one ramp
+    assert chain.attach_node == 1
+    # it joins on the traffic side (right), where it first clears the carriageway line,
+    # though most of it lies on the median side
+    assert chain.side == "outer"
+    chains_lht, _ = extract_ramp_chains(graph, traj, traffic_side="left")
+    assert chains_lht[0].side == "inner"
+
+
+def test_ramp_evidence_ignores_a_crossing_road():
+    """A flyover's edges and markings crossing the measured ramp at 60 deg are another
+    road's: the reference line still follows the measured ramp."""
+    traj, road, _sections, graph = _gore_scene()
+    edges, lanes, true_ref = _true_ramp_points(road)
+    # a 20 m wide road crossing the ramp's measured stretch at a = 60 m, at 60 deg
+    s0 = 520.0 + 60.0
+    c, tg = PolylineFrame.from_points(traj).at(np.array([s0]))
+    h = math.atan2(tg[0, 1], tg[0, 0]) + math.radians(60.0)
+    along = np.arange(-40.0, 40.0, 0.25)
+    u = np.array([math.cos(h), math.sin(h)])
+    n = np.array([-u[1], u[0]])
+    cross = [c[0] - 9.0 * n + along[:, None] * u, c[0] + 9.0 * n + along[:, None] * u]
+    marks = [c[0] + k * n + along[::4, None] * u for k in (-5.0, 0.0, 5.0)]
+    fitted = build_ramps(
+        graph,
+        road,
+        trajectory_xy=traj,
+        edge_xy=np.vstack([edges, *cross]),
+        lane_xy=np.vstack([lanes, *marks]),
+    ).ramps[0]
+    ev = fitted.evidence
+    assert ev is not None
+    assert ev.span_m == pytest.approx(130.5, abs=1.5)
+    assert ev.widths == pytest.approx((0.6, 3.5, 2.2), abs=0.05)
+    _, t1 = fitted.road.project(true_ref)
+    assert float(np.max(np.abs(t1))) < 0.05
+
+
+def _parallel_ramp_scene(osm_inward_m: float, *, seed: int = 3):
+    """An entry-style parallel ramp: it leaves the border of through lane -4 at the gore
+    (s=520), lies 4 m out after 60 m and runs parallel, measured for 200 m (edges and
+    markings, 3 cm noise). OSM draws its centre ``osm_inward_m`` towards the mainline,
+    leaving at s=470, and bends away beyond s=720. Returns (traj, road, graph, edges,
+    lanes, true reference line xy)."""
+    traj, road, _sections, _graph = _gore_scene()
+    frame = PolylineFrame.from_points(traj)
+    rng = np.random.default_rng(seed)
+    a = np.arange(5.0, 200.0, 0.5)
+    s = 520.0 + a
+    x = np.clip(a / 60.0, 0.0, 1.0)
+    d = 4.0 * x * x * (3.0 - 2.0 * x)
+    t_border = road.lane_border_t(s, -4)
+
+    def pts(tau):
+        return road.to_xy(s, t_border - tau - rng.normal(0.0, 0.03, a.size)).reshape(-1, 2)
+
+    xg = np.clip(a / RampConfig().shoulder_taper_m, 0.0, 1.0)
+    w_in = 0.6 * xg * xg * (3.0 - 2.0 * xg)  # the inner shoulder opens past the gore
+    edges = np.vstack([pts(d), pts(d + w_in + 3.5 + 2.2)])
+    lanes = np.vstack([pts(d + w_in), pts(d + w_in + 3.5)])
+    graph = nx.MultiDiGraph(crs="local")
+    s_nodes = [0.0, 470.0, frame.length]
+    for i, sn in enumerate(s_nodes):
+        p, _ = frame.at(np.array([sn]))
+        graph.add_node(i, x=float(p[0, 0]), y=float(p[0, 1]))
+    for i in range(2):
+        p, _ = frame.at(np.linspace(s_nodes[i], s_nodes[i + 1], 30))
+        graph.add_edge(i, i + 1, highway="motorway", osmid=1, geometry=LineString(p))
+    s_osm = np.linspace(470.0, 900.0, 40)
+    x = np.clip((s_osm - 470.0) / 100.0, 0.0, 1.0)
+    t_osm = (
+        road.lane_border_t(s_osm, -4)
+        - (4.0 + 0.6 + 1.75 - osm_inward_m) * x * x * (3.0 - 2.0 * x)
+        - 0.0006 * np.clip(s_osm - 720.0, 0.0, None) ** 2
+    )
+    osm_xy = road.to_xy(s_osm, t_osm).reshape(-1, 2)
+    graph.add_node(9, x=float(osm_xy[-1, 0]), y=float(osm_xy[-1, 1]))
+    graph.add_edge(1, 9, highway="motorway_link", lanes="1", osmid=2, geometry=LineString(osm_xy))
+    return traj, road, graph, edges, lanes, road.to_xy(s, t_border - d).reshape(-1, 2)
+
+
+@pytest.mark.parametrize("osm_inward_m", [2.0, 5.0])
+def test_ramp_evidence_follows_a_parallel_ramp_osm_draws_inside(osm_inward_m):
+    """OSM drawn metres inside a ramp that runs parallel to the mainline must not swing
+    the fit off the measured lines beyond each window (it did by 3.7-9.4 m): boundary
+    lines matched once keep their boundary."""
+    traj, road, graph, edges, lanes, true_ref = _parallel_ramp_scene(osm_inward_m)
+    ramp = build_ramps(graph, road, trajectory_xy=traj, edge_xy=edges, lane_xy=lanes).ramps[0]
+    ev = ramp.evidence
+    assert ev is not None
+    assert ev.span_m == pytest.approx(200.0, abs=2.0)
+    assert ev.widths == pytest.approx((0.6, 3.5, 2.2), abs=0.05)
+    _, t = ramp.road.project(true_ref)
+    # measured: max 0.24 m, in the S-bend of the first 30 m (the spline's knots are 15 m
+    # apart); beyond it p95 0.05 m
+    assert float(np.max(np.abs(t))) < 0.4
+    assert float(np.percentile(np.abs(t[50:]), 95)) < 0.1

@@ -161,10 +161,22 @@ def find_candidates(
     return tuple(out)
 
 
+_TRACK_END_M = 100.0  # near the drive's ends a carriageway node may show one side only
+
+
 def _mainline_nodes(
     osm_graph: nx.MultiDiGraph, track: _Track, cfg: RampConfig
 ) -> dict[Any, EdgeKey]:
-    """OSM nodes on the driven carriageway -> one aligned non-link edge at that node."""
+    """OSM nodes on the driven carriageway -> one aligned non-link edge at that node.
+
+    A node is on the carriageway when the carriageway runs through it: a non-link edge
+    arrives and one leaves, each with the driven heading at the node and each lying along
+    the drive (median offset within ``mainline_match_m``). Where a motorway branch ends
+    next to the drive and goes on as a link (a flyover joining from the far side), its
+    last node is near the drive and aligned with it, but nothing of the carriageway
+    leaves it, so the link is a ramp, not part of the carriageway. Within
+    ``_TRACK_END_M`` of the drive's ends one side is enough (the extract is cut there).
+    """
     max_dh = math.radians(cfg.max_heading_diff_deg)
     node_ids = list(osm_graph.nodes)
     if not node_ids:
@@ -174,20 +186,29 @@ def _mainline_nodes(
     near = (np.abs(t) <= cfg.mainline_match_m) & (s >= -cfg.mainline_match_m)
     near &= s <= track.length + cfg.mainline_match_m
     near_nodes = {n: float(si) for n, si, ok in zip(node_ids, s, near, strict=False) if ok}
+
+    def along_drive(xy: FloatArray) -> bool:
+        s_e, t_e = track.project(resample_polyline(xy, 2.0))
+        inside = (s_e >= 0.0) & (s_e <= track.length)
+        return bool(np.median(np.abs(t_e[inside] if inside.any() else t_e)) <= cfg.mainline_match_m)
+
     out: dict[Any, EdgeKey] = {}
     for n, sn in near_nodes.items():
         h_track = float(track.heading(np.array([sn]))[0])
         edges = [(u, v, k, True) for u, v, k in osm_graph.out_edges(n, keys=True)]
         edges += [(u, v, k, False) for u, v, k in osm_graph.in_edges(n, keys=True)]
+        aligned: dict[bool, EdgeKey] = {}
         for u, v, k, outgoing in sorted(edges, key=lambda e: (str(e[0]), str(e[1]), e[2])):
             data = osm_graph.edges[u, v, k]
-            if _is_link(data):
+            if outgoing in aligned or _is_link(data):
                 continue
             xy = edge_xy(osm_graph, u, v, k)
             h = _end_heading(xy, at_start=outgoing)
-            if abs(float(_wrap(h - h_track))) <= max_dh:
-                out[n] = (u, v, k)
-                break
+            if abs(float(_wrap(h - h_track))) <= max_dh and along_drive(xy):
+                aligned[outgoing] = (u, v, k)
+        at_end = sn <= _TRACK_END_M or sn >= track.length - _TRACK_END_M
+        if len(aligned) == 2 or (aligned and at_end):
+            out[n] = aligned.get(True, aligned.get(False))
     return out
 
 
@@ -201,7 +222,11 @@ def _follow(
     any_class: bool = False,
 ) -> list[EdgeKey]:
     """Link edges from ``first`` onward (or backward) until a junction, the carriageway or
-    ``max_length_m``; with ``any_class`` (a carriageway branch) edges of its own class."""
+    ``max_length_m``; with ``any_class`` (a carriageway branch) edges of its own class.
+
+    A node where only two edges meet, the link and a motorway or trunk edge, is no
+    junction: a branch of another carriageway that ends as a link (or a link that goes on
+    as a carriageway) is one ramp, followed on along that carriageway's class."""
     same = _highway(osm_graph.edges[first]) if any_class else None
 
     def ramp_edge(data: dict[str, Any]) -> bool:
@@ -214,14 +239,20 @@ def _follow(
         node = chain[-1][1] if forward else chain[-1][0]
         if node in stop_nodes:
             break
-        outs = [e for e in osm_graph.out_edges(node, keys=True) if ramp_edge(osm_graph.edges[e])]
-        ins = [e for e in osm_graph.in_edges(node, keys=True) if ramp_edge(osm_graph.edges[e])]
+        out_all = list(osm_graph.out_edges(node, keys=True))
+        in_all = list(osm_graph.in_edges(node, keys=True))
+        onward = out_all if forward else in_all
+        if (
+            same is None
+            and len(out_all) == 1
+            and len(in_all) == 1
+            and any(c in _highway(osm_graph.edges[onward[0]]) for c in _BRANCH_CLASSES)
+        ):
+            same = _highway(osm_graph.edges[onward[0]])
+        outs = [e for e in out_all if ramp_edge(osm_graph.edges[e])]
+        ins = [e for e in in_all if ramp_edge(osm_graph.edges[e])]
         # a junction: any non-link road meets here, or the link forks/joins
-        others = [
-            e
-            for e in (*osm_graph.out_edges(node, keys=True), *osm_graph.in_edges(node, keys=True))
-            if not ramp_edge(osm_graph.edges[e])
-        ]
+        others = [e for e in (*out_all, *in_all) if not ramp_edge(osm_graph.edges[e])]
         if others or len(outs) != 1 or len(ins) != 1:
             break
         nxt = outs[0] if forward else ins[0]
@@ -320,6 +351,37 @@ def branch_candidates(
     return tuple(sorted(out, key=lambda c: (str(c.osm_way_id), str(c.u), str(c.v))))
 
 
+_SIDE_CLEAR_M = 3.0  # a ramp's side is read where it is this far off the carriageway line
+
+
+def _ramp_side(
+    track: _Track, xy: FloatArray, attach_xy: FloatArray, *, exit_: bool, sign: float
+) -> str:
+    """``"outer"`` (traffic side) or ``"inner"`` (median side): the side of the carriageway
+    on which the ramp first lies clear of the carriageway's OSM line, going away from the
+    attachment.
+
+    The offset is measured from the carriageway's line through the attachment, not from
+    the drive: the car keeps to one lane, and a link drawn close to the carriageway can lie
+    on the far side of the car's lane. The side where the ramp first clears the line is
+    the side on which it joins: a flyover crosses the carriageway further away.
+    ``sign`` is -1 for right-hand traffic (outer = right = negative offset), else +1."""
+    dense = resample_polyline(xy, 1.0)
+    if not exit_:
+        dense = dense[::-1]
+    _, t = track.project(dense)
+    _, t_attach = track.project(attach_xy)
+    t_rel = t - float(t_attach[0])
+    along = arc_length(dense)
+    away = along > min(20.0, 0.5 * along[-1])
+    clear = away & (np.abs(t_rel) >= _SIDE_CLEAR_M)
+    if np.any(clear):
+        side_t = float(t_rel[int(np.argmax(clear))])
+    else:
+        side_t = float(np.median(t_rel[away] if np.any(away) else t_rel))
+    return "outer" if side_t * sign > 0.0 else "inner"
+
+
 def extract_ramp_chains(
     osm_graph: nx.MultiDiGraph,
     trajectory_xy: FloatArray,
@@ -398,14 +460,7 @@ def extract_ramp_chains(
             continue
         # which side of the drive the ramp lies on, away from the attachment
         s_pts, t_pts = track.project(xy)
-        along = arc_length(xy)
-        dist_from_attach = along if ramp_type == "exit" else along[-1] - along
-        away = dist_from_attach > min(20.0, 0.5 * along[-1])
-        t_away = t_pts[away] if np.any(away) else t_pts
-        # a ramp on the traffic side is an outer ramp; one on the median side (a left exit
-        # on a right-hand road) an inner one -- the opposite carriageway's links never
-        # attach to a node of the driven carriageway with its heading
-        ramp_side = "outer" if float(np.median(t_away)) * side_sign > 0.0 else "inner"
+        ramp_side = _ramp_side(track, xy, node_xy, exit_=ramp_type == "exit", sign=side_sign)
         # geometry cross-check: which end lies nearer the trajectory
         d_start, d_end = abs(float(t_pts[0])), abs(float(t_pts[-1]))
         in_start = -5.0 <= s_pts[0] <= track.length + 5.0

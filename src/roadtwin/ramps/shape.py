@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from threadpoolctl import threadpool_limits
 
@@ -46,6 +48,13 @@ _MAX_POINTS = 600  # measured points used per ramp (evenly thinned beyond)
 _OSM_LOOKAHEAD_M = 40.0  # OSM is ignored up to this far beyond the measured window
 _MEASURED_REACH_M = 10.0  # ... and where associated points lie this close along the ramp
 _LOOKAHEAD_WEIGHT = 0.1  # OSM's weight in the look-ahead (enough to stop a swing there)
+_DIRECTION_NEIGHBOURS = 10  # points whose spread gives a measured point's line direction
+_LINE_LINK_M = 15.0  # points of one line: this close along it (a dash and a gap) ...
+_LINE_LATERAL_M = 0.4  # ... this close across it ...
+_LINE_TURN_RAD = math.radians(15.0)  # ... and directions this close
+_LINE_OUTLIER_M = 3.0  # a point of a known line this far off its boundary is an outlier
+_MAX_CROSSING_RAD = math.radians(30.0)  # a point on a line crossing the ramp at more than
+# this is another road's (a flyover's edge), never the ramp's
 
 
 @dataclass(frozen=True)
@@ -194,6 +203,83 @@ def _project_on_grid(
     along = np.clip(d[:, 0] * c + d[:, 1] * s, -step, step)
     lateral = -d[:, 0] * s + d[:, 1] * c
     return idx * step + along, lateral, idx
+
+
+def line_directions(xy: FloatArray, group: NDArrayBool) -> FloatArray:
+    """Direction (radians, modulo pi) of the line each measured point lies on: the main
+    axis of its ``_DIRECTION_NEIGHBOURS`` nearest points of the same group (edges or lane
+    samples), mapping frame. Points of a boundary lie on a line; this tells a boundary
+    that runs along the ramp from one that crosses it."""
+    out = np.zeros(xy.shape[0])
+    for g in (False, True):
+        sel = np.flatnonzero(group == g)
+        if sel.size < 3:
+            continue
+        k = min(_DIRECTION_NEIGHBOURS, sel.size)
+        _, nb = cKDTree(xy[sel]).query(xy[sel], k=k)
+        d = xy[sel][nb] - xy[sel][nb].mean(axis=1, keepdims=True)  # (n, k, 2)
+        cxx = np.einsum("nk,nk->n", d[..., 0], d[..., 0])
+        cyy = np.einsum("nk,nk->n", d[..., 1], d[..., 1])
+        cxy = np.einsum("nk,nk->n", d[..., 0], d[..., 1])
+        out[sel] = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
+    return out
+
+
+def _along_curve(direction: FloatArray, heading: FloatArray) -> NDArrayBool:
+    """Whether lines of ``direction`` (modulo pi) run within ``_MAX_CROSSING_RAD`` of the
+    curve headings."""
+    diff = np.abs(np.angle(np.exp(2j * (direction - heading)))) / 2.0
+    return diff <= _MAX_CROSSING_RAD
+
+
+def boundary_lines(xy: FloatArray, group: NDArrayBool, direction: FloatArray) -> NDArrayInt:
+    """Label measured points by the line they lie on (connected components).
+
+    Two points of the same group (edges or lane samples) belong to one line when they lie
+    within ``_LINE_LINK_M`` of each other along the line (a marking's dashes and gaps
+    included), within ``_LINE_LATERAL_M`` across it, and their line directions agree.
+    A crossing road's edges and a parallel boundary a lane away are other lines.
+    """
+    n = xy.shape[0]
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    pairs = cKDTree(xy).query_pairs(_LINE_LINK_M, output_type="ndarray")
+    if pairs.size == 0:
+        return np.arange(n, dtype=np.int64)
+    i, j = pairs[:, 0], pairs[:, 1]
+    d = xy[j] - xy[i]
+    u = np.stack([np.cos(direction[i]), np.sin(direction[i])], axis=1)
+    across = np.abs(d[:, 0] * u[:, 1] - d[:, 1] * u[:, 0])
+    same_dir = np.abs(np.angle(np.exp(2j * (direction[i] - direction[j])))) / 2.0
+    keep = (group[i] == group[j]) & (across <= _LINE_LATERAL_M) & (same_dir <= _LINE_TURN_RAD)
+    graph = coo_matrix((np.ones(int(keep.sum())), (i[keep], j[keep])), shape=(n, n))
+    _, labels = connected_components(graph, directed=False)
+    return labels.astype(np.int64)
+
+
+def _associate_lines(
+    r: FloatArray, in_window: NDArrayBool, lines: NDArrayInt, known: dict[int, int], gate: float
+) -> tuple[NDArrayBool, NDArrayInt]:
+    """Points matched to a ramp boundary, line by line.
+
+    ``r`` ``(B, P)``: residuals of every point against every boundary (``inf`` where the
+    kind differs). A line keeps the boundary it was matched to in an earlier window
+    (``known``), so a curve that swings beyond the measured stretch is pulled back by the
+    lines it already follows instead of losing them; a new line takes the boundary its
+    points lie nearest to by median, if within ``gate`` (metres). Points farther than
+    ``_LINE_OUTLIER_M`` from their line's boundary are left out.
+    """
+    ok = np.zeros(r.shape[1], dtype=bool)
+    kind = np.argmin(np.abs(r), axis=0)
+    for line in np.unique(lines[in_window]):
+        idx = np.flatnonzero(in_window & (lines == line))
+        med = np.median(np.abs(r[:, idx]), axis=1)
+        k = known.get(int(line), int(np.argmin(med)))
+        if int(line) not in known and not med[k] <= gate:
+            continue
+        kind[idx] = k
+        ok[idx] = np.abs(r[k, idx]) <= max(gate, _LINE_OUTLIER_M if int(line) in known else gate)
+    return ok, kind
 
 
 # the solves are small dense problems: BLAS threads only contend (a loaded 2-core machine
@@ -378,14 +464,17 @@ def fit_ramp_shape(
 
     pts_every = np.asarray(points[0], dtype=float)[:, :2]
     edge_every = np.asarray(points[1], dtype=bool)
-    pts_all, edge_all = pts_every, edge_every
+    dir_every = line_directions(pts_every, edge_every)
+    pts_all, edge_all, dir_all = pts_every, edge_every, dir_every
     if pts_all.shape[0] > _MAX_POINTS:  # a deterministic even thinning keeps solves small
         keep = np.linspace(0, pts_all.shape[0] - 1, _MAX_POINTS).astype(np.int64)
-        pts_all, edge_all = pts_all[keep], edge_all[keep]
+        pts_all, edge_all, dir_all = pts_all[keep], edge_all[keep], dir_all[keep]
     reach = min(cfg.evidence_length_m, float(spline.a[-1]))
     # windows growing by half their length: a fit predicts well about that far ahead
     windows = [w for w in (30.0, 45.0, 70.0, 105.0, 160.0, 240.0, 360.0) if w < reach]
     windows.append(reach)
+    lines = boundary_lines(pts_all, edge_all, dir_all)
+    known: dict[int, int] = {}  # line -> boundary, from the windows before
     assoc = None
     best = None
     for k, window in enumerate(windows):
@@ -394,13 +483,12 @@ def fit_ramp_shape(
         gates = (1.5, 1.0, 0.7, 0.4) if k == 0 else (1.5, 0.6)
         for gate in gates:
             tree = cKDTree(xy)
-            a_p, lat, _ = _project_on_grid(xy, heading, step, pts_all, tree)
+            a_p, lat, gi = _project_on_grid(xy, heading, step, pts_all, tree)
             offs, _ = section.offsets(a_p, p[n_k:])
             r = lane_side * lat[None, :] - offs
             r[coef_edge[:, None] != edge_all[None, :]] = np.inf
-            kind = np.argmin(np.abs(r), axis=0)
-            r_k = r[kind, np.arange(a_p.size)]
-            ok = (np.abs(r_k) <= gate) & (a_p > 0.5) & (a_p <= window)
+            in_window = (a_p > 0.5) & (a_p <= window) & _along_curve(dir_all, heading[gi])
+            ok, kind = _associate_lines(r, in_window, lines, known, gate)
             if np.count_nonzero(ok) < cfg.evidence_min_points // 4:
                 break
             groups = section.group()[kind[ok]]
@@ -416,6 +504,8 @@ def fit_ramp_shape(
             xy, heading = spline.evaluate(p[:n_k])
             best = (ok, kind)
         else:
+            known.update({int(li): int(kind[np.flatnonzero(ok & (lines == li))[0]])
+                          for li in np.unique(lines[ok])})  # fmt: skip
             continue
         break
     if assoc is None or best is None:
@@ -425,13 +515,14 @@ def fit_ramp_shape(
     xy, heading = spline.evaluate(p[:n_k])
     # every measured point (not only the thinned ones) against the final boundaries
     tree = cKDTree(xy)
-    a_p, lat, _ = _project_on_grid(xy, heading, step, pts_every, tree)
+    a_p, lat, gi = _project_on_grid(xy, heading, step, pts_every, tree)
     offs, _ = section.offsets(a_p, p[n_k:])
     r = lane_side * lat[None, :] - offs
     r[coef_edge[:, None] != edge_every[None, :]] = np.inf
     kind = np.argmin(np.abs(r), axis=0)
     resid = r[kind, np.arange(a_p.size)]
     good = (np.abs(resid) <= 0.4) & (a_p > 0.5) & (a_p <= float(spline.a[-1]))
+    good &= _along_curve(dir_every, heading[gi])
     groups = section.group()[kind[good]]
     counts = np.bincount(groups, minlength=3)
     widths_out = tuple(float(w) for w in p[n_k:])
