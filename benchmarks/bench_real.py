@@ -67,6 +67,7 @@ class RealRun:
     route: tuple[str, ...] = ()
     holdout: bool = False
     settings: dict = field(default_factory=dict)
+    direction: str = "forward"
 
 
 RUNS: tuple[RealRun, ...] = (
@@ -102,6 +103,53 @@ RUNS: tuple[RealRun, ...] = (
     RealRun("melbourne-408-s3", "osm", "melbourne-lht.osm.pbf", 3, 408, holdout=True),
     RealRun("soderleden-s2", "xodr", "soderleden.xodr", 2, holdout=True),
     RealRun("town06-auto-s3", "xodr", "Town06.xodr", 3, holdout=True),
+    # added 2026-11-24 (later session) as a second fresh holdout: the opposite carriageway
+    # of five chains (other ramps, other lane events, the other side of each interchange)
+    RealRun(
+        "a9-206615404-opp-s4",
+        "osm",
+        "north-bayreuth-a9.osm.gz",
+        4,
+        206615404,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun(
+        "oakland-11197879-opp-s4",
+        "osm",
+        "west-oakland-i880.osm.bz2",
+        4,
+        11197879,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun(
+        "kotka-37952515-opp-s4",
+        "osm",
+        "kotka-e18.osm.pbf",
+        4,
+        37952515,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun(
+        "krems-46762523-opp-s4",
+        "osm",
+        "krems-s5-trunk.osm.gz",
+        4,
+        46762523,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun(
+        "melbourne-408-opp-s4",
+        "osm",
+        "melbourne-lht.osm.pbf",
+        4,
+        408,
+        holdout=True,
+        direction="opposite",
+    ),
 )
 
 
@@ -120,7 +168,9 @@ def simulate(spec: RealRun, out: Path, *, osm_dir: Path, xodr_dir: Path) -> Path
         return sim.simulate_xodr_run(
             xodr_dir / spec.path, out, route=list(spec.route) or None, seed=spec.seed
         )
-    return sim.simulate_osm_run(osm_dir / spec.path, out, chain=spec.chain, seed=spec.seed)
+    return sim.simulate_osm_run(
+        osm_dir / spec.path, out, chain=spec.chain, seed=spec.seed, direction=spec.direction
+    )
 
 
 # ---------------------------------------------------------------------------

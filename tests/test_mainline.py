@@ -657,3 +657,38 @@ def test_a_line_is_continued_to_where_the_converging_line_settles_beside_it():
     # settling a lane away is no meeting
     _, apart = _line_ending_at_300(([0.0, 300.0, 330.0, 600.0], [11.8, 11.8, 10.0, 10.0]))
     assert apart[1].hi == 300.0
+
+
+def _line_track(k: int, grid: np.ndarray, d: np.ndarray):
+    from roadtwin.mainline.markings import _Track
+
+    return _Track(k, float(grid[0]), float(grid[-1]), grid, d, "broken", grid.size, grid)
+
+
+def test_a_lane_too_wide_between_observed_markings_gets_its_missed_line():
+    """A lane added by a 100 m taper beside the through lane: the car saw the diverging
+    line but not the new straight one. Where the two observed lines lie more than a lane
+    plus 1.5 m apart over 30 m, the missed line is inferred a lane from the steady one
+    (the through lane's); three lanes wide: two lines evenly spaced; a short wide stretch
+    (20 m) is left alone."""
+    from roadtwin.mainline.markings import _wide_lane_lines
+
+    grid = np.arange(0.0, 401.0, 1.0)
+    x = np.clip((grid - 100.0) / 100.0, 0.0, 1.0)
+    steady = _line_track(0, grid, np.full(grid.size, 3.6))
+    diverging = _line_track(1, grid, 7.2 + 3.6 * x * x * (3.0 - 2.0 * x))
+    lines = _wide_lane_lines([steady, diverging], grid, 3.6, 1.5)
+    assert len(lines) == 1
+    a, b, d = lines[0]
+    # the gap exceeds 5.1 m from s = 144.4 m (the smoothstep reaches 1.5 of 3.6) to the end
+    assert grid[a] == pytest.approx(145.0, abs=1.0)
+    assert grid[b - 1] == 400.0
+    assert np.allclose(d, 7.2)
+    # three lanes between steady lines 10.8 m apart: lines at 3.6 and 7.2
+    wide = _line_track(1, grid, np.full(grid.size, 10.8))
+    flat = _line_track(0, grid, np.zeros(grid.size))
+    got = sorted(float(np.median(d)) for _, _, d in _wide_lane_lines([flat, wide], grid, 3.6, 1.5))
+    assert got == pytest.approx([3.6, 7.2])
+    # wide over 20 m only: a gore's diverging lines before they end, not a lane
+    bump = np.where((grid > 200.0) & (grid < 220.0), 9.0, 7.2)
+    assert _wide_lane_lines([steady, _line_track(1, grid, bump)], grid, 3.6, 1.5) == []

@@ -228,6 +228,10 @@ class MainlineConfig:
     hidden_lane_min_m: float = 2.0
     """An outer shoulder wider than the run's typical one by more than this hides a lane
     whose outer marking was not observed (metres)."""
+    split_lane_min_m: float = 1.5
+    """Two adjacent observed markings farther apart than the typical lane width plus this
+    (metres), over 30 m, have a line between them that was not observed (a lane added by
+    a long taper beside the through lane): it is inferred."""
     broken_gap_m: float = 3.0
     """Gaps between samples longer than this count towards a broken marking (metres)."""
     broken_gap_fraction: float = 0.3

@@ -688,9 +688,20 @@ def build_topology(
     zones: list[_Zone] = []
     skipped: list[tuple[str, str]] = []
     last_end = 0.0
+    steps = _offset_steps(mainline_road)
     for ramp in sorted(ramps, key=lambda r: (r.station_m, r.type)):
         s = ramp.station_m
         a, b = (s, s + zl) if ramp.type == "exit" else (s - zl, s)
+        # the through connecting road must not hold a lane-offset step: its lanes would
+        # not be linked across it (the mainline is split there into linked roads). A step
+        # inside the zone (median-side lanes that end or begin just past the gore) ends
+        # the zone there
+        inside = [x for x in steps if a + 1.0 < x < b - 1.0]
+        if inside and not direct:
+            if ramp.type == "exit":
+                b = inside[0]
+            else:
+                a = inside[-1]
         # at the run's ends the junction may be shorter: an exit just before the end of the
         # run (an entry just after its start) still gets its junction
         if not direct and ramp.type == "exit" and length - b < cfg.min_road_length_m:
@@ -733,7 +744,6 @@ def build_topology(
     junction_ids = [str(n_main + per_zone * len(zones) + 1 + k) for k in range(len(zones))]
     # the mainline between junctions is split where its lane offset steps (after
     # the junctions' ids): the first part keeps the piece's id
-    steps = _offset_steps(mainline_road)
     split_ids = itertools.count(n_main + (per_zone + 1) * len(zones) + 1)
     tails: list[list[Road]] = []
     for i in range(n_main):

@@ -520,6 +520,54 @@ _HANDOVER_M = 5.0  # an inferred line starting this close after an observed one 
 _HANDOVER_D_M = 0.5  # ... this close to its offset continues it (metres)
 
 
+_SPLIT_MIN_RUN_M = 30.0  # a lane too wide over at least this long holds a missed line
+
+
+def _wide_lane_lines(
+    tracks: list[_Track], grid: FloatArray, lane_m: float, min_extra_m: float
+) -> list[tuple[int, int, FloatArray]]:
+    """Lines missed between two adjacent observed markings: ``(start, stop, d)`` on the
+    grid where the markings lie at least a lane plus ``min_extra_m`` apart over
+    ``_SPLIT_MIN_RUN_M``.
+
+    A lane added by a long taper widens beside the through lane; where the car saw the
+    diverging line but not the new straight one (dashes far off, sparse), the two lanes
+    were one lane up to twice as wide. Two lanes: the missed line lies a typical lane
+    from the steadier of the two markings (the through lane's line; the other one
+    diverges); more: evenly spaced.
+    """
+    if len(tracks) < 2:
+        return []
+    marks = _marking_matrix(tracks, grid)
+    order = np.argsort(np.where(np.isfinite(marks), marks, np.inf), axis=0)
+    d_sorted = np.take_along_axis(marks, order, axis=0)
+    gaps = np.diff(d_sorted, axis=0)  # (T-1, G), NaN where a pair is incomplete
+    wide = np.isfinite(gaps) & (gaps >= lane_m + min_extra_m)
+    out: list[tuple[int, int, FloatArray]] = []
+    if not wide.any():
+        return out
+    rows, cols = np.nonzero(wide)
+    pairs = sorted(
+        {(int(order[r, c]), int(order[r + 1, c])) for r, c in zip(rows, cols, strict=True)}
+    )
+    min_run = max(2, math.ceil(_SPLIT_MIN_RUN_M / float(np.median(np.diff(grid)))))
+    for i, j in pairs:
+        adjacent = np.zeros(grid.size, dtype=np.int64)
+        for r in range(gaps.shape[0]):
+            adjacent |= (wide[r] & (order[r] == i) & (order[r + 1] == j)).astype(np.int64)
+        for a, b, on in _runs_of(adjacent):
+            if not on or b - a < min_run:
+                continue
+            d_i, d_j = marks[i, a:b], marks[j, a:b]
+            n = max(2, round(float(np.median(d_j - d_i)) / lane_m))
+            if n == 2:
+                steady_i = np.ptp(d_i) <= np.ptp(d_j)
+                out.append((a, b, d_i + lane_m if steady_i else d_j - lane_m))
+            else:
+                out.extend((a, b, d_i + (d_j - d_i) * k / n) for k in range(1, n))
+    return out
+
+
 def _add_hidden_lanes(
     tracks: list[_Track],
     grid: FloatArray,
@@ -585,6 +633,16 @@ def _add_hidden_lanes(
                 return
         out.append(_Track(len(out), float(g[0]), float(g[-1]), g, d, mark, 0, g[:0]))
 
+    # between observed markings: a lane too wide holds a line that was not seen
+    for a, b, d in _wide_lane_lines(tracks, grid, lane_m, cfg.split_lane_min_m):
+        add(a, b, d, "broken")
+        log.info(
+            "mainline: an unobserved line inferred in a lane wider than %.1f m at "
+            "s=%.0f..%.0f m",
+            lane_m + cfg.split_lane_min_m,
+            grid[a],
+            grid[b - 1],
+        )
     # outer side: the run's typical hard shoulder stays, whole lanes fill the rest
     outer_gap = d_edge - d_last
     if np.any(np.isfinite(outer_gap)):
