@@ -676,3 +676,45 @@ def test_junction_zone_ends_at_a_lane_offset_step_inside_it():
         assert float(np.max(np.abs(end - start))) < 1e-6
     findings = check_network(_network(topo))
     assert not [f for f in findings if f.severity == "error"]
+
+
+def test_inner_exit_stays_outside_the_border_it_leaves_from_past_an_offset_step():
+    """A left exit at s=493 takes the median-side lane; the lane offset steps in by a lane
+    at s=500 (the lanes that stay). OSM draws the exit from the carriageway centre. Past
+    the step the carriageway's median-side border lies a lane inside the line the exit
+    leaves from: the exit's reference line must not come back inside that line (it did,
+    by 3.5 m, where OSM runs inside the carriageway)."""
+    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
+    before = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid", succ=-1),
+            _lane(-2, W),
+            _lane(-3, W, succ=-2),
+            _lane(-4, W, succ=-3),
+            _lane(-5, 2.5, "shoulder", "none", succ=-4),
+        ),
+    )
+    after = LaneSection(
+        500.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid", pred=-1),
+            _lane(-2, W, pred=-3),
+            _lane(-3, W, pred=-4),
+            _lane(-4, 2.5, "shoulder", "none", pred=-5),
+        ),
+    )
+    offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
+    road = Road("1", line, (before, after), name="mainline", lane_offset=offset)
+    s_osm = np.arange(480.0, 900.0, 20.0)
+    # from the carriageway centre, bending left (to the median side) slowly
+    xy = road.to_xy(s_osm, -(0.75 + 1.5 * W) + 0.0004 * np.clip(s_osm - 480.0, 0, None) ** 2)
+    ramp_road, gap, _dh = build_ramp_road(
+        xy, road, ramp_type="exit", lanes=1, station_m=493.0, source_lane_ids=(-2,),
+        side="inner", road_id="rexit", config=RampConfig(),
+    )  # fmt: skip
+    assert gap < 0.01
+    # the line the exit leaves from: the inner border of lane -2 at the gore (t = -0.75)
+    a = np.linspace(0.0, 80.0, 161)
+    _, t = road.project(ramp_road.xy(a))
+    assert float(np.min(t)) > -0.75 - 0.05

@@ -159,6 +159,11 @@ def _build_ramp_road(
         mainline_road, np.clip(s_i, 0.0, mainline_road.length), traffic_side, side
     )
     t_edge = np.where(np.isfinite(t_edge), t_edge, t_i)
+    # past the gore the border of the lanes that stay behind lies inside the border the
+    # ramp leaves from (the median-side edge steps in a few metres past an inner exit's
+    # gore): the ramp does not come back inside the line it leaves from at the gore
+    past_gore = (s_i - s_att) * direction > 0.0
+    t_edge = np.where(past_gore & ((t_att - t_edge) * outward > 0.0), t_att, t_edge)
     separation = (t_i - t_edge) * outward
     # points near the carriageway on the wrong side of the gore before the ramp has left
     # it (OSM drawn across the gore, an offset curve folding) are dropped; later ones are
