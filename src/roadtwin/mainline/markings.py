@@ -637,8 +637,7 @@ def _add_hidden_lanes(
     for a, b, d in _wide_lane_lines(tracks, grid, lane_m, cfg.split_lane_min_m):
         add(a, b, d, "broken")
         log.info(
-            "mainline: an unobserved line inferred in a lane wider than %.1f m at "
-            "s=%.0f..%.0f m",
+            "mainline: an unobserved line inferred in a lane wider than %.1f m at s=%.0f..%.0f m",
             lane_m + cfg.split_lane_min_m,
             grid[a],
             grid[b - 1],
