@@ -1195,18 +1195,30 @@ def _warnings_as_lines() -> Iterator[None]:
             warnings.showwarning = previous
 
 
+_signals_received: list[int] = []  # signals delivered while a command runs, in order
+
+
 def _raise_terminated(signum, frame) -> None:
+    _signals_received.append(signum)
     raise Terminated(signum)
+
+
+def _raise_interrupt(signum, frame) -> None:
+    _signals_received.append(signum)
+    raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
 def _signals_as_exceptions() -> Iterator[None]:
-    """SIGTERM and SIGHUP raise :class:`Terminated`; SIGINT raises KeyboardInterrupt (Python's
-    default, restored if something replaced it)."""
+    """SIGTERM and SIGHUP raise :class:`Terminated`; SIGINT raises KeyboardInterrupt (as
+    Python's default handler does, restored if something replaced it). Each signal is also
+    recorded, so that one that an import or a C extension turned into another error still
+    ends the command as interrupted (:func:`run_command`)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    wanted = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: _raise_terminated}
+    _signals_received.clear()
+    wanted = {signal.SIGINT: _raise_interrupt, signal.SIGTERM: _raise_terminated}
     if hasattr(signal, "SIGHUP"):
         wanted[signal.SIGHUP] = _raise_terminated
     previous = {}
@@ -1268,6 +1280,15 @@ def run_command(args: argparse.Namespace) -> int:
         )
         return EXIT_BAD_INPUT
     except Exception as exc:  # a bug: one line, the traceback only with -v
+        if _signals_received:
+            # the signal landed inside an import or a C extension, which turned it into
+            # another error (an interrupted module initialisation is an ImportError)
+            signum = _signals_received[-1]
+            if signum == signal.SIGINT:
+                _print_line("roadtwin: error: interrupted")
+            else:
+                _print_line(f"roadtwin: error: terminated by {signal.Signals(signum).name}")
+            return 128 + signum
         if getattr(args, "verbose", False):
             import traceback
 
