@@ -718,3 +718,22 @@ def test_inner_exit_stays_outside_the_border_it_leaves_from_past_an_offset_step(
     a = np.linspace(0.0, 80.0, 161)
     _, t = road.project(ramp_road.xy(a))
     assert float(np.min(t)) > -0.75 - 0.05
+
+
+def test_a_ramp_is_not_fed_by_a_lane_that_has_not_opened_at_the_junction():
+    """The measured lane an entry joins may still be of zero width where the junction
+    ends (its opening fitted a few metres late): linked there the ramp's lanes were pruned
+    (a zero-width link) and closed, the entry a dead end with a 9 m gap at its link. The
+    outermost driving lane that is open there feeds it instead."""
+    from roadtwin.topology import _valid_sources
+
+    road = mainline_road()
+    opening = CubicProfile((_taper(0.0, W, 0.0, 60.0), CubicPiece(60.0, W)))
+    sec = road.lane_sections[1]  # s = 300..500: lane -5 opens from zero width at 300
+    lanes = tuple(replace(ln, width=opening) if ln.id == -5 else ln for ln in sec.right)
+    road = replace(road, lane_sections=(*road.lane_sections[:1], replace(sec, right=lanes),
+                                        *road.lane_sections[2:]))  # fmt: skip
+    section = road.lane_sections[1]
+    assert _valid_sources(section, (-5,), "right") == [-5]  # by type alone
+    assert _valid_sources(section, (-5,), "right", main=road, s_main=300.0) == [-4]
+    assert _valid_sources(section, (-5,), "right", main=road, s_main=400.0) == [-5]

@@ -386,13 +386,27 @@ def _ramp_pairs(
     return pairs
 
 
+_MIN_SOURCE_WIDTH_M = 0.5  # a mainline lane narrower than this at the junction feeds no ramp
+
+
 def _valid_sources(
-    section: LaneSection, wanted: Sequence[int], side: TrafficSide, ramp_side: str = "outer"
+    section: LaneSection,
+    wanted: Sequence[int],
+    side: TrafficSide,
+    ramp_side: str = "outer",
+    *,
+    main: Road | None = None,
+    s_main: float = 0.0,
 ) -> list[int]:
     """The wanted mainline lanes that are driving lanes of ``section`` (a ramp is fed by
-    driving lanes only); else the driving lane on the ramp's side (the outermost, or the
-    innermost for a ramp on the median side)."""
+    driving lanes only) and, given ``main`` and the junction's station ``s_main``, at
+    least ``_MIN_SOURCE_WIDTH_M`` wide there (a lane that has not opened yet links to
+    nothing); else the driving lane on the ramp's side (the outermost, or the innermost
+    for a ramp on the median side)."""
     driving = [lane.id for lane in _traffic_lanes(section, side) if lane.type == "driving"]
+    if main is not None and driving:
+        widths = _widths(main, s_main, driving)
+        driving = [i for i, w in zip(driving, widths, strict=True) if w >= _MIN_SOURCE_WIDTH_M]
     got = [i for i in wanted if i in driving]
     return got or (driving[-1:] if ramp_side == "outer" else driving[:1])
 
@@ -780,12 +794,16 @@ def build_topology(
         rtypes = _ramp_lane_types(road, traffic_side)
         shoulder = getattr(ramp, "shoulder_lane_id", None)
         if ramp.type == "exit":
-            sources = _valid_sources(up_sec, ramp.mainline_lane_ids, traffic_side, ramp.side)
+            sources = _valid_sources(
+                up_sec, ramp.mainline_lane_ids, traffic_side, ramp.side, main=up, s_main=up.length
+            )
             pairs = _ramp_pairs(
                 road, up_sec, sources, shoulder, traffic_side, main=up, s_main=up.length
             )
         else:
-            sources = _valid_sources(down_sec, ramp.mainline_lane_ids, traffic_side, ramp.side)
+            sources = _valid_sources(
+                down_sec, ramp.mainline_lane_ids, traffic_side, ramp.side, main=down, s_main=0.0
+            )
             pairs = _ramp_pairs(road, down_sec, sources, shoulder, traffic_side, main=down)
         # ramp driving lane k <-> mainline source lane k, hard shoulder <-> hard shoulder at
         # a gore (widths only, not linked); the other ramp lanes open from (entry: close to)
