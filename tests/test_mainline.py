@@ -616,7 +616,7 @@ def test_a_line_ending_at_an_exit_is_not_continued():
     assert out[1].hi == 300.0
 
 
-def test_a_driving_lane_refitted_0_4_m_wider_after_a_section_border_goes_on():
+def test_a_driving_lane_refitted_up_to_1_m_wider_or_narrower_after_a_section_border_goes_on():
     """Town06 inner entry: the outer driving lane is 3.42 m wide before the border and
     3.83 m after it (its outer line seen again). Its outer borders differ by 0.41 m, more
     than the border tolerance, yet it is the same lane: linked, it continues with the
@@ -644,6 +644,22 @@ def test_a_driving_lane_refitted_0_4_m_wider_after_a_section_border_goes_on():
     )
     assert (
         _link_sections([first, third], [[], []], at_step=[False, False])[1].right[2].predecessor
+        is None
+    )
+    # 0.9 m narrower (a9 opposite carriageway past an exit: 4.59 -> 3.69 m): the same
+    # lane; 1.2 m: another one
+    narrower = LaneSection(
+        100.0, right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.5), lane(-3, 2.52), lane(-4, 0.5))
+    )
+    assert (
+        _link_sections([first, narrower], [[], []], at_step=[False, False])[1].right[2].predecessor
+        == -3
+    )
+    much = LaneSection(
+        100.0, right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.5), lane(-3, 2.22), lane(-4, 0.5))
+    )
+    assert (
+        _link_sections([first, much], [[], []], at_step=[False, False])[1].right[2].predecessor
         is None
     )
 

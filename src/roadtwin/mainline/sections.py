@@ -42,7 +42,7 @@ _GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that
 _RESIDUAL_WIDTH_M = 1.0  # a lane beginning/ending narrower than this is a taper's rest
 
 _LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across sections
-_WIDTH_JUMP_M = 0.6  # a driving lane this much narrower/wider beyond a border is the same
+_WIDTH_JUMP_M = 1.0  # a driving lane this much narrower/wider beyond a border is the same
 
 
 def _taper(
