@@ -564,11 +564,9 @@ def test_prune_zero_width_links_everywhere():
     assert junctions[0].connections[0].lane_links == (LaneLink(-1, -1),)
 
 
-def test_mainline_is_split_into_linked_roads_where_its_lane_offset_steps():
-    """A left exit without a junction (OSM has no ramp there): the lane offset steps by a
-    lane width at s=500. The ASAM checker evaluates a section's end with the offset record
-    starting there and saw a 3.75 m gap; two roads linked end to start say the same with
-    every linked lane border meeting exactly."""
+def _road_with_median_step() -> Road:
+    """1000 m straight; the median-side lane -2 leaves at s=500 (no junction): the lane
+    offset steps in by a lane there and the lanes beyond are linked by geometry."""
     line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
     before = LaneSection(
         0.0,
@@ -590,7 +588,15 @@ def test_mainline_is_split_into_linked_roads_where_its_lane_offset_steps():
         ),
     )
     offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
-    road = Road("1", line, (before, after), name="mainline", lane_offset=offset)
+    return Road("1", line, (before, after), name="mainline", lane_offset=offset)
+
+
+def test_mainline_is_split_into_linked_roads_where_its_lane_offset_steps():
+    """A left exit without a junction (OSM has no ramp there): the lane offset steps by a
+    lane width at s=500. The ASAM checker evaluates a section's end with the offset record
+    starting there and saw a 3.75 m gap; two roads linked end to start say the same with
+    every linked lane border meeting exactly."""
+    road = _road_with_median_step()
     topo = build_topology(road, [])
     mains = [r for r in topo.roads if r.name == "mainline"]
     assert len(mains) == 2
@@ -623,28 +629,7 @@ def test_junction_zone_ends_at_a_lane_offset_step_inside_it():
     the step, so that no offset step lies inside it (its lanes could not be linked across
     one), and every through lane is linked on through the junction to the next road with
     its borders meeting."""
-    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
-    before = LaneSection(
-        0.0,
-        right=(
-            _lane(-1, 0.75, "shoulder", "solid", succ=-1),
-            _lane(-2, W),
-            _lane(-3, W, succ=-2),
-            _lane(-4, W, succ=-3),
-            _lane(-5, 2.5, "shoulder", "none", succ=-4),
-        ),
-    )
-    after = LaneSection(
-        500.0,
-        right=(
-            _lane(-1, 0.75, "shoulder", "solid", pred=-1),
-            _lane(-2, W, pred=-3),
-            _lane(-3, W, pred=-4),
-            _lane(-4, 2.5, "shoulder", "none", pred=-5),
-        ),
-    )
-    offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
-    road = Road("1", line, (before, after), name="mainline", lane_offset=offset)
+    road = _road_with_median_step()
     s_osm = np.arange(480.0, 800.0, 20.0)
     xy = road.to_xy(s_osm, -(0.75 + 2.5 * W) - 0.0012 * np.clip(s_osm - 480.0, 0, None) ** 2)
     ramp_road, gap, dh = build_ramp_road(
@@ -684,28 +669,7 @@ def test_inner_exit_stays_outside_the_border_it_leaves_from_past_an_offset_step(
     the step the carriageway's median-side border lies a lane inside the line the exit
     leaves from: the exit's reference line must not come back inside that line (it did,
     by 3.5 m, where OSM runs inside the carriageway)."""
-    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
-    before = LaneSection(
-        0.0,
-        right=(
-            _lane(-1, 0.75, "shoulder", "solid", succ=-1),
-            _lane(-2, W),
-            _lane(-3, W, succ=-2),
-            _lane(-4, W, succ=-3),
-            _lane(-5, 2.5, "shoulder", "none", succ=-4),
-        ),
-    )
-    after = LaneSection(
-        500.0,
-        right=(
-            _lane(-1, 0.75, "shoulder", "solid", pred=-1),
-            _lane(-2, W, pred=-3),
-            _lane(-3, W, pred=-4),
-            _lane(-4, 2.5, "shoulder", "none", pred=-5),
-        ),
-    )
-    offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
-    road = Road("1", line, (before, after), name="mainline", lane_offset=offset)
+    road = _road_with_median_step()
     s_osm = np.arange(480.0, 900.0, 20.0)
     # from the carriageway centre, bending left (to the median side) slowly
     xy = road.to_xy(s_osm, -(0.75 + 1.5 * W) + 0.0004 * np.clip(s_osm - 480.0, 0, None) ** 2)
