@@ -623,6 +623,59 @@ def test_mainline_is_split_into_linked_roads_where_its_lane_offset_steps():
     assert not [f for f in findings if f.severity == "error"]
 
 
+def _exit_at_493(road: Road) -> Ramp:
+    """A 1-lane outer exit leaving lane -4 of a straight mainline at s=493."""
+    s_osm = np.arange(480.0, 800.0, 20.0)
+    xy = road.to_xy(s_osm, -(0.75 + 2.5 * W) - 0.0012 * np.clip(s_osm - 480.0, 0, None) ** 2)
+    ramp_road, gap, dh = build_ramp_road(
+        xy, road, ramp_type="exit", lanes=1, station_m=493.0, source_lane_ids=(-4,),
+        road_id="rexit", config=RampConfig(),
+    )  # fmt: skip
+    return Ramp(
+        type="exit", road=ramp_road, station_m=493.0, lanes=1, lane_rule="lanes",
+        osm_lanes=1, osm_lane_rule="lanes", station_source="osm", mainline_lane_ids=(-4,),
+        type_connectivity="exit", type_geometry="exit", osm_way_ids=(), attach_gap_m=gap,
+        attach_heading_deg=dh,
+    )  # fmt: skip
+
+
+def _through_connector(road: Road, ramp: Ramp):
+    """The topology of ``road`` with ``ramp`` and its one through connecting road."""
+    topo = build_topology(road, [ramp])
+    roads = {r.id: r for r in topo.roads}
+    through = [r for r in topo.roads if r.name == "connector" and r.successor.element_id != "rexit"]
+    through = [r for r in through if roads[r.successor.element_id].name == "mainline"]
+    assert len(through) == 1
+    return topo, through[0]
+
+
+def test_junction_zone_ends_at_a_lane_section_border_inside_it():
+    """A lane section border 7 m past an exit's gore (the hard shoulder narrows there):
+    the through connecting road ends at it and holds one lane section (lanes renumbered
+    inside a connecting road made esmini take a through lane's link into a shoulder)."""
+    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
+    lanes = [
+        _lane(-1, 0.75, "shoulder", "solid", succ=-1),
+        _lane(-2, W, succ=-2),
+        _lane(-3, W, succ=-3),
+        _lane(-4, W, succ=-4),
+        _lane(-5, 2.5, "shoulder", "none", succ=-5),
+    ]
+    after = [replace(ln, predecessor=ln.id, successor=None) for ln in lanes]
+    after[-1] = replace(after[-1], width=CubicProfile((CubicPiece(0.0, 2.0),)))
+    road = Road(
+        "1",
+        line,
+        (LaneSection(0.0, right=tuple(lanes)), LaneSection(500.0, right=tuple(after))),
+        name="mainline",
+    )
+    topo, conn = _through_connector(road, _exit_at_493(road))
+    assert conn.length == pytest.approx(7.0, abs=1e-6)
+    assert len(conn.lane_sections) == 1
+    findings = check_network(_network(topo))
+    assert not [f for f in findings if f.severity == "error"]
+
+
 def test_junction_zone_ends_at_a_lane_offset_step_inside_it():
     """An outer exit at s=493 and a median-side lane leaving at s=500 (the lane offset
     steps there), 7 m into the exit's 20 m junction: the through connecting road ends at
@@ -630,24 +683,8 @@ def test_junction_zone_ends_at_a_lane_offset_step_inside_it():
     one), and every through lane is linked on through the junction to the next road with
     its borders meeting."""
     road = _road_with_median_step()
-    s_osm = np.arange(480.0, 800.0, 20.0)
-    xy = road.to_xy(s_osm, -(0.75 + 2.5 * W) - 0.0012 * np.clip(s_osm - 480.0, 0, None) ** 2)
-    ramp_road, gap, dh = build_ramp_road(
-        xy, road, ramp_type="exit", lanes=1, station_m=493.0, source_lane_ids=(-4,),
-        road_id="rexit", config=RampConfig(),
-    )  # fmt: skip
-    ramp = Ramp(
-        type="exit", road=ramp_road, station_m=493.0, lanes=1, lane_rule="lanes",
-        osm_lanes=1, osm_lane_rule="lanes", station_source="osm", mainline_lane_ids=(-4,),
-        type_connectivity="exit", type_geometry="exit", osm_way_ids=(), attach_gap_m=gap,
-        attach_heading_deg=dh,
-    )  # fmt: skip
-    topo = build_topology(road, [ramp])
+    topo, conn = _through_connector(road, _exit_at_493(road))
     roads = {r.id: r for r in topo.roads}
-    through = [r for r in topo.roads if r.name == "connector" and r.successor.element_id != "rexit"]
-    through = [r for r in through if roads[r.successor.element_id].name == "mainline"]
-    assert len(through) == 1
-    conn = through[0]
     assert conn.length == pytest.approx(7.0, abs=1e-6)
     assert float(np.ptp(conn.lane_offset.value(np.linspace(0.0, conn.length, 21)))) < 1e-9
     down = roads[conn.successor.element_id]

@@ -703,14 +703,16 @@ def build_topology(
     skipped: list[tuple[str, str]] = []
     last_end = 0.0
     steps = _offset_steps(mainline_road)
+    borders = sorted({*steps, *(sec.s0 for sec in mainline_road.lane_sections[1:])})
     for ramp in sorted(ramps, key=lambda r: (r.station_m, r.type)):
         s = ramp.station_m
         a, b = (s, s + zl) if ramp.type == "exit" else (s - zl, s)
-        # the through connecting road must not hold a lane-offset step: its lanes would
-        # not be linked across it (the mainline is split there into linked roads). A step
-        # inside the zone (median-side lanes that end or begin just past the gore) ends
-        # the zone there
-        inside = [x for x in steps if a + 1.0 < x < b - 1.0]
+        # the through connecting road holds one lane section at one lane offset: across a
+        # lane-offset step its lanes would not be linked (the mainline is split there into
+        # linked roads), and lanes renumbered inside a connecting road mislead players
+        # (esmini took a through lane's link into a shoulder). A section border or step
+        # inside the zone (lanes that end or begin just past the gore) ends the zone there
+        inside = [x for x in borders if a + 1.0 < x < b - 1.0]
         if inside and not direct:
             if ramp.type == "exit":
                 b = inside[0]
