@@ -661,3 +661,39 @@ def test_ramp_evidence_follows_a_parallel_ramp_osm_draws_inside(osm_inward_m):
     # apart); beyond it p95 0.05 m
     assert float(np.max(np.abs(t))) < 0.4
     assert float(np.percentile(np.abs(t[50:]), 95)) < 0.1
+
+
+# ---------------------------------------------------------------------------
+# Melbourne: branches drawn over the carriageway's own nodes
+# ---------------------------------------------------------------------------
+
+
+def test_branches_drawn_over_the_carriageways_nodes_are_built_where_the_lidar_saw_them(
+    tmp_path,
+):
+    """In the Melbourne extract an inner exit (ways 327/328) and, on the other carriageway,
+    a 2-lane entry (ways 408/409) share the carriageway's nodes for hundreds of metres: no
+    geometry of their own, no side. They are ramps where a measured gore on one side shows
+    lanes leaving or joining (melbourne-921: 2 of 3 ramps were found; the inner exit's two
+    lanes ended at full width, a dead end for a car). A simulated run of chain 921: every
+    true ramp is built, of its type, on its side, within 30 m, and nothing else."""
+    import json
+
+    from roadtwin import build_map, load_osm, load_run
+    from roadtwin.simulate import simulate_osm_run
+
+    run_dir = simulate_osm_run(DATA / "melbourne-lht.osm.pbf", tmp_path / "run", chain=921, seed=2)
+    run = load_run(run_dir)
+    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    built = build_map(run, graph).ramps
+    truth = json.loads((Path(run_dir) / "truth.json").read_text())["ramps"]
+    assert len(built) == len(truth) == 3
+    for t in truth:
+        near = [r for r in built if r.type == t["type"] and r.side == t["side"]]
+        assert near, t
+        assert min(abs(r.station_m - t["station_m"]) for r in near) < 30.0, t
+    shared = [r for r in built if 327 in r.osm_way_ids or 328 in r.osm_way_ids]
+    assert len(shared) == 1
+    exit_ = shared[0]
+    assert (exit_.type, exit_.side, exit_.lanes) == ("exit", "inner", 2)
+    assert exit_.station_source == "lidar gore"

@@ -134,8 +134,15 @@ def build_ramps(
     ramps: list[Ramp] = []
     skipped: list[tuple[str, str]] = []
     warnings: list[str] = []
+    # a branch drawn over the carriageway's nodes is built only on the side where a
+    # measured gore shows its lanes leave or join
+    confirmed = {chains[i].edges for i in matched if chains[i].shared}
     for i, (chain, s_osm) in enumerate(zip(chains, stations, strict=False)):
         what = f"{chain.type} ways {', '.join(str(w) for w in chain.osm_way_ids)}"
+        if chain.shared and i not in matched:
+            if chain.edges not in confirmed and chain.side == "outer":
+                skipped.append((what, "drawn over the carriageway's nodes, no measured gore"))
+            continue
         notes: list[str] = []
         osm_lanes, osm_rule = infer_lane_count(chain.tags, link_rule=cfg.link_lane_rule)
         if osm_rule == "highway class":

@@ -382,6 +382,82 @@ def _ramp_side(
     return "outer" if side_t * sign > 0.0 else "inner"
 
 
+def _parallel_groups(osm_graph: nx.MultiDiGraph, node: Any, *, forward: bool) -> list[list]:
+    """Groups of two or more carriageway/link edges leaving (``forward``) or reaching
+    ``node`` along the same neighbouring node: ways drawn over the same nodes."""
+    edges = osm_graph.out_edges(node, keys=True) if forward else osm_graph.in_edges(node, keys=True)
+    groups: dict[Any, list[EdgeKey]] = {}
+    for e in edges:
+        data = osm_graph.edges[e]
+        if _is_link(data) or any(c in _highway(data) for c in _BRANCH_CLASSES):
+            groups.setdefault(e[1] if forward else e[0], []).append(e)
+    return [g for g in groups.values() if len(g) >= 2]
+
+
+def _shared_branches(
+    osm_graph: nx.MultiDiGraph,
+    track: _Track,
+    on_carriageway: dict[Any, EdgeKey],
+    cfg: RampConfig,
+) -> list[RampChain]:
+    """Branches that OSM draws over the carriageway's own nodes: two carriageway (or
+    link) ways leave a node of the drive along the same next node (an exit that parts
+    later), or arrive at one from the same previous node (an entry). For each, a chain
+    along the shared edges of the other way, up to ``max_ramp_length_m``, once per side
+    (``shared``; only one that a measured gore confirms is built)."""
+    out: list[RampChain] = []
+    for n in on_carriageway:
+        s_n, _ = track.project(np.array([[osm_graph.nodes[n]["x"], osm_graph.nodes[n]["y"]]]))
+        if not 0.0 < float(s_n[0]) < track.length:
+            continue
+        for forward in (True, False):
+            onward = _parallel_groups(osm_graph, n, forward=forward)
+            # where the sharing begins (an exit) or ends (an entry): not shared behind
+            if not onward or _parallel_groups(osm_graph, n, forward=not forward):
+                continue
+            for parallel in onward:
+                # the carriageway's own way is the first in key order; the branch is the
+                # other one, followed while it stays on shared edges
+                branch = sorted(parallel, key=lambda e: e[2])[1]
+                chain, length = [branch], float(arc_length(edge_xy(osm_graph, *branch))[-1])
+                while length < cfg.max_ramp_length_m:
+                    node = chain[-1][1] if forward else chain[-1][0]
+                    nxt = (
+                        osm_graph.out_edges(node, keys=True)
+                        if forward
+                        else osm_graph.in_edges(node, keys=True)
+                    )
+                    same = [e for e in nxt if e[2] == branch[2]]
+                    if len(same) != 1 or same[0] in chain:
+                        break
+                    chain.append(same[0])
+                    length += float(arc_length(edge_xy(osm_graph, *same[0]))[-1])
+                edges_ = chain if forward else chain[::-1]
+                xy = chain_xy(osm_graph, edges_)
+                ways = tuple(
+                    dict.fromkeys(_first_value(osm_graph.edges[x].get("osmid")) for x in edges_)
+                )
+                tags = dict(osm_graph.edges[branch])
+                tags.pop("geometry", None)
+                kind: RampType = "exit" if forward else "entry"
+                for side in ("outer", "inner"):
+                    out.append(
+                        RampChain(
+                            edges=tuple(edges_),
+                            osm_way_ids=ways,
+                            attach_node=n,
+                            mainline_edge=on_carriageway[n],
+                            type=kind,
+                            type_geometry=kind,
+                            xy=xy,
+                            tags=tags,
+                            side=side,  # type: ignore[arg-type]
+                            shared=True,
+                        )
+                    )
+    return out
+
+
 def extract_ramp_chains(
     osm_graph: nx.MultiDiGraph,
     trajectory_xy: FloatArray,
@@ -487,6 +563,11 @@ def extract_ramp_chains(
     for cand in candidates:
         if (cand.u, cand.v, cand.key) not in covered:
             rejected.append((f"way {cand.osm_way_id}", "not attached to the driven carriageway"))
+    for chain in _shared_branches(osm_graph, track, on_carriageway, cfg):
+        if not set(chain.edges) & covered:
+            node_xy = np.array([[osm_graph.nodes[chain.attach_node]["x"],
+                                 osm_graph.nodes[chain.attach_node]["y"]]])  # fmt: skip
+            chains.append((float(track.project(node_xy)[0][0]), chain))
     chains.sort(key=lambda c: (c[0], c[1].type))
     log.info(
         "ramp chains: %d from %d candidates (%d rejected)",

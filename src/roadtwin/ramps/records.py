@@ -65,6 +65,9 @@ class RampChain:
     xy : ``(N, 2)`` chain polyline in driving order, mapping frame, metres.
     tags : OSM tags of the link edge at the attachment.
     side : ``outer`` or ``inner`` (the median side) of the driven carriageway.
+    shared : drawn over the carriageway's own nodes (a branch OSM puts on the same nodes
+        as the carriageway until it parts): it has no geometry or side of its own, and is
+        built only where a measured gore on that side says where its lanes leave or join.
     """
 
     edges: tuple[EdgeKey, ...]
@@ -76,6 +79,7 @@ class RampChain:
     xy: FloatArray = field(repr=False, compare=False)
     tags: dict[str, Any] = field(default_factory=dict, repr=False)
     side: RampSide = "outer"
+    shared: bool = False
 
 
 @dataclass(frozen=True)
