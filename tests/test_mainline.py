@@ -708,3 +708,28 @@ def test_a_lane_too_wide_between_observed_markings_gets_its_missed_line():
     # wide over 20 m only: a gore's diverging lines before they end, not a lane
     bump = np.where((grid > 200.0) & (grid < 220.0), 9.0, 7.2)
     assert _wide_lane_lines([steady, _line_track(1, grid, bump)], grid, 3.6, 1.5) == []
+
+
+def test_a_median_side_step_is_sized_so_that_the_edge_line_runs_on_smoothly():
+    """The median-side edge steps 9 m towards the carriageway at s=500 (a 3-lane left exit
+    leaves); the first estimate of the step, measured in a frame that already bent, is
+    1.5 m short. Sized by the smoothest line through both sides it is 9 m (within 0.1 m);
+    a step measured right stays as it was."""
+    from roadtwin.fitting import PolylineFrame
+    from roadtwin.mainline.edge_levels import EdgeSteps
+    from roadtwin.mainline.reference import _smoothest_steps
+
+    rng = np.random.default_rng(5)
+    x = np.linspace(0.0, 1000.0, 1001)
+    frame = PolylineFrame.from_points(np.stack([x, 0.002 * x], axis=1))
+    s = np.sort(rng.uniform(0.0, 1000.0, 6000))
+    t = np.where(s < 500.0, 0.0, -9.0) + rng.normal(0.0, 0.03, s.size)
+    cfg = MainlineConfig()
+    off = _smoothest_steps(
+        frame, s, t, 1.0, EdgeSteps(np.array([500.0]), np.array([0.0, -7.5])), cfg
+    )
+    assert off.offsets[1] == pytest.approx(-9.0, abs=0.1)
+    right = _smoothest_steps(
+        frame, s, t, 1.0, EdgeSteps(np.array([500.0]), np.array([0.0, -9.0])), cfg
+    )
+    assert right.offsets[1] == pytest.approx(-9.0, abs=0.05)

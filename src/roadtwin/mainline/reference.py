@@ -181,6 +181,76 @@ def fit_reference_edge(
     return fit_median_edge(ref_pts, traj, config=config).xy
 
 
+_SIZE_SEARCH_M = 2.5  # a step's size is searched this far around its first estimate
+_SIZE_WINDOW_M = 120.0  # ... judged by the line this far either side of the step
+
+
+def _roughness(frame: PolylineFrame, grid: FloatArray, off: FloatArray) -> float:
+    """Sum of squared curvature changes (1/m^2 per m) of the line ``off`` beside ``frame``
+    on ``grid`` (mapping frame): a jog of the line shows as an S of curvature."""
+    xy, tg = frame.at(np.clip(grid, 0.0, frame.length))
+    nrm = np.stack([-tg[:, 1], tg[:, 0]], axis=1)
+    pts = xy + off[:, None] * nrm
+    d = np.diff(pts, axis=0)
+    heading = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    step = float(grid[1] - grid[0])
+    kappa = np.diff(heading) / step
+    return float(np.sum(np.diff(kappa) ** 2))
+
+
+def _smoothest_steps(
+    frame: PolylineFrame,
+    s: FloatArray,
+    t: FloatArray,
+    side: float,
+    steps: EdgeSteps,
+    cfg: MainlineConfig,
+) -> EdgeSteps:
+    """Each step's size chosen so that the edge line fitted through it is smoothest.
+
+    A segment's offset is measured from its points in the previous iteration's line (the
+    frame); where that line bends across the step because the first estimate was off, the
+    bend is self-consistent and stays (oakland's 3-lane left exit: 1.5 m, and the through
+    lanes before and after the step did not meet). The reference line runs on smoothly at
+    the level it had: within ``_SIZE_WINDOW_M`` either side, up to the neighbouring steps
+    (at least 40 m each way), sizes within ``_SIZE_SEARCH_M`` of the estimate are tried,
+    and the one whose fitted line changes curvature least is taken if it halves that
+    change. ``s``, ``t``: the edge points on their levels in the frame (metres)."""
+    offsets = steps.offsets.copy()
+    step = cfg.grid_step_m
+    stations = steps.stations
+    for k, st in enumerate(stations):
+        # the stretch between the neighbouring steps: one step judged at a time
+        lo = max(st - _SIZE_WINDOW_M, stations[k - 1] + 5.0 if k > 0 else -np.inf)
+        hi = min(st + _SIZE_WINDOW_M, stations[k + 1] - 5.0 if k + 1 < stations.size else np.inf)
+        if st - lo < 40.0 or hi - st < 40.0:
+            continue
+        sel = (s >= lo) & (s <= hi)
+        if np.count_nonzero(sel & (s < st)) < 20 or np.count_nonzero(sel & (s > st)) < 20:
+            continue
+        grid = np.arange(lo, hi + 0.5 * step, step)
+
+        def score(delta: float, k=k, s_k=s[sel], t_k=t[sel], grid=grid) -> float:
+            trial = offsets.copy()
+            trial[k + 1 :] += delta
+            shifted = t_k - side * EdgeSteps(stations, trial).at(s_k)
+            off, _, _ = robust_offset_fit(
+                s_k, shifted, grid, cutoff_m=cfg.edge_smoothing_m, mad_k=cfg.edge_outlier_mad,
+                min_threshold_m=cfg.edge_outlier_min_m,
+            )  # fmt: skip
+            return _roughness(frame, grid, off)
+
+        coarse = np.linspace(-_SIZE_SEARCH_M, _SIZE_SEARCH_M, 26)
+        best = float(coarse[int(np.argmin([score(d) for d in coarse]))])
+        fine = np.linspace(best - 0.2, best + 0.2, 21)
+        scores = [score(d) for d in fine]
+        # only a clear improvement moves the step: a line that bends there anyway (a
+        # curve, a ramp edge converging at a merge) keeps the measured size
+        if min(scores) < 0.5 * score(0.0):
+            offsets[k + 1 :] += float(fine[int(np.argmin(scores))])
+    return EdgeSteps(steps.stations, offsets)
+
+
 def _median_levels(
     s: FloatArray, t: FloatArray, side: float, lo: float, hi: float, cfg: MainlineConfig
 ):
@@ -237,6 +307,8 @@ def fit_median_edge(
             centres = 0.5 * (edges[1:] + edges[:-1])
             path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
             near = np.abs(u - path) < 0.8
+            if it > 0:
+                steps = _smoothest_steps(frame, s[near], t[near], side, steps, cfg)
             shift = steps.from_base(lo, hi)
             s, t = s[near], t[near] - side * shift.at(s[near])
         grid = _grid(lo, hi, step)
