@@ -170,3 +170,51 @@ def test_a_lane_refitted_narrower_after_its_marking_reappears_is_linked_to_itsel
     assert _jump_mm(sealed, 3, 3, 100.0) < 1e-6
     findings = check_network(RoadNetwork(Header(), (sealed,)))
     assert not [f for f in findings if f.code in ("lane_dead_end", "lane_shift", "width_jump")]
+
+
+def test_two_driving_lanes_sharing_the_same_room_differently_are_linked_in_order():
+    """melbourne-408-opp: inner lanes 2 and 3 end 4.39 and 2.66 m wide where lanes 2 and 4
+    begin 3.12 and 3.93 m wide with a zero-width shoulder 3 opening between them: the
+    same two lanes, the line between them re-fitted 1.27 m aside. Linked in order, they
+    continue with the widths they had and the line moves over the fade (both lanes of
+    the run ended at full width: two routes led nowhere); a line 1.8 m aside is another
+    lane structure and stays unlinked."""
+
+    def sections(w2_after: float):
+        first = LaneSection(
+            0.0,
+            left=(
+                _lane(1, 0.96, succ=1, kind="shoulder"),
+                _lane(2, 4.39),
+                _lane(3, 2.66),
+                _lane(4, 3.5, succ=5),
+            ),
+        )
+        second = LaneSection(
+            100.0,
+            left=(
+                _lane(1, 0.96, pred=1, kind="shoulder"),
+                _lane(2, w2_after),
+                _lane(3, 0.0, kind="shoulder"),
+                _lane(4, 7.05 - w2_after),
+                _lane(5, 3.5, pred=4),
+            ),
+        )
+        return _road(first, second)
+
+    sealed = seal_lane_borders(sections(3.12))
+    before, after = sealed.lane_sections[0].left, sealed.lane_sections[1].left
+    assert (before[1].successor, before[2].successor) == (2, 4)
+    assert (after[1].predecessor, after[3].predecessor) == (2, 3)
+    assert after[2].predecessor is None  # the shoulder opening from zero width
+    assert _jump_mm(sealed, 2, 2, 100.0) < 1e-6
+    assert _jump_mm(sealed, 3, 4, 100.0) < 1e-6
+    assert _jump_mm(sealed, 4, 5, 100.0) < 1e-6
+    # 20 m on, the lanes have the widths they were fitted with
+    s = np.array([20.0])
+    assert float(after[1].width.value(s)[0]) == pytest.approx(3.12, abs=1e-9)
+    assert float(after[3].width.value(s)[0]) == pytest.approx(3.93, abs=1e-9)
+    findings = check_network(RoadNetwork(Header(), (sealed,)))
+    assert not [f for f in findings if f.code in ("lane_dead_end", "lane_shift", "width_jump")]
+    far = seal_lane_borders(sections(2.59)).lane_sections[1].left
+    assert far[1].predecessor is None

@@ -34,6 +34,8 @@ _SEAL_TOLERANCE_M = 1e-6  # a mismatch below this is left alone (metres)
 _SAME_ROOM_M = 0.01  # unlinked lanes this close in width at a sealed border are one (metres)
 _ZERO_WIDTH_M = 1e-3  # narrower than this a lane has closed (metres)
 _FADE_M = 20.0  # a correction fades out over this distance from the border (metres)
+_REDRAWN_LINE_M = 1.5  # a line between driving lanes re-fitted this far aside is the same line
+_REDRAWN_MIN_WIDTH_M = 2.0  # ... between lanes at least this wide on both sides (metres)
 _FADES_M = (_FADE_M, 10.0, 5.0, 2.0, 1.0, 0.5)  # shorter where a long one goes negative
 
 
@@ -183,8 +185,13 @@ def _link_same_room(
 ) -> None:
     """Link (in place) the unlinked lanes of a sealed run that fill the same room: as many
     on both sides, of the same types, each as wide as its partner (a lane re-fitted after
-    a gap in its marking is the lane it was; left unlinked, a car in it had nowhere to go).
+    a gap in its marking is the lane it was; left unlinked, a car in it had nowhere to go),
+    or driving lanes at least ``_REDRAWN_MIN_WIDTH_M`` wide whose widths differ by up to
+    ``_REDRAWN_LINE_M`` (the line between them re-fitted aside: it moves over the fade).
     Lanes of zero width stay unlinked (OpenDRIVE: a lane that closes has no successor)."""
+    # lanes of zero width at the border (a gore's shoulder opening there) take no room
+    run_prev = [k for k in run_prev if _width_at(prev_l[k], prev_len) >= _ZERO_WIDTH_M]
+    run_cur = [k for k in run_cur if _width_at(cur_l[k], 0.0) >= _ZERO_WIDTH_M]
     if not run_cur or len(run_cur) != len(run_prev):
         return
     w_prev = [_width_at(prev_l[k], prev_len) for k in run_prev]
@@ -193,7 +200,16 @@ def _link_same_room(
         prev_l[b].type == cur_l[a].type and abs(wp - wc) <= _SAME_ROOM_M
         for a, b, wp, wc in zip(run_cur, run_prev, w_prev, w_cur, strict=True)
     )
-    if not same:
+    # driving lanes as many on both sides that share the room differently (the line
+    # between them re-fitted up to _REDRAWN_LINE_M aside): the same lanes, the line
+    # moved over the fade
+    redrawn = abs(sum(w_prev) - sum(w_cur)) <= _SAME_ROOM_M and all(
+        prev_l[b].type == cur_l[a].type == "driving"
+        and min(wp, wc) >= _REDRAWN_MIN_WIDTH_M
+        and abs(wp - wc) <= _REDRAWN_LINE_M
+        for a, b, wp, wc in zip(run_cur, run_prev, w_prev, w_cur, strict=True)
+    )
+    if not (same or redrawn):
         return
     for a, b, wp in zip(run_cur, run_prev, w_prev, strict=True):
         if wp < _ZERO_WIDTH_M:
