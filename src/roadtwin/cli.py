@@ -1257,16 +1257,23 @@ def _os_error_text(exc: OSError) -> str:
     return f"{' -> '.join(names)}: {reason}" if names else reason
 
 
+def _signal_exit(signum: int) -> int:
+    """Say that a signal ended the command; the exit code for it (128 + signal number)."""
+    if signum == signal.SIGINT:
+        _print_line("roadtwin: error: interrupted")
+    else:
+        _print_line(f"roadtwin: error: terminated by {signal.Signals(signum).name}")
+    return 128 + signum
+
+
 def run_command(args: argparse.Namespace) -> int:
     """Run a parsed command through the one error path; returns the exit code."""
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
-        _print_line("roadtwin: error: interrupted")
-        return 128 + signal.SIGINT
+        return _signal_exit(signal.SIGINT)
     except Terminated as exc:
-        _print_line(f"roadtwin: error: terminated by {signal.Signals(exc.signum).name}")
-        return 128 + exc.signum
+        return _signal_exit(exc.signum)
     except RoadtwinError as exc:
         _print_line(f"roadtwin: error: {one_line(exc)}")
         return EXIT_BAD_INPUT
@@ -1283,12 +1290,7 @@ def run_command(args: argparse.Namespace) -> int:
         if _signals_received:
             # the signal landed inside an import or a C extension, which turned it into
             # another error (an interrupted module initialisation is an ImportError)
-            signum = _signals_received[-1]
-            if signum == signal.SIGINT:
-                _print_line("roadtwin: error: interrupted")
-            else:
-                _print_line(f"roadtwin: error: terminated by {signal.Signals(signum).name}")
-            return 128 + signum
+            return _signal_exit(_signals_received[-1])
         if getattr(args, "verbose", False):
             import traceback
 

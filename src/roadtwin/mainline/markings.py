@@ -552,9 +552,7 @@ def _wide_lane_lines(
     )
     min_run = max(2, math.ceil(_SPLIT_MIN_RUN_M / float(np.median(np.diff(grid)))))
     for i, j in pairs:
-        adjacent = np.zeros(grid.size, dtype=np.int64)
-        for r in range(gaps.shape[0]):
-            adjacent |= (wide[r] & (order[r] == i) & (order[r + 1] == j)).astype(np.int64)
+        adjacent = (wide & (order[:-1] == i) & (order[1:] == j)).any(axis=0).astype(np.int64)
         for a, b, on in _runs_of(adjacent):
             if not on or b - a < min_run:
                 continue

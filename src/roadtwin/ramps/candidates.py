@@ -246,7 +246,7 @@ def _follow(
             same is None
             and len(out_all) == 1
             and len(in_all) == 1
-            and any(c in _highway(osm_graph.edges[onward[0]]) for c in _BRANCH_CLASSES)
+            and _carriageway_class(osm_graph.edges[onward[0]])
         ):
             same = _highway(osm_graph.edges[onward[0]])
         outs = [e for e in out_all if ramp_edge(osm_graph.edges[e])]
@@ -282,6 +282,16 @@ _BRANCH_AWAY_M = 12.0  # ... and how far from the drive it must be there to be a
 def _highway(data: dict[str, Any]) -> str:
     hw = data.get("highway", "")
     return " ".join(hw) if isinstance(hw, (list, tuple)) else str(hw)
+
+
+def _carriageway_class(data: dict[str, Any]) -> bool:
+    """A motorway or trunk edge (or one of their links)."""
+    return any(c in _highway(data) for c in _BRANCH_CLASSES)
+
+
+def _node_xy(osm_graph: nx.MultiDiGraph, node: Any) -> FloatArray:
+    """``(1, 2)`` position of an OSM node (mapping frame, metres)."""
+    return np.array([[osm_graph.nodes[node]["x"], osm_graph.nodes[node]["y"]]])
 
 
 def _reach_xy(osm_graph: nx.MultiDiGraph, edge: EdgeKey, *, forward: bool) -> FloatArray:
@@ -325,7 +335,7 @@ def branch_candidates(
     itself runs on beyond them)."""
     out = []
     for n in on_carriageway:
-        xy_n = np.array([[osm_graph.nodes[n]["x"], osm_graph.nodes[n]["y"]]])
+        xy_n = _node_xy(osm_graph, n)
         s_n, _ = track.project(xy_n)
         if not _BRANCH_PROBE_M <= float(s_n[0]) <= track.length - _BRANCH_PROBE_M:
             continue
@@ -333,7 +343,7 @@ def branch_candidates(
         edges += [(e, False) for e in osm_graph.in_edges(n, keys=True)]
         for e, forward in edges:
             data = osm_graph.edges[e]
-            if _is_link(data) or not any(c in _highway(data) for c in _BRANCH_CLASSES):
+            if _is_link(data) or not _carriageway_class(data):
                 continue
             xy = _reach_xy(osm_graph, e, forward=forward)
             a = arc_length(xy)
@@ -389,7 +399,7 @@ def _parallel_groups(osm_graph: nx.MultiDiGraph, node: Any, *, forward: bool) ->
     groups: dict[Any, list[EdgeKey]] = {}
     for e in edges:
         data = osm_graph.edges[e]
-        if _is_link(data) or any(c in _highway(data) for c in _BRANCH_CLASSES):
+        if _is_link(data) or _carriageway_class(data):
             groups.setdefault(e[1] if forward else e[0], []).append(e)
     return [g for g in groups.values() if len(g) >= 2]
 
@@ -399,16 +409,17 @@ def _shared_branches(
     track: _Track,
     on_carriageway: dict[Any, EdgeKey],
     cfg: RampConfig,
-) -> list[RampChain]:
+) -> list[tuple[float, RampChain]]:
     """Branches that OSM draws over the carriageway's own nodes: two carriageway (or
     link) ways leave a node of the drive along the same next node (an exit that parts
     later), or arrive at one from the same previous node (an entry). For each, a chain
     along the shared edges of the other way, up to ``max_ramp_length_m``, once per side
-    (``shared``; only one that a measured gore confirms is built)."""
-    out: list[RampChain] = []
+    (``shared``; only one that a measured gore confirms is built), with the station of
+    its attachment along the drive (metres)."""
+    out: list[tuple[float, RampChain]] = []
     for n in on_carriageway:
-        s_n, _ = track.project(np.array([[osm_graph.nodes[n]["x"], osm_graph.nodes[n]["y"]]]))
-        if not 0.0 < float(s_n[0]) < track.length:
+        s_n = float(track.project(_node_xy(osm_graph, n))[0][0])
+        if not 0.0 < s_n < track.length:
             continue
         for forward in (True, False):
             onward = _parallel_groups(osm_graph, n, forward=forward)
@@ -442,17 +453,20 @@ def _shared_branches(
                 kind: RampType = "exit" if forward else "entry"
                 for side in ("outer", "inner"):
                     out.append(
-                        RampChain(
-                            edges=tuple(edges_),
-                            osm_way_ids=ways,
-                            attach_node=n,
-                            mainline_edge=on_carriageway[n],
-                            type=kind,
-                            type_geometry=kind,
-                            xy=xy,
-                            tags=tags,
-                            side=side,  # type: ignore[arg-type]
-                            shared=True,
+                        (
+                            s_n,
+                            RampChain(
+                                edges=tuple(edges_),
+                                osm_way_ids=ways,
+                                attach_node=n,
+                                mainline_edge=on_carriageway[n],
+                                type=kind,
+                                type_geometry=kind,
+                                xy=xy,
+                                tags=tags,
+                                side=side,  # type: ignore[arg-type]
+                                shared=True,
+                            ),
                         )
                     )
     return out
@@ -524,7 +538,7 @@ def extract_ramp_chains(
         ways = tuple(dict.fromkeys(_first_value(osm_graph.edges[x].get("osmid")) for x in edges))
         what = f"ways {', '.join(str(w) for w in ways)} ({ramp_type})"
         # direction check at the attachment
-        node_xy = np.array([[osm_graph.nodes[attach]["x"], osm_graph.nodes[attach]["y"]]])
+        node_xy = _node_xy(osm_graph, attach)
         s_att, _ = track.project(node_xy)
         h_track = float(track.heading(s_att)[0])
         h_ramp = _end_heading(xy, at_start=ramp_type == "exit")
@@ -563,11 +577,11 @@ def extract_ramp_chains(
     for cand in candidates:
         if (cand.u, cand.v, cand.key) not in covered:
             rejected.append((f"way {cand.osm_way_id}", "not attached to the driven carriageway"))
-    for chain in _shared_branches(osm_graph, track, on_carriageway, cfg):
-        if not set(chain.edges) & covered:
-            node_xy = np.array([[osm_graph.nodes[chain.attach_node]["x"],
-                                 osm_graph.nodes[chain.attach_node]["y"]]])  # fmt: skip
-            chains.append((float(track.project(node_xy)[0][0]), chain))
+    chains += [
+        (s_n, chain)
+        for s_n, chain in _shared_branches(osm_graph, track, on_carriageway, cfg)
+        if not set(chain.edges) & covered
+    ]
     chains.sort(key=lambda c: (c[0], c[1].type))
     log.info(
         "ramp chains: %d from %d candidates (%d rejected)",

@@ -225,11 +225,15 @@ def line_directions(xy: FloatArray, group: NDArrayBool) -> FloatArray:
     return out
 
 
+def _line_angle(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Angle (radians, 0..pi/2) between undirected lines of directions ``a`` and ``b``."""
+    return np.abs(np.angle(np.exp(2j * (a - b)))) / 2.0
+
+
 def _along_curve(direction: FloatArray, heading: FloatArray) -> NDArrayBool:
     """Whether lines of ``direction`` (modulo pi) run within ``_MAX_CROSSING_RAD`` of the
     curve headings."""
-    diff = np.abs(np.angle(np.exp(2j * (direction - heading)))) / 2.0
-    return diff <= _MAX_CROSSING_RAD
+    return _line_angle(direction, heading) <= _MAX_CROSSING_RAD
 
 
 def boundary_lines(xy: FloatArray, group: NDArrayBool, direction: FloatArray) -> NDArrayInt:
@@ -250,8 +254,8 @@ def boundary_lines(xy: FloatArray, group: NDArrayBool, direction: FloatArray) ->
     d = xy[j] - xy[i]
     u = np.stack([np.cos(direction[i]), np.sin(direction[i])], axis=1)
     across = np.abs(d[:, 0] * u[:, 1] - d[:, 1] * u[:, 0])
-    same_dir = np.abs(np.angle(np.exp(2j * (direction[i] - direction[j])))) / 2.0
-    keep = (group[i] == group[j]) & (across <= _LINE_LATERAL_M) & (same_dir <= _LINE_TURN_RAD)
+    same_dir = _line_angle(direction[i], direction[j]) <= _LINE_TURN_RAD
+    keep = (group[i] == group[j]) & (across <= _LINE_LATERAL_M) & same_dir
     graph = coo_matrix((np.ones(int(keep.sum())), (i[keep], j[keep])), shape=(n, n))
     _, labels = connected_components(graph, directed=False)
     return labels.astype(np.int64)
@@ -259,7 +263,7 @@ def boundary_lines(xy: FloatArray, group: NDArrayBool, direction: FloatArray) ->
 
 def _associate_lines(
     r: FloatArray, in_window: NDArrayBool, lines: NDArrayInt, known: dict[int, int], gate: float
-) -> tuple[NDArrayBool, NDArrayInt]:
+) -> tuple[NDArrayBool, NDArrayInt, dict[int, int]]:
     """Points matched to a ramp boundary, line by line.
 
     ``r`` ``(B, P)``: residuals of every point against every boundary (``inf`` where the
@@ -267,19 +271,24 @@ def _associate_lines(
     (``known``), so a curve that swings beyond the measured stretch is pulled back by the
     lines it already follows instead of losing them; a new line takes the boundary its
     points lie nearest to by median, if within ``gate`` (metres). Points farther than
-    ``_LINE_OUTLIER_M`` from their line's boundary are left out.
+    ``_LINE_OUTLIER_M`` from their line's boundary are left out (``gate`` for new lines).
+    Returns the mask of matched points, every point's boundary and each matched line's.
     """
     ok = np.zeros(r.shape[1], dtype=bool)
     kind = np.argmin(np.abs(r), axis=0)
-    for line in np.unique(lines[in_window]):
+    matched: dict[int, int] = {}
+    for line in (int(x) for x in np.unique(lines[in_window])):
         idx = np.flatnonzero(in_window & (lines == line))
         med = np.median(np.abs(r[:, idx]), axis=1)
-        k = known.get(int(line), int(np.argmin(med)))
-        if int(line) not in known and not med[k] <= gate:
+        seen = line in known
+        k = known[line] if seen else int(np.argmin(med))
+        if not seen and not med[k] <= gate:
             continue
         kind[idx] = k
-        ok[idx] = np.abs(r[k, idx]) <= max(gate, _LINE_OUTLIER_M if int(line) in known else gate)
-    return ok, kind
+        ok[idx] = np.abs(r[k, idx]) <= (max(gate, _LINE_OUTLIER_M) if seen else gate)
+        if ok[idx].any():
+            matched[line] = k
+    return ok, kind, matched
 
 
 # the solves are small dense problems: BLAS threads only contend (a loaded 2-core machine
@@ -488,7 +497,7 @@ def fit_ramp_shape(
             r = lane_side * lat[None, :] - offs
             r[coef_edge[:, None] != edge_all[None, :]] = np.inf
             in_window = (a_p > 0.5) & (a_p <= window) & _along_curve(dir_all, heading[gi])
-            ok, kind = _associate_lines(r, in_window, lines, known, gate)
+            ok, kind, matched = _associate_lines(r, in_window, lines, known, gate)
             if np.count_nonzero(ok) < cfg.evidence_min_points // 4:
                 break
             groups = section.group()[kind[ok]]
@@ -504,8 +513,7 @@ def fit_ramp_shape(
             xy, heading = spline.evaluate(p[:n_k])
             best = (ok, kind)
         else:
-            known.update({int(li): int(kind[np.flatnonzero(ok & (lines == li))[0]])
-                          for li in np.unique(lines[ok])})  # fmt: skip
+            known.update(matched)
             continue
         break
     if assoc is None or best is None:
