@@ -733,3 +733,49 @@ def test_a_median_side_step_is_sized_so_that_the_edge_line_runs_on_smoothly():
         frame, s, t, 1.0, EdgeSteps(np.array([500.0]), np.array([0.0, -9.0])), cfg
     )
     assert right.offsets[1] == pytest.approx(-9.0, abs=0.05)
+
+
+def _diverging_at_run_end(edge_offset_m: float):
+    """Marking tracks of a 600 m run whose outer solid line (7.2 m) starts to diverge at
+    s = 500 m (smoothstep, 3.6 m over 150 m: still diverging where the run ends), while a
+    broken line goes on at 7.2 m from 520 m; the outer edge runs ``edge_offset_m`` outside
+    the diverging line (None: straight at 8.5 m, so the line leaves the corridor)."""
+    from roadtwin.mainline.markings import _tracks_from_samples
+
+    cfg = MainlineConfig()
+    rng = np.random.default_rng(3)
+    s = np.arange(0.0, 600.0, 0.25)
+    x = np.clip((s - 500.0) / 150.0, 0.0, 1.0)
+    diverging = 7.2 + 3.6 * x * x * (3.0 - 2.0 * x)
+    dashes = (s % 12.0) < 3.0
+    straight = s >= 520.0
+    ss = np.concatenate([s[dashes], s, s[dashes & straight]])
+    dd = np.concatenate(
+        [np.full(int(dashes.sum()), 3.6), diverging, np.full(int((dashes & straight).sum()), 7.2)]
+    )
+    dd = dd + rng.normal(0.0, 0.02, dd.size)
+    grid = np.arange(0.0, 600.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+    xg = np.clip((grid - 500.0) / 150.0, 0.0, 1.0)
+    if edge_offset_m is None:
+        d_edge = np.full(grid.size, 8.5)
+    else:
+        d_edge = 7.2 + 3.6 * xg * xg * (3.0 - 2.0 * xg) + edge_offset_m
+    return _tracks_from_samples(ss, dd, grid, 600.0, cfg, d_edge)
+
+
+def test_a_line_diverging_inside_the_edge_where_the_run_ends_is_the_mainlines_own():
+    """Oakland I-880: a lane opens on the outside by a taper that the run ends in (the
+    edge moves out with the line, no ramp). The diverging line had been cut off as a ramp
+    line leaving the corridor: the lane was never built and its outer line was 3.6 m off.
+    Inside the measured edge to the run's end, it is kept; a line that runs out of the
+    corridor is still cut (gore evidence)."""
+    tracks, evidence = _diverging_at_run_end(3.0)
+    outer = max(tracks, key=lambda tr: float(tr.d[-1]))
+    assert outer.hi == pytest.approx(600.0, abs=2.0)
+    assert float(outer.d[-1]) == pytest.approx(7.2 + 3.6 * 0.74, abs=0.15)
+    assert evidence == []
+    # the straight broken line goes on beside it: one lane more at the end
+    assert sum(1 for tr in tracks if tr.hi >= 585.0) == 3
+    tracks, evidence = _diverging_at_run_end(None)
+    assert max(float(tr.d[-1]) for tr in tracks) < 7.5
+    assert len(evidence) == 1

@@ -232,6 +232,9 @@ def _tracks_from_samples(
             local_sigma_ends_m=2.0 * cfg.lane_smoothing_m,
         )
         keep_g = _trim_ramp_lines(g, fit, cfg)
+        if d_edge is not None:
+            edge_g = np.interp(g, grid, d_edge)
+            keep_g |= _cut_by_run_inside_edge(g, fit, keep_g, edge_g, s_first, s_last, col)
         if not keep_g[-1] or not keep_g[0]:
             # a ramp line: where it meets / leaves the corridor's marking is a gore
             if keep_g.any():
@@ -400,6 +403,38 @@ def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArr
     if flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
         keep[flat[-1] + 1 :] = False
     return keep
+
+
+def _cut_by_run_inside_edge(
+    g: FloatArray,
+    d: FloatArray,
+    keep: NDArray[np.bool_],
+    d_edge: FloatArray,
+    s_first: float,
+    s_last: float,
+    column_m: float,
+) -> NDArray[np.bool_]:
+    """The trimmed ends of a marking track (``~keep``) that the run's start or end cuts
+    off while they stay inside the outer edge ``d_edge`` (metres, same frame as ``d``).
+
+    A steeply diverging part is a ramp line only because it leaves the corridor: past an
+    exit gore it runs beyond the edge. One that the run ends before it could leave, with
+    the measured edge still outside it all along, is the mainline's own line: a lane that
+    opens by a taper the run did not see to its end (and an exit lane before its gore is
+    the mainline's too).
+    """
+    back = np.zeros(g.size, dtype=bool)
+    if keep.all() or not keep.any():
+        return back
+    inside = np.isfinite(d_edge) & (d < d_edge)
+    kept = np.flatnonzero(keep)
+    tail = np.arange(kept[-1] + 1, g.size)
+    if tail.size and g[-1] >= s_last - 2.0 * column_m and inside[tail].all():
+        back[tail] = True
+    head = np.arange(0, kept[0])
+    if head.size and g[0] <= s_first + 2.0 * column_m and inside[head].all():
+        back[head] = True
+    return back
 
 
 def _merge_collinear(
