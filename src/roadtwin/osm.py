@@ -27,11 +27,13 @@ span two OSM ways (simplification keeps way boundaries), so every tag is a singl
 from __future__ import annotations
 
 import logging
+import sys
 import tempfile
 import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 from xml.sax.saxutils import quoteattr
 
@@ -179,8 +181,9 @@ def load_osm_online(
     Same area (``config.osm_buffer_m`` around ``around_xy``) and the same projected result
     as :func:`load_osm`. Needs network access.
     """
-    import osmnx as ox
     import shapely
+
+    ox = _osmnx()
 
     cfg = config if config is not None else LoadConfig()
     xy = np.atleast_2d(np.asarray(around_xy, dtype=float))[:, :2]
@@ -392,10 +395,45 @@ def _write_xml(path: Path, ways: _Ways, keep_way: NDArray[np.bool_]) -> None:
 # ---------------------------------------------------------------------------
 
 
+class _LazyBallTree:
+    """Stands in for scikit-learn's ``BallTree`` in ``osmnx.distance``: imports it on
+    first use."""
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        from sklearn.neighbors import BallTree
+
+        return BallTree(*args, **kwargs)
+
+
+def _osmnx() -> ModuleType:
+    """OSMnx, imported without importing scikit-learn.
+
+    ``osmnx.distance`` imports scikit-learn's ``BallTree`` at import time (0.6-0.8 s, a
+    third of every build's fixed cost) for nearest-node searches on unprojected graphs,
+    which roadtwin never runs. The import is held off while OSMnx loads and the name is
+    bound to a stand-in that imports it when called, so OSMnx behaves as usual for anyone
+    else in the same process (a notebook).
+    """
+    if "osmnx" in sys.modules:
+        return sys.modules["osmnx"]
+    held = "sklearn" not in sys.modules
+    if held:
+        sys.modules["sklearn"] = None  # type: ignore[assignment]  # import -> ImportError
+    try:
+        import osmnx
+        import osmnx.distance
+    finally:
+        if held and sys.modules.get("sklearn", False) is None:
+            del sys.modules["sklearn"]
+    if osmnx.distance.BallTree is None:
+        osmnx.distance.BallTree = _LazyBallTree
+    return osmnx
+
+
 @contextmanager
 def _osmnx_tags() -> Iterator[None]:
     """Temporarily make OSMnx keep exactly the way tags the method needs."""
-    import osmnx as ox
+    ox = _osmnx()
 
     previous = list(ox.settings.useful_tags_way)
     ox.settings.useful_tags_way = [*WAY_TAGS, *_EXTRA_TAGS]
@@ -406,7 +444,7 @@ def _osmnx_tags() -> Iterator[None]:
 
 
 def _graph_from_xml(xml_path: Path) -> nx.MultiDiGraph:
-    import osmnx as ox
+    ox = _osmnx()
 
     with _osmnx_tags():
         graph = ox.graph_from_xml(xml_path, simplify=False, retain_all=True)
