@@ -735,7 +735,7 @@ def test_a_median_side_step_is_sized_so_that_the_edge_line_runs_on_smoothly():
     assert right.offsets[1] == pytest.approx(-9.0, abs=0.05)
 
 
-def _diverging_at_run_end(edge_offset_m: float):
+def _diverging_at_run_end(edge_offset_m: float | None):
     """Marking tracks of a 600 m run whose outer solid line (7.2 m) starts to diverge at
     s = 500 m (smoothstep, 3.6 m over 150 m: still diverging where the run ends), while a
     broken line goes on at 7.2 m from 520 m; the outer edge runs ``edge_offset_m`` outside
@@ -778,4 +778,55 @@ def test_a_line_diverging_inside_the_edge_where_the_run_ends_is_the_mainlines_ow
     assert sum(1 for tr in tracks if tr.hi >= 585.0) == 3
     tracks, evidence = _diverging_at_run_end(None)
     assert max(float(tr.d[-1]) for tr in tracks) < 7.5
+    assert len(evidence) == 1
+
+
+def _converging_edge_line(edge_offset_m: float | None):
+    """Marking tracks of a 600 m run with broken lines at 3.6 and 7.2 m and a solid line
+    that comes in from 10.8 m to 7.2 m between s = 250 and 350 m (smoothstep) and runs on
+    there; before s = 270 m it was not seen (worn or occluded). The outer edge runs
+    ``edge_offset_m`` outside the solid line (None: straight at 9.5 m, so the line comes
+    in from outside the corridor, as an entry's line does before its gore)."""
+    from roadtwin.mainline.markings import _tracks_from_samples
+
+    cfg = MainlineConfig()
+    rng = np.random.default_rng(4)
+    s = np.arange(0.0, 600.0, 0.25)
+    x = np.clip((s - 250.0) / 100.0, 0.0, 1.0)
+    solid = 10.8 - 3.6 * x * x * (3.0 - 2.0 * x)
+    dashes = (s % 12.0) < 3.0
+    seen = s >= 270.0
+    through = s < 350.0
+    ss = np.concatenate([s[dashes], s[dashes & through], s[seen]])
+    dd = np.concatenate(
+        [
+            np.full(int(dashes.sum()), 3.6),
+            np.full(int((dashes & through).sum()), 7.2),
+            solid[seen],
+        ]
+    )
+    dd = dd + rng.normal(0.0, 0.02, dd.size)
+    grid = np.arange(0.0, 600.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+    xg = np.clip((grid - 250.0) / 100.0, 0.0, 1.0)
+    if edge_offset_m is None:
+        d_edge = np.full(grid.size, 9.5)
+    else:
+        d_edge = 10.8 - 3.6 * xg * xg * (3.0 - 2.0 * xg) + edge_offset_m
+    return _tracks_from_samples(ss, dd, grid, 600.0, cfg, d_edge)
+
+
+def test_a_lane_drops_edge_line_converging_inside_the_edge_is_the_mainlines_own():
+    """Melbourne: the edge line of a lane drop converges onto the next line over 100 m
+    (0.054 m/m, steeper than a ramp line's 0.012) with the measured edge closing in
+    beside it. It had been cut off as an entry's line: the lane then ended where the cut
+    line began, tens of metres off. Inside the edge all along it is kept from where it was
+    first seen (mid-taper); a line coming in from outside the edge is still cut (gore
+    evidence)."""
+    tracks, evidence = _converging_edge_line(2.5)
+    solid = max(tracks, key=lambda tr: float(tr.d[0]))
+    assert solid.lo == pytest.approx(270.0, abs=3.0)
+    assert float(np.interp(300.0, solid.s, solid.d)) == pytest.approx(9.0, abs=0.15)
+    assert evidence == []
+    tracks, evidence = _converging_edge_line(None)
+    assert all(float(tr.d[0]) < 7.5 for tr in tracks)
     assert len(evidence) == 1

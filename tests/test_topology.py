@@ -738,3 +738,55 @@ def test_a_ramp_is_not_fed_by_a_lane_that_has_not_opened_at_the_junction():
     assert _valid_sources(section, (-5,), "right") == [-5]  # by type alone
     assert _valid_sources(section, (-5,), "right", main=road, s_main=300.0) == [-4]
     assert _valid_sources(section, (-5,), "right", main=road, s_main=400.0) == [-5]
+
+
+def _drop_road(after_widths, *, succ=None):
+    """A 300 m road: lanes -1 shoulder 1.0 m, -2 / -3 driving 3.5 m and -4 shoulder 2.5 m
+    up to s = 200 m; beyond it the lanes ``after_widths`` (types driving ... shoulder)."""
+    from roadtwin.model import Line
+
+    before = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 1.0, "shoulder", succ=-1),
+            _lane(-2, 3.5, succ=-2),
+            _lane(-3, 3.5, succ=succ),
+            _lane(-4, 2.5, "shoulder"),
+        ),
+    )
+    types = ["shoulder", *["driving"] * (len(after_widths) - 2), "shoulder"]
+    after = LaneSection(
+        200.0,
+        right=tuple(
+            _lane(-(i + 1), w, t, pred=-(i + 1) if i < 2 else None)
+            for i, (w, t) in enumerate(zip(after_widths, types, strict=True))
+        ),
+    )
+    return Road("1", (Line(0.0, 0.0, 0.0, 0.0, 300.0),), (before, after))
+
+
+def test_a_driving_lane_ending_at_full_width_where_the_road_narrows_closes_by_a_taper():
+    """town06-auto-s3: where the outer edge was not seen over a lane drop, the lane ended
+    at full width beside the edge's step: a dead end (``roadtwin drive``: "leads nowhere").
+    Closed to zero over the last 60 m of its section, the road narrows smoothly into the
+    next section (outer border continuous to the millimetre). A lane whose room goes on
+    (lanes redrawn, the side as wide) or that is linked is left alone."""
+    from roadtwin.lane_drops import taper_lane_drops
+
+    road = _drop_road([1.0, 3.5, 2.5])
+    out, closed = taper_lane_drops(road, "right")
+    assert closed == [(200.0, -3)]
+    lane = out.lane_sections[0].right[2]
+    w = lane.width.value(np.array([0.0, 139.9, 170.0, 200.0]))
+    assert w[:2] == pytest.approx([3.5, 3.5], abs=1e-9)
+    assert w[2] == pytest.approx(1.75, abs=1e-9)
+    assert w[3] == pytest.approx(0.0, abs=1e-9)
+    before = out.lane_border_t(np.array([199.999]), -4)[0]
+    after = out.lane_border_t(np.array([200.0]), -3)[0]
+    assert abs(before - after) < 1e-3
+    # the side as wide beyond the border: another lane took the room, nothing closes
+    same_room = _drop_road([1.0, 3.5, 3.5, 2.5])
+    assert taper_lane_drops(same_room, "right") == (same_room, [])
+    # linked on: not a drop
+    linked = _drop_road([1.0, 3.5, 3.5, 2.5], succ=-3)
+    assert taper_lane_drops(linked, "right")[1] == []

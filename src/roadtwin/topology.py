@@ -34,6 +34,7 @@ import networkx as nx
 import numpy as np
 
 from .config import TopologyConfig
+from .lane_drops import taper_lane_drops
 from .mainline import cut_road
 from .model import (
     Connection,
@@ -458,6 +459,20 @@ def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
             predecessors={b: a for a, b in links.items()},
         )
     return parts
+
+
+def _closing_drops(road: Road, traffic_side: TrafficSide) -> Road:
+    """``road`` with its dropped lanes closed by a taper (:mod:`roadtwin.lane_drops`)."""
+    out, closed = taper_lane_drops(road, traffic_side)
+    for station, lane_id in closed:
+        log.info(
+            "road %s: driving lane %d ends at full width at s=%.0f m where the road narrows: "
+            "closed by a taper",
+            road.id,
+            lane_id,
+            station,
+        )
+    return out
 
 
 @dataclass
@@ -905,6 +920,7 @@ def build_topology(
         for i, road in enumerate(main_roads)
         for r in _chain_roads([road, *tails[i]], traffic_side)
     ]
+    main_roads = [_closing_drops(r, traffic_side) for r in main_roads]
     roads, junctions_out = prune_zero_width_links(
         [true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors)], junctions
     )

@@ -234,7 +234,7 @@ def _tracks_from_samples(
         keep_g = _trim_ramp_lines(g, fit, cfg)
         if d_edge is not None:
             edge_g = np.interp(g, grid, d_edge)
-            keep_g |= _cut_by_run_inside_edge(g, fit, keep_g, edge_g, s_first, s_last, col)
+            keep_g |= _mainline_ends_inside_edge(g, fit, keep_g, edge_g, s_last, col)
         if not keep_g[-1] or not keep_g[0]:
             # a ramp line: where it meets / leaves the corridor's marking is a gore
             if keep_g.any():
@@ -405,35 +405,42 @@ def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArr
     return keep
 
 
-def _cut_by_run_inside_edge(
+def _mainline_ends_inside_edge(
     g: FloatArray,
     d: FloatArray,
     keep: NDArray[np.bool_],
     d_edge: FloatArray,
-    s_first: float,
     s_last: float,
     column_m: float,
 ) -> NDArray[np.bool_]:
-    """The trimmed ends of a marking track (``~keep``) that the run's start or end cuts
-    off while they stay inside the outer edge ``d_edge`` (metres, same frame as ``d``).
+    """The trimmed ends of a marking track (``~keep``, see :func:`_trim_ramp_lines`) that
+    are the mainline's own lines after all: they stay inside the outer edge ``d_edge``
+    (metres, same frame as ``d``) all along.
 
-    A steeply diverging part is a ramp line only because it leaves the corridor: past an
-    exit gore it runs beyond the edge. One that the run ends before it could leave, with
-    the measured edge still outside it all along, is the mainline's own line: a lane that
-    opens by a taper the run did not see to its end (and an exit lane before its gore is
-    the mainline's too).
+    A steeply converging or diverging part is a ramp line because it comes in from, or
+    leaves to, outside the corridor. The edge line of a lane drop converges as steeply
+    (a 3.5 m taper over 100-200 m) but inside the edge, which closes in with it: kept, the
+    lane closes where its line meets the next one instead of ending at full width. A
+    diverging part is kept only where the run's end cuts it off before it could leave:
+    a lane that opens by a taper the run ends in. Elsewhere a diverging line inside the
+    edge may still be about to leave (the edge follows an exit's ramp up to the nose), and
+    kept whole, the lines that shift a lane sideways where lanes are added on the median
+    side gave lane sections whose through lanes were not linked (melbourne-408-opp).
     """
     back = np.zeros(g.size, dtype=bool)
-    if keep.all() or not keep.any():
+    if keep.all():
         return back
     inside = np.isfinite(d_edge) & (d < d_edge)
-    kept = np.flatnonzero(keep)
+    if not keep.any():  # converging (diverging) all along: all head (tail)
+        kept = np.array([g.size]) if d[-1] < d[0] else np.array([-1])
+    else:
+        kept = np.flatnonzero(keep)
+    head = np.arange(0, kept[0])
+    if head.size and inside[head].all():
+        back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
     if tail.size and g[-1] >= s_last - 2.0 * column_m and inside[tail].all():
         back[tail] = True
-    head = np.arange(0, kept[0])
-    if head.size and g[0] <= s_first + 2.0 * column_m and inside[head].all():
-        back[head] = True
     return back
 
 

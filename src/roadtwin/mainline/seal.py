@@ -43,7 +43,7 @@ def _width_at(lane: Lane, ds: float) -> float:
     return float(lane.width.value(np.array([ds]))[0])
 
 
-def _reexpanded(piece: CubicPiece, x0: float) -> CubicPiece:
+def reexpanded(piece: CubicPiece, x0: float) -> CubicPiece:
     """The same cubic written from ``x0`` on (section-local metres)."""
     h = x0 - piece.s0
     a, b, c, d = piece.a, piece.b, piece.c, piece.d
@@ -63,7 +63,7 @@ def _add_ramp(
     for x in cuts:
         k = max(i for i, p in enumerate(pieces) if p.s0 <= x) if x >= pieces[0].s0 else 0
         if x > pieces[k].s0:
-            pieces.insert(k + 1, _reexpanded(pieces[k], x))
+            pieces.insert(k + 1, reexpanded(pieces[k], x))
     slope = (v_to - v_from) / (x_to - x_from)
     out = []
     for p in pieces:
@@ -106,21 +106,38 @@ def _scaled(
         return None
     out = []
     for lane, w in zip(lanes, widths, strict=True):
-        w_new = w * target / total
-        # a lane that has (nearly) closed before the border would dip below zero under
-        # a long correction: the shortest fade that keeps it non-negative
-        for fade in _FADES_M:
-            fixed = (
-                _with_start_width(lane, w_new, length_m, fade)
-                if at_start
-                else _with_end_width(lane, w_new, length_m, fade)
-            )
-            if _min_width(fixed, length_m) >= -1e-9:
-                break
-        else:
+        fixed = faded_width(lane, w * target / total, length_m, at_start=at_start)
+        if fixed is None:
             return None
         out.append(fixed)
     return out
+
+
+def faded_width(
+    lane: Lane,
+    w_new: float,
+    length_m: float,
+    *,
+    at_start: bool,
+    fades_m: tuple[float, ...] = _FADES_M,
+) -> Lane | None:
+    """``lane`` (in a section ``length_m`` long) with its width at the section's start
+    (``at_start``) or end set to ``w_new`` (metres) by a linear correction that fades out
+    over the longest of ``fades_m`` (metres, longest first, at most the section) that keeps
+    the width non-negative; None if none does.
+
+    A lane that has (nearly) closed before the border would dip below zero under a long
+    correction, hence the shorter ones.
+    """
+    for fade in fades_m:
+        fixed = (
+            _with_start_width(lane, w_new, length_m, fade)
+            if at_start
+            else _with_end_width(lane, w_new, length_m, fade)
+        )
+        if _min_width(fixed, length_m) >= -1e-9:
+            return fixed
+    return None
 
 
 def _seal_side(
@@ -254,4 +271,4 @@ def seal_lane_borders(road: Road) -> Road:
     return replace(road, lane_sections=tuple(sections))
 
 
-__all__ = ["seal_lane_borders"]
+__all__ = ["faded_width", "reexpanded", "seal_lane_borders"]

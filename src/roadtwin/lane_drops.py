@@ -1,0 +1,93 @@
+"""Driving lanes that end where the road narrows: closed by a taper.
+
+The mainline stage ends a lane at a lane-section border where its markings and the outer
+edge say it ends. Where the outer edge was not seen over a lane drop, the edge's level
+path steps inward at one station and the outermost driving lane ends there at full
+width: a dead end for a driver (a simulator's car stops or jumps, ``roadtwin drive`` fails
+the route). At an exit the same signature is right: the exit lane ends at the gore and
+goes on into the ramp. So the decision is taken after the junctions are built, where an
+exit's lane is linked into its ramp: a driving lane that still ends unlinked at a border
+inside a road, where the road's width on its side shrinks by that lane, is a lane drop
+and closes to zero width before the border; the lanes outside it move in with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .mainline.seal import faded_width
+from .model import Lane, LaneSection, Road
+from .ramps.records import TrafficSide
+
+DROP_TAPERS_M = (60.0, 40.0, 20.0, 10.0, 5.0)
+"""Taper lengths tried for a dropped lane, longest first (metres; at most its section)."""
+_MIN_DROP_WIDTH_M = 1.0  # a narrower lane ending is a taper already
+_ROOM_SHARE = 0.5  # the side must narrow by at least this share of the lane's width
+
+
+def _side(section: LaneSection, traffic_side: TrafficSide) -> tuple[Lane, ...]:
+    return section.right if traffic_side == "right" else section.left
+
+
+def _width(lane: Lane, ds: float) -> float:
+    return float(lane.width.value(np.array([ds]))[0])
+
+
+def taper_lane_drops(
+    road: Road,
+    traffic_side: TrafficSide,
+    *,
+    tapers_m: tuple[float, ...] = DROP_TAPERS_M,
+) -> tuple[Road, list[tuple[float, int]]]:
+    """Close the driving lanes of ``road`` that end unlinked at full width where the road
+    narrows (see the module docstring).
+
+    Parameters
+    ----------
+    road
+        A mainline road (its lanes linked across its section borders).
+    traffic_side
+        ``"right"``: the traffic lanes are the right lanes (negative ids), else the left.
+    tapers_m
+        Taper lengths tried, longest first (metres): the longest that fits the lane's
+        section and keeps its width non-negative.
+
+    Returns
+    -------
+    The road, and ``(station, lane id)`` of every lane closed (road station of the border,
+    metres).
+    """
+    sections = list(road.lane_sections)
+    closed: list[tuple[float, int]] = []
+    for k in range(len(sections) - 1):
+        a, b = sections[k], sections[k + 1]
+        len_a = b.s0 - a.s0
+        lanes_a = list(_side(a, traffic_side))
+        widths_a = [_width(ln, len_a) for ln in lanes_a]
+        # the room the side loses at the border: what lanes ending there leave behind
+        room = sum(widths_a) - sum(_width(ln, 0.0) for ln in _side(b, traffic_side))
+        for i in reversed(range(len(lanes_a))):
+            lane, w = lanes_a[i], widths_a[i]
+            if lane.type != "driving" or lane.successor is not None:
+                continue
+            if w < _MIN_DROP_WIDTH_M or room < _ROOM_SHARE * w:
+                continue
+            fades = tuple(min(f, len_a) for f in tapers_m)
+            fixed = faded_width(lane, 0.0, len_a, at_start=False, fades_m=fades)
+            if fixed is None:
+                continue
+            lanes_a[i] = fixed
+            room -= w
+            closed.append((float(b.s0), lane.id))
+        if traffic_side == "right":
+            sections[k] = replace(a, right=tuple(lanes_a))
+        else:
+            sections[k] = replace(a, left=tuple(lanes_a))
+    if not closed:
+        return road, closed
+    return replace(road, lane_sections=tuple(sections)), closed
+
+
+__all__ = ["DROP_TAPERS_M", "taper_lane_drops"]
