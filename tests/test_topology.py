@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from roadtwin.check import check_network
-from roadtwin.config import RampConfig, TopologyConfig
+from roadtwin.config import PipelineConfig, RampConfig, TopologyConfig
 from roadtwin.model import (
     Arc,
     CubicPiece,
@@ -790,3 +790,8 @@ def test_a_driving_lane_ending_at_full_width_where_the_road_narrows_closes_by_a_
     # linked on: not a drop
     linked = _drop_road([1.0, 3.5, 3.5, 2.5], succ=-3)
     assert taper_lane_drops(linked, "right")[1] == []
+    # the paper method leaves it: its lanes end where its clusters do
+    paper = PipelineConfig().with_method("paper").topology.lane_drop_taper_m
+    assert paper == 0.0
+    assert taper_lane_drops(road, "right", max_taper_m=paper) == (road, [])
+    assert PipelineConfig().with_method("default").topology.lane_drop_taper_m == 60.0

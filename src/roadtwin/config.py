@@ -395,6 +395,12 @@ class TopologyConfig:
     """Length along the mainline of a junction with connecting roads (metres)."""
     min_road_length_m: float = 5.0
     """A ramp whose junction would leave a mainline road shorter than this is skipped."""
+    lane_drop_taper_m: float = 60.0
+    """Longest taper (metres) closing a driving lane that still ends unlinked at full width
+    where the road narrows once the junctions are built (:mod:`roadtwin.lane_drops`);
+    0 leaves such lanes as they are (the paper method)."""
+
+    _ZERO_OK: ClassVar[frozenset[str]] = frozenset({"lane_drop_taper_m"})
 
     def __post_init__(self) -> None:
         check_fields(self, "topology")
@@ -544,12 +550,16 @@ class PipelineConfig:
     highway: HighwayConfig = field(default_factory=HighwayConfig)
 
     def with_method(self, method: Literal["default", "paper"]) -> PipelineConfig:
-        """The same settings built with ``method``: the mainline method and the ramps' lane
-        rule for untagged links (``paper``: the seed paper's Algorithm 2 class default)."""
+        """The same settings built with ``method``: the mainline method, the ramps' lane
+        rule for untagged links (``paper``: the seed paper's Algorithm 2 class default) and
+        whether lanes ending at full width are closed by a taper (not in the paper)."""
+        paper = method == "paper"
+        taper = 0.0 if paper else TopologyConfig.lane_drop_taper_m
         return replace(
             self,
             mainline=replace(self.mainline, method=method),
-            ramps=replace(self.ramps, link_lane_rule="paper" if method == "paper" else "osm"),
+            ramps=replace(self.ramps, link_lane_rule="paper" if paper else "osm"),
+            topology=replace(self.topology, lane_drop_taper_m=taper),
         )
 
     @classmethod

@@ -21,8 +21,7 @@ from .mainline.seal import faded_width
 from .model import Lane, LaneSection, Road
 from .ramps.records import TrafficSide
 
-DROP_TAPERS_M = (60.0, 40.0, 20.0, 10.0, 5.0)
-"""Taper lengths tried for a dropped lane, longest first (metres; at most its section)."""
+_SHORTER_TAPERS_M = (40.0, 20.0, 10.0, 5.0)  # tried where the longest would go negative
 _MIN_DROP_WIDTH_M = 1.0  # a narrower lane ending is a taper already
 _ROOM_SHARE = 0.5  # the side must narrow by at least this share of the lane's width
 
@@ -39,7 +38,7 @@ def taper_lane_drops(
     road: Road,
     traffic_side: TrafficSide,
     *,
-    tapers_m: tuple[float, ...] = DROP_TAPERS_M,
+    max_taper_m: float = 60.0,
 ) -> tuple[Road, list[tuple[float, int]]]:
     """Close the driving lanes of ``road`` that end unlinked at full width where the road
     narrows (see the module docstring).
@@ -50,9 +49,9 @@ def taper_lane_drops(
         A mainline road (its lanes linked across its section borders).
     traffic_side
         ``"right"``: the traffic lanes are the right lanes (negative ids), else the left.
-    tapers_m
-        Taper lengths tried, longest first (metres): the longest that fits the lane's
-        section and keeps its width non-negative.
+    max_taper_m
+        Longest taper (metres): the lane closes over this, or its section if shorter, or a
+        shorter one where that would make its width negative. 0: nothing is closed.
 
     Returns
     -------
@@ -61,6 +60,9 @@ def taper_lane_drops(
     """
     sections = list(road.lane_sections)
     closed: list[tuple[float, int]] = []
+    if max_taper_m <= 0.0:
+        return road, closed
+    tapers = (max_taper_m, *(f for f in _SHORTER_TAPERS_M if f < max_taper_m))
     for k in range(len(sections) - 1):
         a, b = sections[k], sections[k + 1]
         len_a = b.s0 - a.s0
@@ -74,7 +76,7 @@ def taper_lane_drops(
                 continue
             if w < _MIN_DROP_WIDTH_M or room < _ROOM_SHARE * w:
                 continue
-            fades = tuple(min(f, len_a) for f in tapers_m)
+            fades = tuple(min(f, len_a) for f in tapers)
             fixed = faded_width(lane, 0.0, len_a, at_start=False, fades_m=fades)
             if fixed is None:
                 continue
@@ -90,4 +92,4 @@ def taper_lane_drops(
     return replace(road, lane_sections=tuple(sections)), closed
 
 
-__all__ = ["DROP_TAPERS_M", "taper_lane_drops"]
+__all__ = ["taper_lane_drops"]

@@ -461,9 +461,9 @@ def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
     return parts
 
 
-def _closing_drops(road: Road, traffic_side: TrafficSide) -> Road:
+def _closing_drops(road: Road, traffic_side: TrafficSide, max_taper_m: float) -> Road:
     """``road`` with its dropped lanes closed by a taper (:mod:`roadtwin.lane_drops`)."""
-    out, closed = taper_lane_drops(road, traffic_side)
+    out, closed = taper_lane_drops(road, traffic_side, max_taper_m=max_taper_m)
     for station, lane_id in closed:
         log.info(
             "road %s: driving lane %d ends at full width at s=%.0f m where the road narrows: "
@@ -920,7 +920,7 @@ def build_topology(
         for i, road in enumerate(main_roads)
         for r in _chain_roads([road, *tails[i]], traffic_side)
     ]
-    main_roads = [_closing_drops(r, traffic_side) for r in main_roads]
+    main_roads = [_closing_drops(r, traffic_side, cfg.lane_drop_taper_m) for r in main_roads]
     roads, junctions_out = prune_zero_width_links(
         [true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors)], junctions
     )
