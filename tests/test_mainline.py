@@ -735,32 +735,42 @@ def test_a_median_side_step_is_sized_so_that_the_edge_line_runs_on_smoothly():
     assert right.offsets[1] == pytest.approx(-9.0, abs=0.05)
 
 
+def _smoothstep(s, s0: float, length: float):
+    x = np.clip((s - s0) / length, 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _tracks_600(ss, dd, seed: int, edge_of):
+    """Marking tracks of a 600 m run from lane samples ``(ss, dd)`` (2 cm noise added)
+    and the outer edge ``edge_of(grid)``."""
+    from roadtwin.mainline.markings import _tracks_from_samples
+
+    cfg = MainlineConfig()
+    dd = dd + np.random.default_rng(seed).normal(0.0, 0.02, dd.size)
+    grid = np.arange(0.0, 600.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+    return _tracks_from_samples(ss, dd, grid, 600.0, cfg, edge_of(grid))
+
+
 def _diverging_at_run_end(edge_offset_m: float | None):
     """Marking tracks of a 600 m run whose outer solid line (7.2 m) starts to diverge at
     s = 500 m (smoothstep, 3.6 m over 150 m: still diverging where the run ends), while a
     broken line goes on at 7.2 m from 520 m; the outer edge runs ``edge_offset_m`` outside
     the diverging line (None: straight at 8.5 m, so the line leaves the corridor)."""
-    from roadtwin.mainline.markings import _tracks_from_samples
-
-    cfg = MainlineConfig()
-    rng = np.random.default_rng(3)
     s = np.arange(0.0, 600.0, 0.25)
-    x = np.clip((s - 500.0) / 150.0, 0.0, 1.0)
-    diverging = 7.2 + 3.6 * x * x * (3.0 - 2.0 * x)
+    diverging = 7.2 + 3.6 * _smoothstep(s, 500.0, 150.0)
     dashes = (s % 12.0) < 3.0
     straight = s >= 520.0
     ss = np.concatenate([s[dashes], s, s[dashes & straight]])
     dd = np.concatenate(
         [np.full(int(dashes.sum()), 3.6), diverging, np.full(int((dashes & straight).sum()), 7.2)]
     )
-    dd = dd + rng.normal(0.0, 0.02, dd.size)
-    grid = np.arange(0.0, 600.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
-    xg = np.clip((grid - 500.0) / 150.0, 0.0, 1.0)
-    if edge_offset_m is None:
-        d_edge = np.full(grid.size, 8.5)
-    else:
-        d_edge = 7.2 + 3.6 * xg * xg * (3.0 - 2.0 * xg) + edge_offset_m
-    return _tracks_from_samples(ss, dd, grid, 600.0, cfg, d_edge)
+
+    def edge_of(grid):
+        if edge_offset_m is None:
+            return np.full(grid.size, 8.5)
+        return 7.2 + 3.6 * _smoothstep(grid, 500.0, 150.0) + edge_offset_m
+
+    return _tracks_600(ss, dd, 3, edge_of)
 
 
 def test_a_line_diverging_inside_the_edge_where_the_run_ends_is_the_mainlines_own():
@@ -787,13 +797,8 @@ def _converging_edge_line(edge_offset_m: float | None):
     there; before s = 270 m it was not seen (worn or occluded). The outer edge runs
     ``edge_offset_m`` outside the solid line (None: straight at 9.5 m, so the line comes
     in from outside the corridor, as an entry's line does before its gore)."""
-    from roadtwin.mainline.markings import _tracks_from_samples
-
-    cfg = MainlineConfig()
-    rng = np.random.default_rng(4)
     s = np.arange(0.0, 600.0, 0.25)
-    x = np.clip((s - 250.0) / 100.0, 0.0, 1.0)
-    solid = 10.8 - 3.6 * x * x * (3.0 - 2.0 * x)
+    solid = 10.8 - 3.6 * _smoothstep(s, 250.0, 100.0)
     dashes = (s % 12.0) < 3.0
     seen = s >= 270.0
     through = s < 350.0
@@ -805,14 +810,13 @@ def _converging_edge_line(edge_offset_m: float | None):
             solid[seen],
         ]
     )
-    dd = dd + rng.normal(0.0, 0.02, dd.size)
-    grid = np.arange(0.0, 600.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
-    xg = np.clip((grid - 250.0) / 100.0, 0.0, 1.0)
-    if edge_offset_m is None:
-        d_edge = np.full(grid.size, 9.5)
-    else:
-        d_edge = 10.8 - 3.6 * xg * xg * (3.0 - 2.0 * xg) + edge_offset_m
-    return _tracks_from_samples(ss, dd, grid, 600.0, cfg, d_edge)
+
+    def edge_of(grid):
+        if edge_offset_m is None:
+            return np.full(grid.size, 9.5)
+        return 10.8 - 3.6 * _smoothstep(grid, 250.0, 100.0) + edge_offset_m
+
+    return _tracks_600(ss, dd, 4, edge_of)
 
 
 def test_a_lane_drops_edge_line_converging_inside_the_edge_is_the_mainlines_own():
