@@ -791,12 +791,14 @@ def test_a_line_diverging_inside_the_edge_where_the_run_ends_is_the_mainlines_ow
     assert len(evidence) == 1
 
 
-def _converging_edge_line(edge_offset_m: float | None):
+def _converging_edge_line(edge_offset_m: float | None, *, nose: bool = False):
     """Marking tracks of a 600 m run with broken lines at 3.6 and 7.2 m and a solid line
     that comes in from 10.8 m to 7.2 m between s = 250 and 350 m (smoothstep) and runs on
     there; before s = 270 m it was not seen (worn or occluded). The outer edge runs
     ``edge_offset_m`` outside the solid line (None: straight at 9.5 m, so the line comes
-    in from outside the corridor, as an entry's line does before its gore)."""
+    in from outside the corridor, as an entry's line does before its gore); with ``nose``
+    it is ``edge_offset_m`` outside the 7.2 m line up to s = 265 m and steps out there (an
+    entry's nose: the ramp's inner line converges onward inside the edge)."""
     s = np.arange(0.0, 600.0, 0.25)
     solid = 10.8 - 3.6 * _smoothstep(s, 250.0, 100.0)
     dashes = (s % 12.0) < 3.0
@@ -814,23 +816,30 @@ def _converging_edge_line(edge_offset_m: float | None):
     def edge_of(grid):
         if edge_offset_m is None:
             return np.full(grid.size, 9.5)
-        return 10.8 - 3.6 * _smoothstep(grid, 250.0, 100.0) + edge_offset_m
+        edge = 10.8 - 3.6 * _smoothstep(grid, 250.0, 100.0) + edge_offset_m
+        if nose:  # the edge steps out by the ramp's width where the line is first seen
+            edge = np.where(grid < 265.0, 7.2 + edge_offset_m, edge)
+        return edge
 
     return _tracks_600(ss, dd, 4, edge_of)
 
 
 def test_a_lane_drops_edge_line_converging_inside_the_edge_is_the_mainlines_own():
-    """Melbourne: the edge line of a lane drop converges onto the next line over 100 m
-    (0.054 m/m, steeper than a ramp line's 0.012) with the measured edge closing in
-    beside it. It had been cut off as an entry's line: the lane then ended where the cut
-    line began, tens of metres off. Inside the edge all along it is kept from where it was
-    first seen (mid-taper); a line coming in from outside the edge is still cut (gore
-    evidence)."""
+    """The edge line of a lane drop converges onto the next line over 100 m (0.054 m/m,
+    steeper than a ramp line's 0.012) with the measured edge closing in beside it. It had
+    been cut off as an entry's line: the lane then ended where the cut line began. Inside
+    the edge all along it is kept from where it was first seen (mid-taper); a line coming
+    in from outside the edge, or from an entry's nose, is still cut (gore evidence)."""
     tracks, evidence = _converging_edge_line(2.5)
     solid = max(tracks, key=lambda tr: float(tr.d[0]))
     assert solid.lo == pytest.approx(270.0, abs=3.0)
     assert float(np.interp(300.0, solid.s, solid.d)) == pytest.approx(9.0, abs=0.15)
     assert evidence == []
     tracks, evidence = _converging_edge_line(None)
+    assert all(float(tr.d[0]) < 7.5 for tr in tracks)
+    assert len(evidence) == 1
+    # past an entry's nose the ramp's line converges inside the edge too: still cut (the
+    # painted gore is not a lane of the mainline)
+    tracks, evidence = _converging_edge_line(2.5, nose=True)
     assert all(float(tr.d[0]) < 7.5 for tr in tracks)
     assert len(evidence) == 1

@@ -233,8 +233,7 @@ def _tracks_from_samples(
         )
         keep_g = _trim_ramp_lines(g, fit, cfg)
         if d_edge is not None:
-            edge_g = np.interp(g, grid, d_edge)
-            keep_g |= _mainline_ends_inside_edge(g, fit, keep_g, edge_g, s_last, col)
+            keep_g |= _mainline_ends_inside_edge(g, fit, keep_g, grid, d_edge, s_last, col)
         if not keep_g[-1] or not keep_g[0]:
             # a ramp line: where it meets / leaves the corridor's marking is a gore
             if keep_g.any():
@@ -405,10 +404,15 @@ def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArr
     return keep
 
 
+_NOSE_WINDOW_M = 15.0  # an edge step this close before or after a line's start ... (metres)
+_NOSE_STEP_M = 1.5  # ... outward by more than this is an entry's nose (metres)
+
+
 def _mainline_ends_inside_edge(
     g: FloatArray,
     d: FloatArray,
     keep: NDArray[np.bool_],
+    grid: FloatArray,
     d_edge: FloatArray,
     s_last: float,
     column_m: float,
@@ -420,23 +424,31 @@ def _mainline_ends_inside_edge(
     A steeply converging or diverging part is a ramp line because it comes in from, or
     leaves to, outside the corridor. The edge line of a lane drop converges as steeply
     (a 3.5 m taper over 100-200 m) but inside the edge, which closes in with it: kept, the
-    lane closes where its line meets the next one instead of ending at full width. A
-    diverging part is kept only where the run's end cuts it off before it could leave:
-    a lane that opens by a taper the run ends in. Elsewhere a diverging line inside the
-    edge may still be about to leave (the edge follows an exit's ramp up to the nose), and
-    kept whole, the lines that shift a lane sideways where lanes are added on the median
-    side gave lane sections whose through lanes were not linked (melbourne-408-opp).
+    lane closes where its line meets the next one instead of ending at full width. Past an
+    entry's nose the ramp's line converges inside the edge too, but it starts where the
+    edge steps out by the ramp's width: that one is still cut (the painted gore is no lane
+    of the mainline; kept, it split the acceleration lane and esmini warned of lanes
+    without a connecting lane on melbourne-408-opp). A diverging part is kept only where
+    the run's end cuts it off before it could leave: a lane that opens by a taper the run
+    ends in. Elsewhere a diverging line inside the edge may still be about to leave (the
+    edge follows an exit's ramp up to the nose), and kept whole, the lines that shift a
+    lane sideways where lanes are added on the median side gave lane sections whose
+    through lanes were not linked (melbourne-408-opp).
     """
     back = np.zeros(g.size, dtype=bool)
     if keep.all():
         return back
-    inside = np.isfinite(d_edge) & (d < d_edge)
+    edge = np.interp(g, grid, d_edge)
+    inside = np.isfinite(edge) & (d < edge)
     if not keep.any():  # converging (diverging) all along: all head (tail)
         kept = np.array([g.size]) if d[-1] < d[0] else np.array([-1])
     else:
         kept = np.flatnonzero(keep)
     head = np.arange(0, kept[0])
-    if head.size and inside[head].all():
+    # an entry's line comes in past the nose, where the edge steps out by the ramp's width
+    near = np.interp(g[0] + np.array([-_NOSE_WINDOW_M, 0.0, _NOSE_WINDOW_M]), grid, d_edge)
+    at_nose = near[1:].max() - near[0] > _NOSE_STEP_M
+    if head.size and inside[head].all() and not at_nose:
         back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
     if tail.size and g[-1] >= s_last - 2.0 * column_m and inside[tail].all():
