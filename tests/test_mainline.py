@@ -843,3 +843,32 @@ def test_a_lane_drops_edge_line_converging_inside_the_edge_is_the_mainlines_own(
     tracks, evidence = _converging_edge_line(2.5, nose=True)
     assert all(float(tr.d[0]) < 7.5 for tr in tracks)
     assert len(evidence) == 1
+
+
+def test_median_side_lanes_between_an_inner_exits_paint_tip_and_nose_are_inferred():
+    """town06-auto-s3: an inner exit's two lanes leave 56 m before the median-side edge
+    steps at the nose; their lines diverge there and are cut as ramp lines, so between
+    tip and nose the strip from the median edge to the first through line was one lane
+    8.1 m wide, the exit was attached at its OSM station 40 m early and a route failed.
+    Hidden median-side lanes are inferred over 30 m or more (they were over 60 m only):
+    the two lanes run on to the nose, where they end at the step (a gore the ramp stage
+    matches)."""
+    from roadtwin.mainline.markings import _add_hidden_lanes
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+    tracks = [
+        _const_track(0, grid, 1.1, 0.0, 300.0),
+        _const_track(1, grid, 4.6, 0.0, 300.0),
+        _const_track(2, grid, 8.1, 0.0, 600.0),
+        _const_track(3, grid, 11.6, 0.0, 600.0),
+    ]
+    d_median = np.where(grid < 345.0, 0.0, 7.0)  # the median edge steps in at the nose
+    d_edge = np.full(grid.size, 14.6)
+    out = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
+    inner = sorted((tr for tr in out if float(tr.d[0]) < 6.0), key=lambda tr: float(tr.d[0]))
+    # the two innermost lines go on from 300 m to the step, continuing the observed ones
+    assert [round(float(np.median(tr.d)), 1) for tr in inner] == [1.1, 4.6]
+    for tr in inner:
+        assert tr.lo == 0.0
+        assert tr.hi == pytest.approx(345.0, abs=2.0)

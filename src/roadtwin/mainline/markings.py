@@ -638,7 +638,11 @@ def _add_hidden_lanes(
     narrow), the whole lanes of the run's typical width (:func:`typical_lane_width`) that
     fit are added: evenly spaced up to the shoulder on the outer side; lane-wide from the
     observed marking on the median side, the rest as the inner shoulder (its edge line
-    only where it is at least 0.3 m wide; a narrower rest widens the lanes).
+    only where it is at least 0.3 m wide; a narrower rest widens the lanes). Outer lanes
+    are inferred over ``lane_min_track_m`` or more (a shorter wide strip there is a gore),
+    median-side ones over 30 m or more: between an inner exit's paint tip and its nose
+    the exit's lines diverge and are cut as ramp lines, and the lanes run on to the nose
+    (56 m on town06-auto-s3, where they had been one lane 8.1 m wide).
 
     ``d_edge`` and ``d_median`` are the outer and median-side edges (metres from the
     reference edge towards the carriageway) at ``grid``.
@@ -719,8 +723,9 @@ def _add_hidden_lanes(
     # the inner shoulder
     inner_gap = d_first - d_median
     n_in = _hidden_lane_count(inner_gap, lane_m, cfg.hidden_lane_min_m - 1.4, cfg.grid_step_m)
+    min_run_in = math.ceil(_SPLIT_MIN_RUN_M / cfg.grid_step_m)
     for a, b, n in _runs_of(n_in, _extreme_jumps(d_first, lane_m)):
-        if n == 0 or b - a < min_run:
+        if n == 0 or b - a < min_run_in:
             continue
         first, median = d_first[a:b], d_median[a:b]
         rest = float(np.median(first - median)) - n * lane_m
