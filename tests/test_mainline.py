@@ -872,3 +872,30 @@ def test_median_side_lanes_between_an_inner_exits_paint_tip_and_nose_are_inferre
     for tr in inner:
         assert tr.lo == 0.0
         assert tr.hi == pytest.approx(345.0, abs=2.0)
+
+
+def test_a_line_ending_where_the_edge_closes_the_lane_beyond_it_runs_on_to_the_edge():
+    """No hard shoulder: the outer lane closes with the edge itself converging onto the
+    line between it and the through lane, and that line ends where the taper begins. The
+    edge is then the neighbour that meets it (krems-102561705-s2: the two lanes were one
+    over 100 m): the line runs on to where the edge reaches it and the lane closes there.
+    Not where the edge was not seen (a truck beside the car), not where it drifts onto the
+    line over hundreds of metres (an exit's edge past the gore: the bundled
+    left_hand_2km), and not with a hard shoulder (the edge settles beyond the line)."""
+    from roadtwin.mainline.markings import _continue_to_convergence
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+    tracks = [_const_track(0, grid, 3.6, 0.0, 600.0), _const_track(1, grid, 7.2, 0.0, 300.0)]
+    d_edge = 10.8 - 3.6 * _smoothstep(grid, 300.0, 40.0)
+    out = _continue_to_convergence(tracks, grid, cfg, d_edge)
+    # the edge comes within 0.3 m of the line at s = 333 m (smoothstep over 300-340 m)
+    assert out[1].hi == pytest.approx(333.0, abs=1.0)
+    assert float(np.max(np.abs(out[1].d - 7.2))) < 1e-9
+    assert out[0] is tracks[0]
+    assert _continue_to_convergence(tracks, grid, cfg)[1].hi == 300.0
+    unseen = np.where((grid > 310.0) & (grid < 330.0), np.nan, d_edge)
+    assert _continue_to_convergence(tracks, grid, cfg, unseen)[1].hi == 300.0
+    drifting = 10.8 - 3.6 * _smoothstep(grid, 300.0, 200.0)
+    assert _continue_to_convergence(tracks, grid, cfg, drifting)[1].hi == 300.0
+    assert _continue_to_convergence(tracks, grid, cfg, d_edge + 2.5)[1].hi == 300.0

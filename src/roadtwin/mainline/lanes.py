@@ -80,7 +80,7 @@ def fit_lanes(
         keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
     tracks, evidence = _tracks_from_samples(
-        s_l, d_l, grid, length, cfg, d_edge if np.all(np.isfinite(d_edge)) else None
+        s_l, d_l, grid, length, cfg, d_edge if np.all(np.isfinite(d_edge)) else None, covered
     )
     if not np.all(np.isfinite(d_edge)):
         last = max((float(np.max(tr.d)) for tr in tracks), default=3.0)

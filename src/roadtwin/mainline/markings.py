@@ -162,6 +162,7 @@ def _tracks_from_samples(
     length: float,
     cfg: MainlineConfig,
     d_edge: FloatArray | None = None,
+    covered: NDArray[np.bool_] | None = None,
 ) -> tuple[list[_Track], list[tuple[float, float]]]:
     """Marking tracks: histogram peaks linked along s, false positives removed, samples
     assigned exclusively to the nearest track, each track smoothed robustly.
@@ -254,10 +255,17 @@ def _tracks_from_samples(
         ss, dd = ss[within], dd[within]  # sorted by station already
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
-    return _continue_to_convergence(_merge_collinear(final, cfg, grid, d_edge), grid, cfg), evidence
+    merged = _merge_collinear(final, cfg, grid, d_edge)
+    if d_edge is not None and covered is not None:
+        # the edge closes a lane only where it was seen (a bridged gap is no evidence)
+        seen_edge = np.where(covered, d_edge, np.nan)
+    else:
+        seen_edge = None
+    return _continue_to_convergence(merged, grid, cfg, seen_edge), evidence
 
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
+_EDGE_TAPER_MAX_M = 60.0  # the outer edge closes a lane over at most this (metres)
 _MEET_LANE_SHARE = 0.25  # ... or settles this share of a lane beside it
 
 
@@ -299,7 +307,10 @@ def _meeting_station(
 
 
 def _continue_to_convergence(
-    tracks: list[_Track], grid: FloatArray, cfg: MainlineConfig
+    tracks: list[_Track],
+    grid: FloatArray,
+    cfg: MainlineConfig,
+    d_edge: FloatArray | None = None,
 ) -> list[_Track]:
     """Lane lines that end where a lane's taper begins, continued to where it closes.
 
@@ -312,6 +323,11 @@ def _continue_to_convergence(
     from it) all the way within ``lane_taper_max_m`` and no other line lies there: the
     lane between them then closes (opens) to zero width there, a taper.
 
+    With the outer edge ``d_edge`` (on ``grid``; NaN where it was not seen), the edge is
+    such a neighbour too where it was seen all the way to the meeting: on a road without a
+    hard shoulder the edge itself closes the outer lane onto the line that ended, with no
+    line beyond it (krems-102561705-s2: the two lanes were one over 100 m).
+
     Stations and offsets are metres (offsets from the reference edge towards the
     carriageway); the continued part has no samples of its own.
     """
@@ -319,6 +335,21 @@ def _continue_to_convergence(
         return tracks
     lane_m = typical_lane_width(tracks, grid)
     out = list(tracks)
+    neighbours = list(tracks)
+    edge_seen = np.zeros(grid.size, dtype=bool) if d_edge is None else np.isfinite(d_edge)
+    if edge_seen.any():
+        neighbours.append(
+            _Track(
+                -1,
+                float(grid[0]),
+                float(grid[-1]),
+                grid[edge_seen],
+                d_edge[edge_seen],  # type: ignore[index]
+                "solid",
+                0,
+                grid[:0],
+            )
+        )
     for k, tr in enumerate(tracks):
         if tr.n == 0:
             continue
@@ -329,17 +360,28 @@ def _continue_to_convergence(
             d_end = float(tr.d[-1] if forward else tr.d[0])
             # the adjacent lines either side that run on past the end
             beside = []
-            for j, nb in enumerate(tracks):
+            for j, nb in enumerate(neighbours):
                 if j == k or nb.lo > s_end - 1.0 or nb.hi < s_end + 1.0:
                     continue
                 gap = abs(float(np.interp(s_end, nb.s, nb.d)) - d_end)
                 if 0.6 * lane_m <= gap <= 1.5 * lane_m:
                     beside.append((gap, j))
             for _, j in sorted(beside):
-                s_meet = _meeting_station(tr, tracks[j], grid, cfg, forward=forward, lane_m=lane_m)
+                s_meet = _meeting_station(
+                    tr, neighbours[j], grid, cfg, forward=forward, lane_m=lane_m
+                )
                 if s_meet is None:
                     continue
                 lo, hi = (s_end, s_meet) if forward else (s_meet, s_end)
+                if j == len(tracks):
+                    # the edge closes a lane where it was seen, meeting the line within a
+                    # taper's length (an exit's edge stepping in beyond the gore drifts
+                    # onto its line over hundreds of metres)
+                    edge = neighbours[j]
+                    meets = abs(float(np.interp(s_meet, edge.s, edge.d)) - d_end)
+                    span = (grid >= lo) & (grid <= hi)
+                    if hi - lo > _EDGE_TAPER_MAX_M or meets > _MEET_M or not edge_seen[span].all():
+                        continue
                 occupied = any(
                     other.lo < hi
                     and other.hi > lo
