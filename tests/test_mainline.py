@@ -899,3 +899,27 @@ def test_a_line_ending_where_the_edge_closes_the_lane_beyond_it_runs_on_to_the_e
     drifting = 10.8 - 3.6 * _smoothstep(grid, 300.0, 200.0)
     assert _continue_to_convergence(tracks, grid, cfg, drifting)[1].hi == 300.0
     assert _continue_to_convergence(tracks, grid, cfg, d_edge + 2.5)[1].hi == 300.0
+
+
+def test_an_edge_line_going_on_as_a_lane_line_at_an_entry_is_split_where_it_parts():
+    """soderleden, seed 7 (no hard shoulder): the line along the outer edge (7.0 m) goes
+    on as the line between the through lanes and the acceleration lane where the entry
+    widens the road at 240 m (the edge step was placed at 249 m). One track along the edge
+    for 127 m and apart for 75 m was taken for the edge's line all along: the acceleration
+    lane was one lane with the through lane, 7 m wide. Split where it parts from the edge,
+    with the step moved there; a track mostly apart from the edge (a lane line already,
+    with a hard shoulder beyond) is left whole."""
+    from roadtwin.mainline.markings import split_edge_lines_at_steps
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 400.5, cfg.grid_step_m)
+    d_edge = np.where(grid < 240.0, 7.0, 10.5)
+    line = _const_track(0, grid, 7.0, 113.0, 315.0)
+    out, steps = split_edge_lines_at_steps([line], grid, d_edge, np.array([249.0]), 0.35)
+    assert [(tr.lo, tr.hi) for tr in out] == [(113.0, 239.0), (240.0, 315.0)]
+    assert steps.tolist() == [240.0]
+    # the same line with a 2.5 m hard shoulder beyond it up to the step: left whole
+    apart = np.where(grid < 240.0, 9.5, 10.5)
+    out, steps = split_edge_lines_at_steps([line], grid, apart, np.array([249.0]), 0.35)
+    assert out == [line]
+    assert steps.tolist() == [249.0]

@@ -20,7 +20,7 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps
 from .hidden_gores import _place_hidden_gores, _snap_to_hidden_gores, _visible_taper_length
-from .markings import _add_hidden_lanes, _tracks_from_samples
+from .markings import _add_hidden_lanes, _tracks_from_samples, split_edge_lines_at_steps
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
@@ -108,6 +108,7 @@ def fit_lanes(
             for lo, hi in painted:  # the outer-edge points there are the ramp's
                 used = used & ~((s_outer > lo) & (s_outer < hi))
     tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
+    tracks, breaks = split_edge_lines_at_steps(tracks, grid, d_edge, breaks, cfg.edge_line_m)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
     )
