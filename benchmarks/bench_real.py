@@ -150,6 +150,49 @@ RUNS: tuple[RealRun, ...] = (
         holdout=True,
         direction="opposite",
     ),
+    # added 2026-11-24 (session 7) as a third fresh holdout, seed 7 on routes and
+    # directions above and both HD maps: measured once with the session's start and end
+    # code (RESULTS, "A third fresh batch"); soderleden-s7 was fixed after that
+    RealRun("a9-206615404-s7", "osm", "north-bayreuth-a9.osm.gz", 7, 206615404, holdout=True),
+    RealRun(
+        "a9-10959882-opp-s7",
+        "osm",
+        "north-bayreuth-a9.osm.gz",
+        7,
+        10959882,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun("oakland-28393854-s7", "osm", "west-oakland-i880.osm.bz2", 7, 28393854, holdout=True),
+    RealRun(
+        "kotka-33042885-opp-s7",
+        "osm",
+        "kotka-e18.osm.pbf",
+        7,
+        33042885,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun(
+        "krems-102561705-opp-s7",
+        "osm",
+        "krems-s5-trunk.osm.gz",
+        7,
+        102561705,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun(
+        "melbourne-921-opp-s7",
+        "osm",
+        "melbourne-lht.osm.pbf",
+        7,
+        921,
+        holdout=True,
+        direction="opposite",
+    ),
+    RealRun("town06-auto-s7", "xodr", "Town06.xodr", 7, holdout=True),
+    RealRun("soderleden-s7", "xodr", "soderleden.xodr", 7, holdout=True),
 )
 
 
