@@ -70,6 +70,11 @@ class RealRun:
     direction: str = "forward"
 
 
+def _opposite(name: str, path: str, seed: int, chain: int) -> RealRun:
+    """A held-out run on the opposite carriageway of an OSM chain."""
+    return RealRun(name, "osm", path, seed, chain, holdout=True, direction="opposite")
+
+
 RUNS: tuple[RealRun, ...] = (
     # A9 / A70 around Bayreuth (DE): two carriageways, several seeds
     RealRun("a9-206615404-s1", "osm", "north-bayreuth-a9.osm.gz", 1, 206615404),
@@ -105,92 +110,20 @@ RUNS: tuple[RealRun, ...] = (
     RealRun("town06-auto-s3", "xodr", "Town06.xodr", 3, holdout=True),
     # added 2026-11-24 (later session) as a second fresh holdout: the opposite carriageway
     # of five chains (other ramps, other lane events, the other side of each interchange)
-    RealRun(
-        "a9-206615404-opp-s4",
-        "osm",
-        "north-bayreuth-a9.osm.gz",
-        4,
-        206615404,
-        holdout=True,
-        direction="opposite",
-    ),
-    RealRun(
-        "oakland-11197879-opp-s4",
-        "osm",
-        "west-oakland-i880.osm.bz2",
-        4,
-        11197879,
-        holdout=True,
-        direction="opposite",
-    ),
-    RealRun(
-        "kotka-37952515-opp-s4",
-        "osm",
-        "kotka-e18.osm.pbf",
-        4,
-        37952515,
-        holdout=True,
-        direction="opposite",
-    ),
-    RealRun(
-        "krems-46762523-opp-s4",
-        "osm",
-        "krems-s5-trunk.osm.gz",
-        4,
-        46762523,
-        holdout=True,
-        direction="opposite",
-    ),
-    RealRun(
-        "melbourne-408-opp-s4",
-        "osm",
-        "melbourne-lht.osm.pbf",
-        4,
-        408,
-        holdout=True,
-        direction="opposite",
-    ),
+    _opposite("a9-206615404-opp-s4", "north-bayreuth-a9.osm.gz", 4, 206615404),
+    _opposite("oakland-11197879-opp-s4", "west-oakland-i880.osm.bz2", 4, 11197879),
+    _opposite("kotka-37952515-opp-s4", "kotka-e18.osm.pbf", 4, 37952515),
+    _opposite("krems-46762523-opp-s4", "krems-s5-trunk.osm.gz", 4, 46762523),
+    _opposite("melbourne-408-opp-s4", "melbourne-lht.osm.pbf", 4, 408),
     # added 2026-11-24 (session 7) as a third fresh holdout, seed 7 on routes and
     # directions above and both HD maps: measured once with the session's start and end
     # code (RESULTS, "A third fresh batch"); soderleden-s7 was fixed after that
     RealRun("a9-206615404-s7", "osm", "north-bayreuth-a9.osm.gz", 7, 206615404, holdout=True),
-    RealRun(
-        "a9-10959882-opp-s7",
-        "osm",
-        "north-bayreuth-a9.osm.gz",
-        7,
-        10959882,
-        holdout=True,
-        direction="opposite",
-    ),
+    _opposite("a9-10959882-opp-s7", "north-bayreuth-a9.osm.gz", 7, 10959882),
     RealRun("oakland-28393854-s7", "osm", "west-oakland-i880.osm.bz2", 7, 28393854, holdout=True),
-    RealRun(
-        "kotka-33042885-opp-s7",
-        "osm",
-        "kotka-e18.osm.pbf",
-        7,
-        33042885,
-        holdout=True,
-        direction="opposite",
-    ),
-    RealRun(
-        "krems-102561705-opp-s7",
-        "osm",
-        "krems-s5-trunk.osm.gz",
-        7,
-        102561705,
-        holdout=True,
-        direction="opposite",
-    ),
-    RealRun(
-        "melbourne-921-opp-s7",
-        "osm",
-        "melbourne-lht.osm.pbf",
-        7,
-        921,
-        holdout=True,
-        direction="opposite",
-    ),
+    _opposite("kotka-33042885-opp-s7", "kotka-e18.osm.pbf", 7, 33042885),
+    _opposite("krems-102561705-opp-s7", "krems-s5-trunk.osm.gz", 7, 102561705),
+    _opposite("melbourne-921-opp-s7", "melbourne-lht.osm.pbf", 7, 921),
     RealRun("town06-auto-s7", "xodr", "Town06.xodr", 7, holdout=True),
     RealRun("soderleden-s7", "xodr", "soderleden.xodr", 7, holdout=True),
 )

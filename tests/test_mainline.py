@@ -909,7 +909,7 @@ def test_an_edge_line_going_on_as_a_lane_line_at_an_entry_is_split_where_it_part
     lane was one lane with the through lane, 7 m wide. Split where it parts from the edge,
     with the step moved there; a track mostly apart from the edge (a lane line already,
     with a hard shoulder beyond) is left whole."""
-    from roadtwin.mainline.markings import split_edge_lines_at_steps
+    from roadtwin.mainline.edge_lines import split_edge_lines_at_steps
 
     cfg = MainlineConfig()
     grid = np.arange(0.0, 400.5, cfg.grid_step_m)

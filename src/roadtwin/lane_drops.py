@@ -15,10 +15,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
-
-from .mainline.seal import faded_width
-from .model import Lane, LaneSection, Road
+from .config import TopologyConfig
+from .mainline.seal import _width_at, faded_width
+from .model import Road
+from .ramps.gores import _traffic_lanes
 from .ramps.records import TrafficSide
 
 _SHORTER_TAPERS_M = (40.0, 20.0, 10.0, 5.0)  # tried where the longest would go negative
@@ -26,19 +26,11 @@ _MIN_DROP_WIDTH_M = 1.0  # a narrower lane ending is a taper already
 _ROOM_SHARE = 0.5  # the side must narrow by at least this share of the lane's width
 
 
-def _side(section: LaneSection, traffic_side: TrafficSide) -> tuple[Lane, ...]:
-    return section.right if traffic_side == "right" else section.left
-
-
-def _width(lane: Lane, ds: float) -> float:
-    return float(lane.width.value(np.array([ds]))[0])
-
-
 def taper_lane_drops(
     road: Road,
     traffic_side: TrafficSide,
     *,
-    max_taper_m: float = 60.0,
+    max_taper_m: float = TopologyConfig.lane_drop_taper_m,
 ) -> tuple[Road, list[tuple[float, int]]]:
     """Close the driving lanes of ``road`` that end unlinked at full width where the road
     narrows (see the module docstring).
@@ -66,27 +58,24 @@ def taper_lane_drops(
     for k in range(len(sections) - 1):
         a, b = sections[k], sections[k + 1]
         len_a = b.s0 - a.s0
-        lanes_a = list(_side(a, traffic_side))
-        widths_a = [_width(ln, len_a) for ln in lanes_a]
+        lanes_a = list(_traffic_lanes(a, traffic_side))
+        widths_a = [_width_at(ln, len_a) for ln in lanes_a]
         # the room the side loses at the border: what lanes ending there leave behind
-        room = sum(widths_a) - sum(_width(ln, 0.0) for ln in _side(b, traffic_side))
+        room = sum(widths_a) - sum(_width_at(ln, 0.0) for ln in _traffic_lanes(b, traffic_side))
+        fades = tuple(min(f, len_a) for f in tapers)
         for i in reversed(range(len(lanes_a))):
             lane, w = lanes_a[i], widths_a[i]
             if lane.type != "driving" or lane.successor is not None:
                 continue
             if w < _MIN_DROP_WIDTH_M or room < _ROOM_SHARE * w:
                 continue
-            fades = tuple(min(f, len_a) for f in tapers)
             fixed = faded_width(lane, 0.0, len_a, at_start=False, fades_m=fades)
             if fixed is None:
                 continue
             lanes_a[i] = fixed
             room -= w
             closed.append((float(b.s0), lane.id))
-        if traffic_side == "right":
-            sections[k] = replace(a, right=tuple(lanes_a))
-        else:
-            sections[k] = replace(a, left=tuple(lanes_a))
+        sections[k] = replace(a, **{traffic_side: tuple(lanes_a)})
     if not closed:
         return road, closed
     return replace(road, lane_sections=tuple(sections)), closed

@@ -1,7 +1,8 @@
 """Default method: the lane structure of the mainline from lane-marking samples and
 outer-edge points (:func:`fit_lanes`), stage by stage: outer edge (:mod:`.outer_edge`),
 marking tracks (:mod:`.markings`), hidden gores (:mod:`.hidden_gores`), gores moved to
-the paint (:mod:`.painted_gores`), lane sections and events (:mod:`.sections`).
+the paint (:mod:`.painted_gores`), edge lines that go on as lane lines (:mod:`.edge_lines`),
+lane sections and events (:mod:`.sections`).
 """
 
 from __future__ import annotations
@@ -19,8 +20,9 @@ from ._common import (
     _grid,
 )
 from .edge_levels import EdgeSteps
+from .edge_lines import split_edge_lines_at_steps
 from .hidden_gores import _place_hidden_gores, _snap_to_hidden_gores, _visible_taper_length
-from .markings import _add_hidden_lanes, _tracks_from_samples, split_edge_lines_at_steps
+from .markings import _add_hidden_lanes, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
