@@ -80,3 +80,24 @@ def test_step_sizes_of_steady_segments_ignore_a_converging_ramp_edge():
     np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, 3.5, 0.0], atol=0.03)
     base = steps.from_base(0.0, 1200.0)
     np.testing.assert_allclose(base.offsets, [0.0, 3.5, 0.0], atol=0.03)
+
+
+def test_a_level_held_for_a_bin_at_a_step_is_one_step_not_two():
+    # A left exit at 700 m: the median-side edge moves 3.6 m towards the carriageway.
+    # Right after the gore the exit ramp's edge crosses the level bins steeply (many
+    # points in one bin, farther in than the new level), so the path holds a level for a
+    # bin before settling. Both jumps refine to one station; counted as two steps of
+    # -3.6 m each, every later segment lay 3.6 m off (town06-auto-s7: an 11.8 m lane).
+    rng = np.random.default_rng(13)
+    s0, d0 = _line(rng, 0.0, 700.0, lambda s: np.full(s.size, 12.0))
+    s1, d1 = _line(rng, 700.0, 1200.0, lambda s: np.full(s.size, 8.4))
+    sx, dx = _line(rng, 700.5, 701.5, lambda s: np.full(s.size, 4.9), spacing=0.01)
+    steps = _steps_of(np.concatenate([s0, s1, sx]), np.concatenate([d0, d1, dx]))
+    edges = np.arange(-1.0, 1201.0, 2.0)
+    s_all, d_all = np.concatenate([s0, s1, sx]), np.concatenate([d0, d1, dx])
+    level = edge_level_path(s_all, d_all, edges)
+    c = 0.5 * (edges[1:] + edges[:-1])
+    assert np.any(np.abs(level[(c > 699.0) & (c < 704.0)] - 4.9) < 0.3)  # the held level
+    assert steps.stations.size == 1
+    assert abs(steps.stations[0] - 700.0) < 3.0
+    np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -3.6], atol=0.05)

@@ -207,6 +207,7 @@ def refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, star
 
 
 _STEADY_SPREAD_M = 0.25  # a segment whose quarters' offsets agree this well is one level
+_STEP_MERGE_M = 5.0  # jumps that refine to stations this close are one step
 
 
 @dataclass(frozen=True)
@@ -263,7 +264,7 @@ def edge_steps(
     if seen.size < 2:
         return EdgeSteps(np.zeros(0), np.zeros(1))
     jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
-    stations, sizes = [], []
+    stations, befores, afters = [], [], []
     for j in jumps:
         before = float(np.median(level[seen[max(j - 4, 0) : j + 1]]))
         after = float(np.median(level[seen[j + 1 : j + 6]]))
@@ -273,8 +274,19 @@ def edge_steps(
             continue
         if np.count_nonzero((s > station) & (s <= station + 5.0)) < 3:
             continue
+        if stations and abs(station - stations[-1]) < _STEP_MERGE_M:
+            # a level held for a bin or two at a step (a stray point, a ramp edge
+            # crossing) makes two jumps that refine to one station; counted twice, the
+            # step's size doubles and every later segment moves (town06-auto-s7: 3.7 m)
+            afters[-1] = after
+            continue
         stations.append(station)
-        sizes.append(after - before)
+        befores.append(before)
+        afters.append(after)
+    sizes = [a - b for a, b in zip(afters, befores, strict=True)]
+    keep = [k for k, size in enumerate(sizes) if abs(size) > cfg.edge_step_m]
+    stations = [stations[k] for k in keep]
+    sizes = [sizes[k] for k in keep]
     if not stations:
         return EdgeSteps(np.zeros(0), np.zeros(1))
     order = np.argsort(stations)
