@@ -610,6 +610,34 @@ def test_a_line_ending_where_a_lane_drop_taper_begins_runs_on_to_where_the_lane_
     assert out[2] is tracks[2]
 
 
+def test_a_line_is_not_run_back_to_a_split_where_the_lanes_shift_sideways():
+    """Town06 after an inner exit: the lanes shift 3 m sideways over 80 m. The outer edge
+    line is seen from 170 m on, 0.5 m inside the shoulder line; before that both moved in
+    from 3 m farther out. Run back flat to where the shifting line beside it was at its
+    offset (a lane "opening" there), it cut the narrowing outer lane into a sliver under
+    1 m, a shoulder opened from zero between two driving lanes, and esmini warned of a lane
+    without a connecting lane (town06-auto-s2)."""
+    from roadtwin.mainline.markings import _continue_to_convergence
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 300.5, cfg.grid_step_m)
+
+    def shifting(before, after, end=180.0):
+        return lambda s: np.interp(s, [0.0, 100.0, end, 300.0], [before, before, after, after])
+
+    tracks = [
+        _const_track(0, grid, shifting(11.65, 8.1), 0.0, 300.0),
+        _const_track(1, grid, shifting(15.15, 11.6), 0.0, 300.0),
+        _const_track(2, grid, 15.13, 170.0, 300.0),
+        _const_track(3, grid, shifting(18.6, 15.7, end=170.0), 0.0, 300.0),
+    ]
+    out = _continue_to_convergence(tracks, grid, cfg)
+    assert out[2].lo == pytest.approx(170.0, abs=1e-9)
+    # a real lane opening (nothing converging beside the line) is still run back
+    tracks[3] = _const_track(3, grid, 18.6, 0.0, 300.0)
+    assert _continue_to_convergence(tracks, grid, cfg)[2].lo < 120.0
+
+
 def test_a_line_ending_at_an_exit_is_not_continued():
     """At an exit the line beyond the ended one leaves (diverges): no taper to continue."""
     _, out = _line_ending_at_300(([0.0, 300.0, 400.0, 600.0], [11.8, 11.8, 20.0, 30.0]))

@@ -266,6 +266,10 @@ def _tracks_from_samples(
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
 _EDGE_TAPER_MAX_M = 60.0  # the outer edge closes a lane over at most this (metres)
+# another line this close to a continued line's offset along the continuation takes its
+# place, or is converging onto it from the far side: the lanes shift sideways there and
+# the continuation would cut the lane beyond into a sliver (town06-auto-s2: 0.51 m)
+_OCCUPIED_M = 1.0
 _MEET_LANE_SHARE = 0.25  # ... or settles this share of a lane beside it
 
 
@@ -385,7 +389,9 @@ def _continue_to_convergence(
                 occupied = any(
                     other.lo < hi
                     and other.hi > lo
-                    and np.any(np.abs(other.d[(other.s > lo) & (other.s < hi)] - d_end) < 0.5)
+                    and np.any(
+                        np.abs(other.d[(other.s > lo) & (other.s < hi)] - d_end) < _OCCUPIED_M
+                    )
                     for i2, other in enumerate(tracks)
                     if i2 not in (k, j)
                 )
