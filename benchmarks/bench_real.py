@@ -126,6 +126,22 @@ RUNS: tuple[RealRun, ...] = (
     _opposite("melbourne-921-opp-s7", "melbourne-lht.osm.pbf", 7, 921),
     RealRun("town06-auto-s7", "xodr", "Town06.xodr", 7, holdout=True),
     RealRun("soderleden-s7", "xodr", "soderleden.xodr", 7, holdout=True),
+    # added 2026-11-24 (session 8) as a fourth fresh holdout, seed 9 on every route in
+    # the direction its seed-7 run did not drive, and all three HD maps: measured once,
+    # not debugged (RESULTS, "A fourth fresh batch")
+    _opposite("a9-206615404-opp-s9", "north-bayreuth-a9.osm.gz", 9, 206615404),
+    RealRun("a9-10959882-s9", "osm", "north-bayreuth-a9.osm.gz", 9, 10959882, holdout=True),
+    RealRun("oakland-11197879-s9", "osm", "west-oakland-i880.osm.bz2", 9, 11197879, holdout=True),
+    _opposite("oakland-28393854-opp-s9", "west-oakland-i880.osm.bz2", 9, 28393854),
+    RealRun("kotka-33042885-s9", "osm", "kotka-e18.osm.pbf", 9, 33042885, holdout=True),
+    _opposite("kotka-37952515-opp-s9", "kotka-e18.osm.pbf", 9, 37952515),
+    RealRun("krems-102561705-s9", "osm", "krems-s5-trunk.osm.gz", 9, 102561705, holdout=True),
+    _opposite("krems-46762523-opp-s9", "krems-s5-trunk.osm.gz", 9, 46762523),
+    RealRun("melbourne-921-s9", "osm", "melbourne-lht.osm.pbf", 9, 921, holdout=True),
+    _opposite("melbourne-408-opp-s9", "melbourne-lht.osm.pbf", 9, 408),
+    RealRun("town06-auto-s9", "xodr", "Town06.xodr", 9, holdout=True),
+    RealRun("soderleden-s9", "xodr", "soderleden.xodr", 9, holdout=True),
+    RealRun("e6mini-s9", "xodr", "e6mini.xodr", 9, holdout=True),
 )
 
 

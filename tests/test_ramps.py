@@ -699,3 +699,24 @@ def test_branches_drawn_over_the_carriageways_nodes_are_built_where_the_lidar_sa
     exit_ = shared[0]
     assert (exit_.type, exit_.side, exit_.lanes) == ("exit", "inner", 2)
     assert exit_.station_source == "lidar gore"
+
+
+def test_a_reference_line_folded_onto_the_mainline_border_is_refused():
+    # 600 m of ramp whose points alternate between the OSM line and the carriageway's
+    # border 6 m away (a clamp that flips sign): 7 km of polyline, refused before the
+    # clothoid fit builds a (length / 0.5 m) x (length / 15 m) basis (24 GB on a real one)
+    from roadtwin._errors import FitError
+    from roadtwin.ramps.road import _refuse_folded
+
+    s = np.arange(0.0, 600.0, 0.5)
+    centre = np.column_stack([s, np.full(s.size, 10.0)])
+    zigzag = centre.copy()
+    zigzag[::2, 1] -= 6.0
+    with pytest.raises(FitError, match="folds"):
+        _refuse_folded(zigzag, centre, "7")
+    # a reference line offset from its centre line, even round a tight loop, is kept
+    angle = np.linspace(0.0, 1.5 * np.pi, 400)
+    loop = np.column_stack([40.0 * np.cos(angle), 40.0 * np.sin(angle)])
+    inner = np.column_stack([35.0 * np.cos(angle), 35.0 * np.sin(angle)])
+    _refuse_folded(inner, loop, "7")
+    _refuse_folded(centre + np.array([0.0, 5.0]), centre, "7")

@@ -29,6 +29,18 @@ from .shape import fit_ramp_shape
 log = logging.getLogger(__name__)
 
 
+def _refuse_folded(ref: FloatArray, centre: FloatArray, road_id: str) -> None:
+    """Raise :class:`FitError` if the reference line ``ref`` (``(N, 2)``, metres) is more
+    than twice as long as the OSM centre line ``centre`` it was offset from, plus 100 m.
+
+    Points moved onto the carriageway's border near the gore can alternate with points
+    left where they were: a zigzag 70 times the ramp's length, whose fit then asked for
+    24 GB (oakland-11197879-s9, paper method, where the border jumps at its gores)."""
+    if arc_length(ref)[-1] > 2.0 * arc_length(centre)[-1] + 100.0:
+        msg = f"{road_id}: the ramp's reference line folds onto the mainline border"
+        raise FitError(msg)
+
+
 def _build_ramp_road(
     chain_xy: FloatArray,
     mainline_road: Road,
@@ -184,6 +196,7 @@ def _build_ramp_road(
     if np.any(clamp):
         ref = ref.copy()
         ref[clamp] = mainline_road.to_xy(s_i[clamp], t_edge[clamp])
+    _refuse_folded(ref, centre, road_id)
     ref = _smooth_polyline(ref, cfg)
     length = float(arc_length(ref)[-1])
     if length < cfg.min_ramp_length_m:
