@@ -267,14 +267,14 @@ def whittaker_smooth(
 
 def savgol_smooth(values: ArrayLike, *, window: int, polyorder: int = 3) -> FloatArray:
     """Savitzky-Golay smoothing along the first axis (window in samples, made odd)."""
-    from scipy.signal import savgol_filter
+    from ._signal import savgol_filter
 
     y = np.asarray(values, dtype=float)
     n = y.shape[0]
     win = min(window | 1, n if n % 2 == 1 else n - 1)
     if win <= polyorder:
         return y.copy()
-    return savgol_filter(y, win, polyorder, axis=0, mode="interp")
+    return savgol_filter(y, win, polyorder)
 
 
 def moving_median(values: ArrayLike, *, window: int) -> FloatArray:

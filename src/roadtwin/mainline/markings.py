@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
+from .._signal import find_peaks
 from ..config import MainlineConfig
 from ..fitting import moving_median
 from ._common import (
@@ -65,7 +66,6 @@ def _find_track_peaks(
     distance nor the prominence test reaches across columns.
     """
     from scipy.ndimage import gaussian_filter1d, uniform_filter1d
-    from scipy.signal import find_peaks
 
     col = cfg.lane_column_m
     n_col = max(1, math.ceil(length / col))
