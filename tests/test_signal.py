@@ -55,6 +55,27 @@ def test_find_peaks_prominence_across_a_long_search():
     assert got.tolist() == [1000]
 
 
+def test_find_peaks_on_marking_histogram_columns_equals_scipy():
+    # the layout markings._find_track_peaks searches: smoothed lateral histograms of 2,000
+    # columns laid end to end with zero padding, five lines each over sparse noise
+    from scipy.ndimage import gaussian_filter1d
+
+    rng = np.random.default_rng(7)
+    n_col, n_bin, pad = 2000, 380, 20
+    hist = rng.poisson(0.2, (n_col, n_bin)).astype(float)
+    for _ in range(5):
+        hist[np.arange(n_col), rng.integers(20, n_bin - 20, n_col)] += rng.poisson(30, n_col)
+    hist = gaussian_filter1d(hist, 1.5, axis=1, mode="constant")
+    flat = np.zeros((n_col, n_bin + pad))
+    flat[:, :n_bin] = hist
+    thr = 0.15 * float(np.percentile(hist.max(axis=1), 75))
+    args = {"height": thr, "distance": 16, "prominence": 0.5 * thr}
+    want, _ = scipy.signal.find_peaks(flat.ravel(), **args)
+    got, _ = find_peaks(flat.ravel(), **args)
+    assert want.size > 8000
+    np.testing.assert_array_equal(got, want)
+
+
 @pytest.mark.parametrize("seed", range(20))
 def test_savgol_filter_equals_scipy(seed):
     rng = np.random.default_rng(100 + seed)

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
 
-_PROMINENCE_CHUNK = 4096  # peaks whose prominence is measured at once (memory bound)
+_WINDOW_ENTRIES = 1 << 22  # samples looked at in one go when measuring prominence
 
 
 def _local_maxima(x: FloatArray) -> IntArray:
@@ -24,14 +24,18 @@ def _local_maxima(x: FloatArray) -> IntArray:
     n = x.size
     if n < 3:
         return np.zeros(0, dtype=np.intp)
-    # runs of equal values: [start, end] inclusive
-    change = np.flatnonzero(np.diff(x) != 0.0) + 1
-    start = np.concatenate([[0], change])
-    end = np.concatenate([change - 1, [n - 1]])
-    inner = (start > 0) & (end < n - 1)
-    start, end = start[inner], end[inner]
-    top = (x[start - 1] < x[start]) & (x[end + 1] < x[start])
-    return ((start[top] + end[top]) // 2).astype(np.intp)
+    d = np.diff(x)
+    peaks = np.flatnonzero((d[:-1] > 0.0) & (d[1:] < 0.0)) + 1
+    flat = d == 0.0
+    if flat.any():
+        # runs d[a..b] == 0: x is flat over a..b+1; a top if it rises into it and falls after
+        edges = np.diff(np.concatenate([[0], flat.astype(np.int8), [0]]))
+        a, b = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1) - 1
+        ok = (a >= 1) & (b + 1 <= n - 2)
+        a, b = a[ok], b[ok]
+        top = (d[a - 1] > 0.0) & (d[b + 1] < 0.0)
+        peaks = np.sort(np.concatenate([peaks, (a[top] + b[top] + 1) // 2]))
+    return peaks.astype(np.intp)
 
 
 def _select_by_distance(peaks: IntArray, priority: FloatArray, distance: float) -> IntArray:
@@ -54,41 +58,44 @@ def _select_by_distance(peaks: IntArray, priority: FloatArray, distance: float) 
     return peaks[keep]
 
 
-def _prominences(x: FloatArray, peaks: IntArray) -> FloatArray:
-    """Each peak's height above the higher of its two bases; a base is the lowest point
-    between the peak and the nearest higher point on that side (or the array's end)."""
-    out = np.empty(peaks.size)
-    for a in range(0, peaks.size, _PROMINENCE_CHUNK):
-        p = peaks[a : a + _PROMINENCE_CHUNK]
-        v = x[p]
-        out[a : a + p.size] = v - np.maximum(
-            _side_min(x, p, v, left=True), _side_min(x, p, v, left=False)
-        )
-    return out
+def _prominent(x: FloatArray, peaks: IntArray, minimum: float) -> NDArray[np.bool_]:
+    """Whether each peak's prominence (its height above the higher of its two bases; a
+    base is the lowest point between the peak and the nearest higher point on that side,
+    or the array's end) is at least ``minimum``."""
+    if minimum <= 0.0:
+        return np.ones(peaks.size, dtype=bool)
+    return _side_reaches(x, peaks, minimum, left=True) & _side_reaches(
+        x, peaks, minimum, left=False
+    )
 
 
-def _side_min(x: FloatArray, p: IntArray, v: FloatArray, *, left: bool) -> FloatArray:
-    """Lowest value between each peak ``p`` (value ``v``) and its nearest higher point on
-    one side, or the array's end; searched outwards in windows growing fourfold."""
+def _side_reaches(x: FloatArray, p: IntArray, minimum: float, *, left: bool) -> NDArray[np.bool_]:
+    """Whether, walking from each peak ``p`` to one side, the values come down to ``minimum``
+    below the peak before any rises above it; searched in windows growing fourfold."""
     n = x.size
-    result = np.full(p.size, np.nan)
+    result = np.zeros(p.size, dtype=bool)
     todo = np.arange(p.size)
-    width = 64
+    width = 16
     while todo.size:
-        pp, vv = p[todo], v[todo]
-        offs = np.arange(width + 1)
-        idx = pp[:, None] - offs[None, :] if left else pp[:, None] + offs[None, :]
-        inside = (idx >= 0) & (idx < n)
-        vals = np.where(inside, x[np.clip(idx, 0, n - 1)], -np.inf)
-        higher = inside & (vals > vv[:, None])
-        found = higher.any(axis=1)
-        first = np.where(found, np.argmax(higher, axis=1), width + 1)
-        span = offs[None, :] < first[:, None]
-        low = np.where(span & inside, vals, np.inf).min(axis=1)
-        reached_end = ~found & ~inside.all(axis=1)
-        done = found | reached_end
-        result[todo[done]] = low[done]
-        todo = todo[~done]
+        # at most ~4 M window entries at once (memory bound)
+        step = max(1, _WINDOW_ENTRIES // (width + 1))
+        undecided = []
+        for c in range(0, todo.size, step):
+            rows = todo[c : c + step]
+            pp = p[rows]
+            v = x[pp]
+            offs = np.arange(1, width + 1)
+            idx = pp[:, None] - offs[None, :] if left else pp[:, None] + offs[None, :]
+            inside = (idx >= 0) & (idx < n)
+            vals = x[np.clip(idx, 0, n - 1)]
+            low = inside & (vals <= (v - minimum)[:, None])
+            high = inside & (vals > v[:, None])
+            first_low = np.where(low.any(axis=1), np.argmax(low, axis=1), width)
+            first_high = np.where(high.any(axis=1), np.argmax(high, axis=1), width)
+            decided = (first_low < width) | (first_high < width) | ~inside[:, -1]
+            result[rows] = first_low < first_high
+            undecided.append(rows[~decided])
+        todo = np.concatenate(undecided) if undecided else todo[:0]
         width *= 4
     return result
 
@@ -106,7 +113,7 @@ def find_peaks(
     if distance > 1 and peaks.size > 1:
         peaks = _select_by_distance(peaks, arr[peaks], math.ceil(distance))
     if peaks.size:
-        peaks = peaks[_prominences(arr, peaks) >= prominence]
+        peaks = peaks[_prominent(arr, peaks, prominence)]
     return peaks, {}
 
 
