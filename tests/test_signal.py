@@ -34,7 +34,7 @@ def test_find_peaks_equals_scipy(seed):
         want, _ = scipy.signal.find_peaks(
             x, height=height, distance=distance, prominence=prominence
         )
-        got, _ = find_peaks(x, height=height, distance=distance, prominence=prominence)
+        got = find_peaks(x, height=height, distance=distance, prominence=prominence)
         np.testing.assert_array_equal(got, want)
 
 
@@ -48,10 +48,10 @@ def test_find_peaks_prominence_across_a_long_search():
     x[3000] = -2.0
     x[6001:] = -3.0
     want, _ = scipy.signal.find_peaks(x, height=0.0, distance=1, prominence=6.9)
-    got, _ = find_peaks(x, height=0.0, distance=1, prominence=6.9)
+    got = find_peaks(x, height=0.0, distance=1, prominence=6.9)
     np.testing.assert_array_equal(got, want)
     assert got.tolist() == [1000, 6000]
-    got, _ = find_peaks(x, height=0.0, distance=1, prominence=7.1)
+    got = find_peaks(x, height=0.0, distance=1, prominence=7.1)
     assert got.tolist() == [1000]
 
 
@@ -71,7 +71,7 @@ def test_find_peaks_on_marking_histogram_columns_equals_scipy():
     thr = 0.15 * float(np.percentile(hist.max(axis=1), 75))
     args = {"height": thr, "distance": 16, "prominence": 0.5 * thr}
     want, _ = scipy.signal.find_peaks(flat.ravel(), **args)
-    got, _ = find_peaks(flat.ravel(), **args)
+    got = find_peaks(flat.ravel(), **args)
     assert want.size > 8000
     np.testing.assert_array_equal(got, want)
 

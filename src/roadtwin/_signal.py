@@ -93,20 +93,17 @@ def _side_reaches(x: FloatArray, p: IntArray, minimum: float, *, left: bool) -> 
             first_low = np.where(low.any(axis=1), np.argmax(low, axis=1), width)
             first_high = np.where(high.any(axis=1), np.argmax(high, axis=1), width)
             decided = (first_low < width) | (first_high < width) | ~inside[:, -1]
-            result[rows] = first_low < first_high
+            result[rows[decided]] = (first_low < first_high)[decided]
             undecided.append(rows[~decided])
         todo = np.concatenate(undecided) if undecided else todo[:0]
         width *= 4
     return result
 
 
-def find_peaks(
-    x: ArrayLike, *, height: float, distance: float, prominence: float
-) -> tuple[IntArray, dict]:
-    """Peaks of ``x`` as :func:`scipy.signal.find_peaks` with ``height``, ``distance``
-    (samples) and ``prominence`` (minimum values) finds them, in that order of filters.
-
-    Returns the peak indices (ascending) and an empty properties dict."""
+def find_peaks(x: ArrayLike, *, height: float, distance: float, prominence: float) -> IntArray:
+    """Indices (ascending) of the peaks of ``x`` that :func:`scipy.signal.find_peaks` finds
+    with ``height``, ``distance`` (samples) and ``prominence`` (minimum values), filtered
+    in that order."""
     arr = np.ascontiguousarray(x, dtype=np.float64)
     peaks = _local_maxima(arr)
     peaks = peaks[arr[peaks] >= height]
@@ -114,7 +111,7 @@ def find_peaks(
         peaks = _select_by_distance(peaks, arr[peaks], math.ceil(distance))
     if peaks.size:
         peaks = peaks[_prominent(arr, peaks, prominence)]
-    return peaks, {}
+    return peaks
 
 
 def _savgol_coeffs(window: int, polyorder: int) -> FloatArray:
@@ -142,13 +139,6 @@ def _polyfit(t: FloatArray, y: FloatArray, deg: int) -> FloatArray:
     return (c.T / scale).T
 
 
-def _polyval(p: FloatArray, t: FloatArray) -> FloatArray:
-    y = np.zeros_like(t)
-    for j in range(p.shape[0]):
-        y = y * t + p[j, ...]
-    return y
-
-
 def savgol_filter(y: ArrayLike, window: int, polyorder: int) -> FloatArray:
     """Savitzky-Golay smoothing along axis 0 with polynomial fits at both ends, as
     :func:`scipy.signal.savgol_filter` with ``mode="interp"`` (odd ``window`` samples,
@@ -167,7 +157,7 @@ def savgol_filter(y: ArrayLike, window: int, polyorder: int) -> FloatArray:
         edge = x[lo:hi].reshape(window, -1)
         coeffs = _polyfit(np.arange(0, hi - lo, dtype=np.float64), edge, polyorder)
         t = np.arange(a - lo, b - lo, dtype=np.float64).reshape(-1, 1)
-        flat[a:b] = _polyval(coeffs, t)
+        flat[a:b] = np.polyval(coeffs, t)
     return flat.reshape(x.shape)
 
 

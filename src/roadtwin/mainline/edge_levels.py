@@ -264,7 +264,7 @@ def edge_steps(
     if seen.size < 2:
         return EdgeSteps(np.zeros(0), np.zeros(1))
     jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
-    stations, befores, afters = [], [], []
+    found: list[list[float]] = []  # [station, level before, level after] per step
     for j in jumps:
         before = float(np.median(level[seen[max(j - 4, 0) : j + 1]]))
         after = float(np.median(level[seen[j + 1 : j + 6]]))
@@ -274,19 +274,16 @@ def edge_steps(
             continue
         if np.count_nonzero((s > station) & (s <= station + 5.0)) < 3:
             continue
-        if stations and abs(station - stations[-1]) < _STEP_MERGE_M:
+        if found and abs(station - found[-1][0]) < _STEP_MERGE_M:
             # a level held for a bin or two at a step (a stray point, a ramp edge
             # crossing) makes two jumps that refine to one station; counted twice, the
             # step's size doubles and every later segment moves (town06-auto-s7: 3.7 m)
-            afters[-1] = after
+            found[-1][2] = after
             continue
-        stations.append(station)
-        befores.append(before)
-        afters.append(after)
-    sizes = [a - b for a, b in zip(afters, befores, strict=True)]
-    keep = [k for k, size in enumerate(sizes) if abs(size) > cfg.edge_step_m]
-    stations = [stations[k] for k in keep]
-    sizes = [sizes[k] for k in keep]
+        found.append([station, before, after])
+    found = [f for f in found if abs(f[2] - f[1]) > cfg.edge_step_m]
+    stations = [f[0] for f in found]
+    sizes = [f[2] - f[1] for f in found]
     if not stations:
         return EdgeSteps(np.zeros(0), np.zeros(1))
     order = np.argsort(stations)

@@ -86,7 +86,7 @@ def _find_track_peaks(
     stride = n_bin + pad
     flat = np.zeros((n_col, stride))
     flat[:, :n_bin] = hist
-    idx, _ = find_peaks(flat.ravel(), height=thr, distance=min_dist, prominence=0.5 * thr)
+    idx = find_peaks(flat.ravel(), height=thr, distance=min_dist, prominence=0.5 * thr)
     row, j = np.divmod(idx, stride)
     # a column's first/last bin is never a peak (as for a search per column)
     inner = (j > 0) & (j < n_bin - 1)
