@@ -267,10 +267,11 @@ def test_online_path_postprocessing_without_network(monkeypatch):
         )
 
 
-def test_loading_osm_does_not_import_scikit_learn_yet_osmnx_still_can():
+def test_loading_osm_does_not_import_scikit_learn_or_pyplot_yet_osmnx_still_can():
     """OSMnx imports scikit-learn (0.6-0.8 s) for nearest-node searches on unprojected
-    graphs, which a build never runs: a build's OSM load leaves it unimported. Later in the
-    same process (a notebook) OSMnx's unprojected search still works and imports it."""
+    graphs and ``matplotlib.pyplot`` (0.35 s) for its plots, neither of which a build
+    runs: a build's OSM load leaves both unimported. Later in the same process (a
+    notebook) OSMnx's unprojected search and its plots still work and import them."""
     import subprocess
     import sys
 
@@ -280,13 +281,23 @@ from roadtwin.frames import MappingFrame, Origin
 from roadtwin.osm import load_osm
 frame = MappingFrame(Origin(49.99, 11.6, 0.0))
 graph = load_osm({str(FILES["osm"])!r}, frame=frame, around_xy=None)
-print(graph.number_of_edges() > 0, "sklearn" in sys.modules)
+print(graph.number_of_edges() > 0, "sklearn" in sys.modules, "matplotlib.pyplot" in sys.modules)
 import networkx as nx
 import osmnx as ox
 g = nx.MultiDiGraph(crs="epsg:4326")
 g.add_node(1, x=11.5, y=50.0)
 g.add_node(2, x=11.6, y=50.1)
+g.add_edge(1, 2, length=14000.0)
 print(ox.distance.nearest_nodes(g, [11.59], [50.09]).tolist(), "sklearn" in sys.modules)
+print(ox.plot.get_colors(2))
+fig, ax = ox.plot_graph(g, show=False, close=True)
+drawn = len(ax.lines) + len(ax.collections) > 0
+print(type(fig).__name__, drawn, "matplotlib.pyplot" in sys.modules)
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split("\n")[:2] == ["True False", "[2] True"]
+    assert out.stdout.split("\n")[:4] == [
+        "True False False",
+        "[2] True",
+        "['#440154', '#fde725']",
+        "Figure True True",
+    ]

@@ -26,6 +26,8 @@ span two OSM ways (simplification keeps way boundaries), so every tag is a singl
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import logging
 import sys
 import tempfile
@@ -405,28 +407,64 @@ class _LazyBallTree:
         return BallTree(*args, **kwargs)
 
 
+class _LazyMatplotlib:
+    """Stands in for one of the matplotlib modules ``osmnx.plot`` binds at import
+    (``pyplot``, ``cm``, ``colormaps``, ``colors``): imports it on first use."""
+
+    def __init__(self, module: str, attribute: str | None = None) -> None:
+        self._module = module
+        self._attribute = attribute
+
+    def _target(self) -> Any:
+        target = importlib.import_module(self._module)
+        return getattr(target, self._attribute) if self._attribute else target
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._target(), name)
+
+    def __getitem__(self, key: Any) -> Any:
+        return self._target()[key]
+
+
+# the names osmnx.plot binds from matplotlib, and what each one is
+_OSMNX_MATPLOTLIB = {
+    "plt": ("matplotlib.pyplot", None),
+    "cm": ("matplotlib.cm", None),
+    "colormaps": ("matplotlib", "colormaps"),
+    "colors": ("matplotlib.colors", None),
+}
+
+
 def _osmnx() -> ModuleType:
-    """OSMnx, imported without importing scikit-learn.
+    """OSMnx, imported without importing scikit-learn or ``matplotlib.pyplot``.
 
     ``osmnx.distance`` imports scikit-learn's ``BallTree`` at import time (0.6-0.8 s, a
     third of every build's fixed cost) for nearest-node searches on unprojected graphs,
-    which roadtwin never runs. The import is held off while OSMnx loads and the name is
-    bound to a stand-in that imports it when called, so OSMnx behaves as usual for anyone
-    else in the same process (a notebook).
+    which roadtwin never runs; ``osmnx.plot`` imports ``matplotlib.pyplot`` (0.35 s) for
+    plotting, which roadtwin never calls (its own plots use ``matplotlib.figure``). Both
+    imports are held off while OSMnx loads and the names are bound to stand-ins that
+    import the module when used, so OSMnx behaves as usual for anyone else in the same
+    process (a notebook).
     """
     if "osmnx" in sys.modules:
         return sys.modules["osmnx"]
-    held = "sklearn" not in sys.modules
-    if held:
-        sys.modules["sklearn"] = None  # type: ignore[assignment]  # import -> ImportError
+    held = [name for name in ("sklearn", "matplotlib.pyplot") if name not in sys.modules]
+    for name in held:
+        sys.modules[name] = None  # type: ignore[assignment]  # import -> ImportError
     try:
         import osmnx
         import osmnx.distance
+        import osmnx.plot
     finally:
-        if held and sys.modules.get("sklearn", False) is None:
-            del sys.modules["sklearn"]
+        for name in held:
+            if name in sys.modules and sys.modules[name] is None:
+                del sys.modules[name]
     if osmnx.distance.BallTree is None:
         osmnx.distance.BallTree = _LazyBallTree
+    if not osmnx.plot.mpl_available and importlib.util.find_spec("matplotlib") is not None:
+        for name, (module, attribute) in _OSMNX_MATPLOTLIB.items():
+            setattr(osmnx.plot, name, _LazyMatplotlib(module, attribute))
+        osmnx.plot.mpl_available = True
     return osmnx
 
 

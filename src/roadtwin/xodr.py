@@ -357,6 +357,11 @@ def to_xodr_bytes(network: RoadNetwork) -> bytes:
     bytes
         The complete ``.xodr`` document, pretty-printed.
     """
+    from ._lazy import bind_lazily
+
+    # scenariogeneration imports xmlschema (0.16 s) for reading OpenSCENARIO files,
+    # which writing a map never does
+    bind_lazily("xmlschema")
     from scenariogeneration import xodr as sg
 
     if not network.roads:
