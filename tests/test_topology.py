@@ -795,3 +795,51 @@ def test_a_driving_lane_ending_at_full_width_where_the_road_narrows_closes_by_a_
     assert paper == 0.0
     assert taper_lane_drops(road, "right", max_taper_m=paper) == (road, [])
     assert PipelineConfig().with_method("default").topology.lane_drop_taper_m == 60.0
+
+
+def _road_with_median_side_lane_opening() -> Road:
+    """1000 m straight; a lane opens beside the median shoulder at s=500 (a taper from
+    zero width over 60 m): every driving lane beyond it goes on under the next id."""
+    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
+    before = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid", succ=-1),
+            _lane(-2, W, succ=-3),
+            _lane(-3, W, succ=-4),
+            _lane(-4, 2.5, "shoulder", "none", succ=-5),
+        ),
+    )
+    after = LaneSection(
+        500.0,
+        right=(
+            _lane(-1, 0.75, "shoulder", "solid", pred=-1),
+            _lane(-2, CubicProfile((_taper(0.0, W, 0.0, 60.0), CubicPiece(60.0, W)))),
+            _lane(-3, W, pred=-2),
+            _lane(-4, W, pred=-3),
+            _lane(-5, 2.5, "shoulder", "none", pred=-4),
+        ),
+    )
+    return Road("1", line, (before, after), name="mainline")
+
+
+def test_mainline_is_split_where_its_driving_lanes_are_renumbered():
+    """Players plan routes by lane id along a road: esmini's planner logged "Lane id 6
+    not available in lane section" on the Melbourne maps, where lanes open beside the
+    median and the driving lanes beyond go on under new ids. Split there, the renumbering
+    is in the road links; a shoulder renumbered beside an outer lane is left alone."""
+    topo = build_topology(_road_with_median_side_lane_opening(), [])
+    mains = [r for r in topo.roads if r.name == "mainline"]
+    assert [round(r.length, 6) for r in mains] == [500.0, 500.0]
+    first, second = mains
+    assert (first.successor.element_id, second.predecessor.element_id) == (second.id, first.id)
+    links = {ln.id: ln.successor for ln in first.lane_sections[-1].right}
+    assert (links[-2], links[-3]) == (-3, -4)
+    for a, b in ((-2, -3), (-3, -4)):
+        end = _lane_border_xy(first, first.length, a)
+        start = _lane_border_xy(second, 0.0, b)
+        assert float(np.max(np.abs(end - start))) < 1e-6
+    findings = check_network(_network(topo))
+    assert not [f for f in findings if f.severity == "error"]
+    # the shared layout's decel lane renumbers only the hard shoulder: one road
+    assert len([r for r in build_topology(mainline_road(), []).roads if r.name == "mainline"]) == 1

@@ -440,6 +440,26 @@ def _offset_steps(road: Road, *, min_step_m: float = 1e-3) -> list[float]:
     return out
 
 
+def _renumbering_borders(road: Road, traffic_side: TrafficSide) -> list[float]:
+    """Section borders (metres) where a driving lane goes on under another id: a lane that
+    begins or ends on the reference line's side of others renumbers every lane beyond it
+    (a shoulder renumbered beside a lane added on the outside is no one's route).
+
+    OpenDRIVE allows it, but players plan routes by lane id along a road (esmini's route
+    planner logs "Lane id not available in lane section" and plans the junction
+    connection of the wrong lane); roads split there and linked end to start say the
+    same with the renumbering in the road links, which every player follows."""
+    out = []
+    sections = road.lane_sections
+    for n in range(1, len(sections)):
+        if any(
+            ln.type == "driving" and ln.predecessor is not None and ln.predecessor != ln.id
+            for ln in _traffic_lanes(sections[n], traffic_side)
+        ):
+            out.append(float(sections[n].s0))
+    return out
+
+
 def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
     """Consecutive parts of one road linked end to start (road and lane links by geometry).
 
@@ -717,7 +737,9 @@ def build_topology(
     zones: list[_Zone] = []
     skipped: list[tuple[str, str]] = []
     last_end = 0.0
-    steps = _offset_steps(mainline_road)
+    steps = sorted(
+        {*_offset_steps(mainline_road), *_renumbering_borders(mainline_road, traffic_side)}
+    )
     borders = sorted({*steps, *(sec.s0 for sec in mainline_road.lane_sections[1:])})
     for ramp in sorted(ramps, key=lambda r: (r.station_m, r.type)):
         s = ramp.station_m

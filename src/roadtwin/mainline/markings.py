@@ -21,6 +21,7 @@ from ..fitting import moving_median
 from ._common import (
     robust_offset_fit,
 )
+from .shift import ShiftFrame, common_shift
 
 log = logging.getLogger(__name__)
 
@@ -165,7 +166,9 @@ def _tracks_from_samples(
     covered: NDArray[np.bool_] | None = None,
 ) -> tuple[list[_Track], list[tuple[float, float]]]:
     """Marking tracks: histogram peaks linked along s, false positives removed, samples
-    assigned exclusively to the nearest track, each track smoothed robustly.
+    assigned exclusively to the nearest track, each track smoothed robustly; where the
+    marking pattern shifts sideways as a whole (:mod:`.shift`), found in the frame that
+    moves with it and returned in the reference line's.
 
     Also returns ``(s, d)`` where ramp lines crossing the corridor were cut off (they meet
     or leave a mainline marking there: gore evidence)."""
@@ -173,6 +176,73 @@ def _tracks_from_samples(
         return [], []
     centres, peaks = _find_track_peaks(s, d, length, cfg)
     raw = _link_tracks(peaks, cfg)
+    frame = _shift_frame(s, d, length, centres, raw, cfg)
+    if frame is None:
+        tracks, evidence = _tracks_in_frame(s, d, grid, length, cfg, d_edge, centres, raw)
+    else:
+        edge = None if d_edge is None else d_edge - frame.offset(grid)
+        d_frame = d - frame.offset(s)
+        centres, peaks = _find_track_peaks(s, d_frame, length, cfg)
+        raw = _link_tracks(peaks, cfg)
+        tracks, evidence = _tracks_in_frame(
+            s, d_frame, grid, length, cfg, edge, centres, raw, frame
+        )
+        tracks = [
+            replace(
+                tr,
+                d=tr.d + frame.offset(tr.s),
+                d_samples=tr.d_samples + frame.offset(tr.s_samples),
+            )
+            for tr in tracks
+        ]
+        evidence = [(g, v + float(frame.offset(np.array([g]))[0])) for g, v in evidence]
+    if d_edge is not None and covered is not None:
+        # the edge closes a lane only where it was seen (a bridged gap is no evidence)
+        seen_edge = np.where(covered, d_edge, np.nan)
+    else:
+        seen_edge = None
+    return _continue_to_convergence(tracks, grid, cfg, seen_edge), evidence
+
+
+def _shift_frame(
+    s: FloatArray,
+    d: FloatArray,
+    length: float,
+    centres: FloatArray,
+    raw: list[_RawTrack],
+    cfg: MainlineConfig,
+) -> ShiftFrame | None:
+    """The marking pattern's sideways shift (:func:`.shift.common_shift`) from the linked
+    column peaks ``raw`` (tracks of two columns or more)."""
+    raw = [tr for tr in raw if len(tr.cols) >= 2]
+    if not raw:
+        return None
+    return common_shift(
+        s,
+        d,
+        length,
+        np.concatenate([centres[tr.cols] for tr in raw]),
+        np.concatenate([np.asarray(tr.d) for tr in raw]),
+        np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw]),
+        cfg.lane_column_m,
+    )
+
+
+def _tracks_in_frame(
+    s: FloatArray,
+    d: FloatArray,
+    grid: FloatArray,
+    length: float,
+    cfg: MainlineConfig,
+    d_edge: FloatArray | None,
+    centres: FloatArray,
+    raw: list[_RawTrack],
+    frame: ShiftFrame | None = None,
+) -> tuple[list[_Track], list[tuple[float, float]]]:
+    """:func:`_tracks_from_samples` in one frame: ``d`` and ``d_edge`` are offsets in it,
+    ``raw`` the column peaks at ``centres`` linked into tracks, ``frame`` the shift the
+    frame moves with (None: the reference line's own frame). Tracks are returned merged
+    but not yet continued to convergence."""
     col = cfg.lane_column_m
     s_first, s_last = float(np.min(s)), float(np.max(s))
 
@@ -232,7 +302,7 @@ def _tracks_from_samples(
             min_threshold_m=cfg.edge_outlier_min_m,
             local_sigma_ends_m=2.0 * cfg.lane_smoothing_m,
         )
-        keep_g = _trim_ramp_lines(g, fit, cfg)
+        keep_g = _trim_ramp_lines(g, fit, cfg, None if frame is None else frame.rate(g))
         if d_edge is not None:
             keep_g |= _mainline_ends_inside_edge(g, fit, keep_g, grid, d_edge, s_last, col)
         if not keep_g[-1] or not keep_g[0]:
@@ -255,13 +325,7 @@ def _tracks_from_samples(
         ss, dd = ss[within], dd[within]  # sorted by station already
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
-    merged = _merge_collinear(final, cfg, grid, d_edge)
-    if d_edge is not None and covered is not None:
-        # the edge closes a lane only where it was seen (a bridged gap is no evidence)
-        seen_edge = np.where(covered, d_edge, np.nan)
-    else:
-        seen_edge = None
-    return _continue_to_convergence(merged, grid, cfg, seen_edge), evidence
+    return _merge_collinear(final, cfg, grid, d_edge), evidence
 
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
@@ -424,7 +488,12 @@ def _continue_to_convergence(
     return out
 
 
-def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArray[np.bool_]:
+_FRAME_RATE_SHARE = 0.3  # share of the frame's rate a line moving with it may keep in it
+
+
+def _trim_ramp_lines(
+    g: FloatArray, d: FloatArray, cfg: MainlineConfig, frame_rate: FloatArray | None = None
+) -> NDArray[np.bool_]:
     """Mask of the part of a marking track that belongs to the mainline.
 
     Ramp markings cross the mainline corridor near a gore: before an entry gore they come
@@ -432,19 +501,30 @@ def _trim_ramp_lines(g: FloatArray, d: FloatArray, cfg: MainlineConfig) -> NDArr
     (d increasing). A track's leading part that converges steeply and its trailing part
     that diverges steeply are cut off. (Lane tapers of the mainline itself open outward at
     their start and close inward at their end, so they are kept.)
+
+    In a frame that moves with the marking pattern (``frame_rate``: its sideways rate at
+    ``g``, m/m; ``d`` in that frame) a part is steep only where it is steep in the
+    reference line's frame too: a line that stays where it is while the pattern shifts
+    (the median-side edge line) is no ramp line.
     """
     keep = np.ones(g.size, dtype=bool)
     if g.size < 5:
         return keep
     slope = np.gradient(d, g)
     steep = cfg.ramp_line_slope
+    if frame_rate is None:
+        road_slope, steep_here = slope, steep
+    else:
+        # the frame follows the pattern to within a few tenths of its rate halfway
+        # through a shift: a line that moves with it is that steep in the frame
+        road_slope, steep_here = slope + frame_rate, steep + _FRAME_RATE_SHARE * np.abs(frame_rate)
     # leading part: converging inward steeply
-    flat = np.flatnonzero(slope > -steep)
+    flat = np.flatnonzero((slope > -steep_here) | (road_slope > -steep))
     if flat.size == 0:
         return np.zeros(g.size, dtype=bool)  # converging all along: a ramp line
     if flat[0] > 0 and (g[flat[0]] - g[0]) >= 10.0:
         keep[: flat[0]] = False
-    flat = np.flatnonzero(slope < steep)
+    flat = np.flatnonzero((slope < steep_here) | (road_slope < steep))
     if flat.size == 0:
         return np.zeros(g.size, dtype=bool)
     if flat[-1] < g.size - 1 and (g[-1] - g[flat[-1]]) >= 10.0:
@@ -686,7 +766,8 @@ def _add_hidden_lanes(
     narrow), the whole lanes of the run's typical width (:func:`typical_lane_width`) that
     fit are added: evenly spaced up to the shoulder on the outer side; lane-wide from the
     observed marking on the median side, the rest as the inner shoulder (its edge line
-    only where it is at least 0.3 m wide; a narrower rest widens the lanes). Outer lanes
+    only where it is at least 0.3 m wide; a narrower rest widens the lanes; held in place
+    where the number of lanes changes, :func:`_inner_shoulder_line`). Outer lanes
     are inferred over ``lane_min_track_m`` or more (a shorter wide strip there is a gore),
     median-side ones over 30 m or more: between an inner exit's paint tip and its nose
     the exit's lines diverge and are cut as ramp lines, and the lanes run on to the nose
@@ -772,23 +853,64 @@ def _add_hidden_lanes(
     inner_gap = d_first - d_median
     n_in = _hidden_lane_count(inner_gap, lane_m, cfg.hidden_lane_min_m - 1.4, cfg.grid_step_m)
     min_run_in = math.ceil(_SPLIT_MIN_RUN_M / cfg.grid_step_m)
-    for a, b, n in _runs_of(n_in, _extreme_jumps(d_first, lane_m)):
-        if n == 0 or b - a < min_run_in:
+    # a run also ends where the median-side edge steps (a gore on the median side): the
+    # lanes beside it begin or end there at full width
+    median_steps = np.abs(np.diff(d_median)) >= 0.5 * lane_m
+    for a, b, on in _runs_of(
+        (n_in > 0).astype(np.int64), _extreme_jumps(d_first, lane_m) | median_steps
+    ):
+        if not on or b - a < min_run_in:
             continue
-        first, median = d_first[a:b], d_median[a:b]
-        rest = float(np.median(first - median)) - n * lane_m
-        width = lane_m if rest >= 0.3 else (first - median) / n
-        for k in range(1, n):
-            add(a, b, first - k * width, "broken")
-        if rest >= 0.3:
-            add(a, b, first - n * width, "solid")
+        first, median, n = d_first[a:b], d_median[a:b], n_in[a:b]
+        if float(np.median(first - median - n * lane_m)) >= 0.3:
+            shoulder_line = _inner_shoulder_line(first - n * lane_m, n, cfg.grid_step_m)
+            for k in range(1, int(n.max())):
+                line = first - k * lane_m
+                # a lane line exists where the lane between it and the shoulder is open
+                # (over 30 m at least, unless the run's end cuts it)
+                for a2, b2, inside in _runs_of((line - shoulder_line > 0.05).astype(np.int64)):
+                    if inside and (b2 - a2 >= min_run_in or a2 == 0 or b2 == n.size):
+                        add(a + a2, a + b2, line[a2:b2], "broken")
+            add(a, b, shoulder_line, "solid")
+        else:
+            # no room for a shoulder: the lanes share the whole strip
+            for a2, b2, n2 in _runs_of(n):
+                width = (first[a2:b2] - median[a2:b2]) / n2
+                for k in range(1, n2):
+                    add(a + a2, a + b2, first[a2:b2] - k * width, "broken")
         log.info(
-            "mainline: %d unobserved median-side lane(s) inferred at s=%.0f..%.0f m",
-            n,
+            "mainline: up to %d unobserved median-side lane(s) inferred at s=%.0f..%.0f m",
+            int(n.max()),
             grid[a],
             grid[b - 1],
         )
     return out
+
+
+_SHOULDER_HOLD_M = 120.0  # the inner shoulder's line is held over a change of lane count
+# within this window (metres): longer than the 50-100 m over which the lanes shift
+
+
+def _inner_shoulder_line(
+    whole_lanes: FloatArray, n: NDArray[np.int64], step_m: float
+) -> FloatArray:
+    """The inner shoulder's line (metres, on the grid) from ``whole_lanes``: the innermost
+    marking less the ``n`` whole hidden lanes.
+
+    Where the number of lanes stays the same, that is where the line lies. Where it
+    changes, the lanes shift sideways onto (off) the shoulder: the marking moves by a lane
+    over 50-100 m and ``n`` drops (rises) by one halfway, so the line would jump by a lane
+    there and the lane beside it would go on into the shoulder (end at full width). The
+    shoulder's line stays where it was instead (the moving median of the line over
+    ``_SHOULDER_HOLD_M``), and the lane beside it closes to (opens from) zero width.
+    """
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    window = max(3, round(_SHOULDER_HOLD_M / step_m) | 1)
+    if whole_lanes.size < window:
+        return whole_lanes
+    steady = minimum_filter1d(n, window) == maximum_filter1d(n, window)
+    return np.where(steady, whole_lanes, moving_median(whole_lanes, window=window))
 
 
 def _last_marking(tracks: list[_Track], grid: FloatArray) -> FloatArray:

@@ -1,0 +1,150 @@
+"""The marking pattern's sideways shift (roadtwin.mainline.shift) and the tracks found in
+the frame that moves with it (roadtwin.mainline.markings)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roadtwin.config import MainlineConfig
+from roadtwin.mainline.markings import (
+    _find_track_peaks,
+    _inner_shoulder_line,
+    _link_tracks,
+    _shift_frame,
+    _tracks_from_samples,
+)
+
+LENGTH = 700.0
+LANE = 3.5
+
+
+def _smoothstep(s: np.ndarray, s0: float, s1: float) -> np.ndarray:
+    x = np.clip((s - s0) / (s1 - s0), 0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _line(rng, offset, s0=0.0, s1=LENGTH, dashed=True):
+    """Samples (s, d) of one marking: every 0.25 m, 3 m dashes every 12 m (or solid),
+    3 cm noise; ``offset(s)`` its offset (metres)."""
+    s = np.arange(s0, s1, 0.25)
+    if dashed:
+        s = s[(s % 12.0) < 3.0]
+    return s, offset(s) + rng.normal(0.0, 0.03, s.size)
+
+
+def _samples(lines):
+    s = np.concatenate([a for a, _ in lines])
+    d = np.concatenate([b for _, b in lines])
+    order = np.argsort(s, kind="stable")
+    return s[order], d[order]
+
+
+def _median_side_lanes_added(rng, lanes=1, s0=300.0, s1=380.0):
+    """``lanes`` lanes added beside the median over s0..s1: the median-side edge line
+    stays at 1.0 m, the three lines beyond it move out by as many lane widths, and the
+    new lanes' lines leave the edge line (reference frame: the median-side edge)."""
+    move = lambda s: lanes * LANE * _smoothstep(s, s0, s1)  # noqa: E731
+    lines = [
+        _line(rng, lambda s: np.full(s.size, 1.0), dashed=False),
+        _line(rng, lambda s: 1.0 + LANE + move(s)),
+        _line(rng, lambda s: 1.0 + 2 * LANE + move(s)),
+        _line(rng, lambda s: 1.0 + 3 * LANE + move(s), dashed=False),
+    ]
+    for k in range(1, lanes + 1):  # the new lines, each reaching its place with the others
+        lines.append(_line(rng, lambda s, k=k: 1.0 + k / lanes * move(s), s0=s0 + 10.0))
+    return _samples(lines), move
+
+
+def _frame(s, d, cfg):
+    centres, peaks = _find_track_peaks(s, d, LENGTH, cfg)
+    return _shift_frame(s, d, LENGTH, centres, _link_tracks(peaks, cfg), cfg)
+
+
+@pytest.mark.parametrize("lanes", [1, 2])
+def test_the_shift_of_lines_moving_out_by_lanes_is_found_where_and_how_far_it_goes(lanes):
+    cfg = MainlineConfig()
+    (s, d), move = _median_side_lanes_added(np.random.default_rng(1), lanes)
+    frame = _frame(s, d, cfg)
+    assert frame is not None
+    at = np.array([0.0, 250.0, 290.0, 340.0, 390.0, 450.0, 650.0])
+    made = np.interp(at, frame.stations, frame.shift) - float(frame.shift[0])
+    # none before the lanes move, the lanes' widths after them (within 0.15 m), about half
+    # of it halfway (within 0.4 m: the path's steps are a window long)
+    err = np.abs(made - move(at))
+    assert float(np.max(err[at != 340.0])) < 0.15, made
+    assert float(err[at == 340.0][0]) < 0.4, made
+    assert float(np.max(np.abs(frame.rate(np.array([100.0, 600.0]))))) < 1e-9
+    # the frame only ever moves offsets outwards (histograms start at a fixed bound)
+    assert float(np.max(frame.offset(np.linspace(0.0, LENGTH, 50)))) <= 0.0
+
+
+@pytest.mark.parametrize(
+    "what",
+    ["straight", "a bump of a metre", "an exit's lines leaving", "an outer lane opening"],
+)
+def test_no_shift_where_the_pattern_does_not_move_as_a_whole(what):
+    """Straight lines; every line swinging out by 1 m and back (the linking follows
+    that itself); a ramp's two lines leaving the others; the edge line moving out by a
+    lane where a lane opens on the outside: the frame stays the reference line's."""
+    rng = np.random.default_rng(2)
+    flat = [
+        _line(rng, lambda s, k=k: np.full(s.size, 1.0 + k * LANE), dashed=0 < k < 3)
+        for k in range(4)
+    ]
+    bump = lambda s: np.exp(-(((s - 350.0) / 40.0) ** 2))  # noqa: E731
+    leave = lambda s: 0.08 * np.clip(s - 300.0, 0.0, None)  # noqa: E731
+    if what == "straight":
+        lines = flat
+    elif what == "a bump of a metre":
+        lines = [_line(rng, lambda s, k=k: 1.0 + k * LANE + bump(s)) for k in range(4)]
+    elif what == "an exit's lines leaving":
+        lines = [
+            *flat,
+            _line(rng, lambda s: 1.0 + 3 * LANE + leave(s), s0=300.0, s1=420.0, dashed=False),
+            _line(rng, lambda s: 1.0 + 4 * LANE + leave(s), s0=300.0, s1=420.0, dashed=False),
+        ]
+    else:
+        opening = lambda s: 1.0 + 3 * LANE + LANE * _smoothstep(s, 300.0, 380.0)  # noqa: E731
+        lines = [*flat[:3], _line(rng, opening, dashed=False)]
+    s, d = _samples(lines)
+    assert _frame(s, d, MainlineConfig()) is None
+
+
+def test_lines_that_move_out_by_two_lanes_are_whole_tracks_that_follow_them():
+    """Two lanes added beside the median, every line beyond moving out by 7 m over 80 m
+    (melbourne-921-s9). Found line by line, the moving lines were cut where they are
+    steep (ramp lines) and the pieces joined to other lines: lanes up to 7.5 m wide. In
+    the moving frame each is one track from end to end, on the line within 0.15 m."""
+    cfg = MainlineConfig()
+    (s, d), move = _median_side_lanes_added(np.random.default_rng(3), lanes=2)
+    grid = np.arange(0.0, LENGTH + 0.5, cfg.grid_step_m)
+    tracks, _ = _tracks_from_samples(s, d, grid, LENGTH, cfg)
+    for k in (1, 2, 3):
+        truth = lambda x, k=k: 1.0 + k * LANE + move(x)  # noqa: E731
+        on = [
+            tr
+            for tr in tracks
+            if tr.lo < 20.0
+            and tr.hi > LENGTH - 20.0
+            and float(np.max(np.abs(tr.d - truth(tr.s)))) < 0.15
+        ]
+        assert len(on) == 1, f"line {k}: {[(tr.lo, tr.hi) for tr in tracks]}"
+    # the median-side edge line stays a whole straight line too
+    edge = [tr for tr in tracks if tr.lo < 20.0 and tr.hi > LENGTH - 20.0 and np.ptp(tr.d) < 0.2]
+    assert len(edge) == 1
+
+
+def test_the_inner_shoulder_line_is_held_where_the_lanes_shift_onto_the_shoulder():
+    """Hidden median-side lanes are counted from the innermost marking. Where that
+    marking moves a lane towards the median (a lane dropped beside the shoulder), the
+    count drops by one halfway and the shoulder's line, whole lanes from the marking,
+    jumped by a lane there: the lane beside it went on into the shoulder. It stays."""
+    step_m = 1.0
+    s = np.arange(0.0, 400.0, step_m)
+    first = 8.1 - LANE * _smoothstep(s, 170.0, 230.0)
+    n = np.where(first - 1.1 >= 1.5 * LANE, 2, 1)
+    raw = first - n * LANE
+    assert float(np.ptp(raw)) > 1.5  # the line counted from the marking jumps
+    held = _inner_shoulder_line(raw, n, step_m)
+    np.testing.assert_allclose(held, 1.1, atol=0.05)
