@@ -567,28 +567,31 @@ def test_prune_zero_width_links_everywhere():
 def _road_with_median_step() -> Road:
     """1000 m straight; the median-side lane -2 leaves at s=500 (no junction): the lane
     offset steps in by a lane there and the lanes beyond are linked by geometry."""
-    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
-    before = LaneSection(
-        0.0,
-        right=(
+    return _straight_two_sections(
+        (
             _lane(-1, 0.75, "shoulder", "solid", succ=-1),
             _lane(-2, W),
             _lane(-3, W, succ=-2),
             _lane(-4, W, succ=-3),
             _lane(-5, 2.5, "shoulder", "none", succ=-4),
         ),
-    )
-    after = LaneSection(
-        500.0,
-        right=(
+        (
             _lane(-1, 0.75, "shoulder", "solid", pred=-1),
             _lane(-2, W, pred=-3),
             _lane(-3, W, pred=-4),
             _lane(-4, 2.5, "shoulder", "none", pred=-5),
         ),
+        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W))),
     )
-    offset = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(500.0, -W)))
-    return Road("1", line, (before, after), name="mainline", lane_offset=offset)
+
+
+def _straight_two_sections(before, after, lane_offset=None) -> Road:
+    """A 1000 m straight mainline whose lanes are ``before`` up to s=500, ``after`` on."""
+    sections = (LaneSection(0.0, right=tuple(before)), LaneSection(500.0, right=tuple(after)))
+    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
+    if lane_offset is None:
+        return Road("1", line, sections, name="mainline")
+    return Road("1", line, sections, name="mainline", lane_offset=lane_offset)
 
 
 def test_mainline_is_split_into_linked_roads_where_its_lane_offset_steps():
@@ -800,19 +803,14 @@ def test_a_driving_lane_ending_at_full_width_where_the_road_narrows_closes_by_a_
 def _road_with_median_side_lane_opening() -> Road:
     """1000 m straight; a lane opens beside the median shoulder at s=500 (a taper from
     zero width over 60 m): every driving lane beyond it goes on under the next id."""
-    line = (Line(0.0, 0.0, 0.0, 0.0, 1000.0),)
-    before = LaneSection(
-        0.0,
-        right=(
+    return _straight_two_sections(
+        (
             _lane(-1, 0.75, "shoulder", "solid", succ=-1),
             _lane(-2, W, succ=-3),
             _lane(-3, W, succ=-4),
             _lane(-4, 2.5, "shoulder", "none", succ=-5),
         ),
-    )
-    after = LaneSection(
-        500.0,
-        right=(
+        (
             _lane(-1, 0.75, "shoulder", "solid", pred=-1),
             _lane(-2, CubicProfile((_taper(0.0, W, 0.0, 60.0), CubicPiece(60.0, W)))),
             _lane(-3, W, pred=-2),
@@ -820,7 +818,6 @@ def _road_with_median_side_lane_opening() -> Road:
             _lane(-5, 2.5, "shoulder", "none", pred=-4),
         ),
     )
-    return Road("1", line, (before, after), name="mainline")
 
 
 def test_mainline_is_split_where_its_driving_lanes_are_renumbered():
