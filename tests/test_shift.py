@@ -148,3 +148,17 @@ def test_the_inner_shoulder_line_is_held_where_the_lanes_shift_onto_the_shoulder
     assert float(np.ptp(raw)) > 1.5  # the line counted from the marking jumps
     held = _inner_shoulder_line(raw, n, step_m)
     np.testing.assert_allclose(held, 1.1, atol=0.05)
+
+
+def test_a_jump_of_the_innermost_marking_spread_over_two_grid_steps_is_a_jump():
+    """The innermost marking's moving median split a 3.5 m jump (another line became the
+    innermost 20 m before the run's end) into two steps of 1.74 m, under half a lane
+    each: the median-side run went on across it and a lane 7 m wide was built (Town06).
+    A shift moves the marking a few tenths of a metre per grid step: no jump."""
+    from roadtwin.mainline.markings import _extreme_jumps, _two_step_jumps
+
+    jump = np.concatenate([np.full(50, 8.13), [9.875], np.full(20, 11.62)])
+    assert not _extreme_jumps(jump, LANE).any()
+    assert np.flatnonzero(_two_step_jumps(jump, LANE)).tolist() in ([49], [50])
+    shift = 8.1 - LANE * _smoothstep(np.arange(100.0), 20.0, 80.0)
+    assert not _two_step_jumps(shift, LANE).any()

@@ -679,6 +679,20 @@ def _extreme_jumps(d_extreme: FloatArray, lane_m: float) -> NDArray[np.bool_]:
     return np.isfinite(step) & (step >= 0.5 * lane_m)
 
 
+def _two_step_jumps(d_extreme: FloatArray, lane_m: float) -> NDArray[np.bool_]:
+    """Where the extreme marking (metres, on the grid) moves by three quarters of a lane
+    or more over two grid steps (a jump the moving median split into two halves; a lane
+    shift moves it a few tenths of a metre per step): marked at the larger of the two."""
+    out = np.zeros(max(d_extreme.size - 1, 0), dtype=bool)
+    if d_extreme.size < 3:
+        return out
+    step = np.abs(np.diff(d_extreme))
+    over_two = np.abs(d_extreme[2:] - d_extreme[:-2])
+    i = np.flatnonzero(np.isfinite(over_two) & (over_two >= 0.75 * lane_m))
+    out[np.where(step[i] >= step[i + 1], i, i + 1)] = True
+    return out
+
+
 def _hidden_lane_count(
     gap: FloatArray, lane_m: float, min_extra_m: float, grid_step_m: float
 ) -> NDArray[np.int64]:
@@ -854,10 +868,12 @@ def _add_hidden_lanes(
     n_in = _hidden_lane_count(inner_gap, lane_m, cfg.hidden_lane_min_m - 1.4, cfg.grid_step_m)
     min_run_in = math.ceil(_SPLIT_MIN_RUN_M / cfg.grid_step_m)
     # a run also ends where the median-side edge steps (a gore on the median side): the
-    # lanes beside it begin or end there at full width
+    # lanes beside it begin or end there at full width; and where the innermost marking
+    # is another one, also when the smoothing spread the jump over two grid steps
     median_steps = np.abs(np.diff(d_median)) >= 0.5 * lane_m
     for a, b, on in _runs_of(
-        (n_in > 0).astype(np.int64), _extreme_jumps(d_first, lane_m) | median_steps
+        (n_in > 0).astype(np.int64),
+        _extreme_jumps(d_first, lane_m) | _two_step_jumps(d_first, lane_m) | median_steps,
     ):
         if not on or b - a < min_run_in:
             continue
@@ -867,9 +883,8 @@ def _add_hidden_lanes(
             for k in range(1, int(n.max())):
                 line = first - k * lane_m
                 # a lane line exists where the lane between it and the shoulder is open
-                # (over 30 m at least, unless the run's end cuts it)
                 for a2, b2, inside in _runs_of((line - shoulder_line > 0.05).astype(np.int64)):
-                    if inside and (b2 - a2 >= min_run_in or a2 == 0 or b2 == n.size):
+                    if inside and b2 - a2 >= min_run_in:
                         add(a + a2, a + b2, line[a2:b2], "broken")
             add(a, b, shoulder_line, "solid")
         else:
