@@ -692,6 +692,40 @@ def test_a_driving_lane_refitted_up_to_1_m_wider_or_narrower_after_a_section_bor
     )
 
 
+def test_a_driving_lane_goes_on_where_the_inner_shoulders_line_is_first_seen():
+    """melbourne-921-s2 past its inner exit: the innermost lane is 3.74 m wide from the
+    median-side edge (its shoulder's line not seen) and from 647 m a 0.57 m shoulder and a
+    3.41 m lane span it. No border met within 0.3 m (the inner ones are the shoulder's
+    width apart), the lane led nowhere and a route failed. The lane goes on; the shoulder
+    opens from zero width."""
+    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+
+    def lane(lid, w, kind="driving"):
+        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+
+    first = LaneSection(0.0, left=(lane(1, 3.74), lane(2, 3.33), lane(3, 2.55, "shoulder")))
+    second = LaneSection(
+        42.0,
+        left=(lane(1, 0.57, "shoulder"), lane(2, 3.41), lane(3, 3.28), lane(4, 2.55, "shoulder")),
+    )
+    linked = _link_sections([first, second], [[], []], at_step=[False, False])
+    before, after = linked[0].left, linked[1].left
+    assert (before[0].successor, after[1].predecessor) == (2, 1)
+    assert (before[1].successor, after[2].predecessor) == (3, 2)
+    assert after[0].predecessor is None
+    # the shoulder opens from zero and the lane goes on with the width it had
+    assert float(after[0].width.value(np.array([0.0]))[0]) == pytest.approx(0.0, abs=1e-9)
+    assert float(after[1].width.value(np.array([0.0]))[0]) == pytest.approx(3.74, abs=1e-9)
+    # a lane beginning beside it that is a lane wide is a new lane, not this one's rest
+    wide = LaneSection(
+        42.0,
+        left=(lane(1, 3.4, "driving"), lane(2, 3.41), lane(3, 3.28), lane(4, 2.55, "shoulder")),
+    )
+    relinked = _link_sections([first, wide], [[], []], at_step=[False, False])
+    assert relinked[1].left[1].predecessor != 1
+
+
 def test_a_line_is_continued_to_where_the_converging_line_settles_beside_it():
     """The line beyond converges and settles 0.7 m outside the ended line's offset (the
     lane that goes on is a little wider after the drop): it met it where it came nearest,

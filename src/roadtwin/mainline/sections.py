@@ -488,6 +488,30 @@ def _link_sections(
                     mapping[i] = j
                     used.add(j)
                     break
+        # the same where a narrow lane begins on a driving lane's inner side and the two
+        # together span the lane that ends there (the median-side shoulder's line first
+        # seen there): the lane goes on, and the narrow one opens from zero width below;
+        # left unlinked, the innermost lane led nowhere (melbourne-921-s2)
+        for i in range(1, len(cur_lanes)):
+            if (
+                i in mapping
+                or i - 1 in mapping
+                or cur_lanes[i].type != "driving"
+                or w_cur[i] < 0.3
+                or w_cur[i - 1] >= _RESIDUAL_WIDTH_M
+            ):
+                continue
+            for j in range(len(prev_lanes)):
+                if (
+                    j not in used
+                    and prev_lanes[j].type == "driving"
+                    and w_prev[j] >= 0.3
+                    and abs(b_cur[i - 1] - b_prev[j]) <= _LINK_TOLERANCE_M
+                    and abs(b_cur[i + 1] - b_prev[j + 1]) <= _LINK_TOLERANCE_M
+                ):
+                    mapping[i] = j
+                    used.add(j)
+                    break
         for i, j in mapping.items():
             hard_shoulder = (prev_lanes[j].type == "shoulder" and j == len(prev_lanes) - 1) or (
                 cur_lanes[i].type == "shoulder" and i == len(cur_lanes) - 1
