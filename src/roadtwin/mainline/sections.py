@@ -423,6 +423,18 @@ def _nonnegative(fixed: Lane, original: Lane, ds: FloatArray) -> Lane:
     return fixed if float(np.min(fixed.width.value(ds))) >= 0.0 else original
 
 
+def _link_first_free(
+    i: int, candidates: NDArray[np.bool_], mapping: dict[int, int], used: set[int]
+) -> None:
+    """Link lane ``i`` after a border to the first lane before it among ``candidates``
+    that is not linked yet (``mapping``: after -> before; ``used``: linked befores)."""
+    for j in np.flatnonzero(candidates).tolist():
+        if j not in used:
+            mapping[i] = j
+            used.add(j)
+            return
+
+
 def _link_sections(
     sections: list[LaneSection],
     bounds_per: list[list[tuple[object, object]]],
@@ -470,6 +482,8 @@ def _link_sections(
             if i not in mapping and j not in used:
                 mapping[i] = j
                 used.add(j)
+        # driving lanes before the border wide enough to go on
+        open_prev = np.array([ln.type == "driving" for ln in prev_lanes]) & (w_prev >= 0.3)
         # a driving lane whose inner border meets one that ends there and whose width
         # differs by less than _WIDTH_JUMP_M is that lane fitted anew (the outer border
         # is a marking seen again after a gap, a gore's section border): it goes on, with
@@ -477,17 +491,10 @@ def _link_sections(
         for i in range(len(cur_lanes)):
             if i in mapping or cur_lanes[i].type != "driving" or w_cur[i] < 0.3:
                 continue
-            for j in range(len(prev_lanes)):
-                if (
-                    j not in used
-                    and prev_lanes[j].type == "driving"
-                    and w_prev[j] >= 0.3
-                    and abs(b_cur[i] - b_prev[j]) <= _LINK_TOLERANCE_M
-                    and abs(w_cur[i] - w_prev[j]) <= _WIDTH_JUMP_M
-                ):
-                    mapping[i] = j
-                    used.add(j)
-                    break
+            meets = (np.abs(b_cur[i] - b_prev[:-1]) <= _LINK_TOLERANCE_M) & (
+                np.abs(w_cur[i] - w_prev) <= _WIDTH_JUMP_M
+            )
+            _link_first_free(i, open_prev & meets, mapping, used)
         # the same where a narrow lane begins on a driving lane's inner side and the two
         # together span the lane that ends there (the median-side shoulder's line first
         # seen there): the lane goes on, and the narrow one opens from zero width below;
@@ -501,17 +508,10 @@ def _link_sections(
                 or w_cur[i - 1] >= _RESIDUAL_WIDTH_M
             ):
                 continue
-            for j in range(len(prev_lanes)):
-                if (
-                    j not in used
-                    and prev_lanes[j].type == "driving"
-                    and w_prev[j] >= 0.3
-                    and abs(b_cur[i - 1] - b_prev[j]) <= _LINK_TOLERANCE_M
-                    and abs(b_cur[i + 1] - b_prev[j + 1]) <= _LINK_TOLERANCE_M
-                ):
-                    mapping[i] = j
-                    used.add(j)
-                    break
+            meets = (np.abs(b_cur[i - 1] - b_prev[:-1]) <= _LINK_TOLERANCE_M) & (
+                np.abs(b_cur[i + 1] - b_prev[1:]) <= _LINK_TOLERANCE_M
+            )
+            _link_first_free(i, open_prev & meets, mapping, used)
         for i, j in mapping.items():
             hard_shoulder = (prev_lanes[j].type == "shoulder" and j == len(prev_lanes) - 1) or (
                 cur_lanes[i].type == "shoulder" and i == len(cur_lanes) - 1
