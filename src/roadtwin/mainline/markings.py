@@ -58,10 +58,13 @@ class _RawTrack:
 
 
 def _find_track_peaks(
-    s: FloatArray, d: FloatArray, length: float, cfg: MainlineConfig
+    s: FloatArray, d: FloatArray, length: float, cfg: MainlineConfig, below_m: float = 0.0
 ) -> tuple[FloatArray, list[FloatArray]]:
     """Marking peaks per histogram column: column centres and the peak offsets in each.
 
+    The histogram starts 1 m inside the reference edge, or whole bins more than
+    ``below_m`` below that (metres; a frame that moves with a shifting pattern, whose
+    offsets reach that far below their own): its bins stay where they are either way.
     All columns are searched in one ``find_peaks`` call: the columns are laid end to end,
     separated by zero padding at least as wide as the peak distance, so that neither the
     distance nor the prominence test reaches across columns.
@@ -70,7 +73,8 @@ def _find_track_peaks(
 
     col = cfg.lane_column_m
     n_col = max(1, math.ceil(length / col))
-    d_lo, d_hi = -1.0, float(np.nanmax(d)) + 1.0 if d.size else 1.0
+    d_lo = -1.0 - math.ceil(below_m / cfg.lane_bin_m) * cfg.lane_bin_m
+    d_hi = float(np.nanmax(d)) + 1.0 if d.size else 1.0
     n_bin = max(4, math.ceil((d_hi - d_lo) / cfg.lane_bin_m))
     hist, _, _ = np.histogram2d(
         s, d, bins=(n_col, n_bin), range=((0.0, n_col * col), (d_lo, d_lo + n_bin * cfg.lane_bin_m))
@@ -182,7 +186,7 @@ def _tracks_from_samples(
     else:
         edge = None if d_edge is None else d_edge - frame.offset(grid)
         d_frame = d - frame.offset(s)
-        centres, peaks = _find_track_peaks(s, d_frame, length, cfg)
+        centres, peaks = _find_track_peaks(s, d_frame, length, cfg, frame.deepest_m)
         raw = _link_tracks(peaks, cfg)
         tracks, evidence = _tracks_in_frame(
             s, d_frame, grid, length, cfg, edge, centres, raw, frame

@@ -71,10 +71,16 @@ class ShiftFrame:
     shift: FloatArray
 
     def offset(self, s: FloatArray) -> FloatArray:
-        """How far (metres, <= 0) the frame lies from the reference line's at ``s``:
-        offsets in the frame are ``d - offset(s)``, never smaller than ``d`` (histograms
-        of the offsets start at a fixed bound)."""
-        return np.interp(s, self.stations, self.shift - float(np.max(self.shift)))
+        """How far (metres) the frame lies from the reference line's at ``s``: offsets in
+        the frame are ``d - offset(s)``. It is 0 up to the first shift: there the frame
+        is the reference line's, and so are its peaks and tracks."""
+        return np.interp(s, self.stations, self.shift)
+
+    @property
+    def deepest_m(self) -> float:
+        """How far (metres, >= 0) offsets in the frame reach below their own: where the
+        frame lies farthest out."""
+        return max(0.0, float(np.max(self.shift)))
 
     def rate(self, s: FloatArray) -> FloatArray:
         """The pattern's sideways rate (m/m) at ``s``."""
