@@ -143,6 +143,12 @@ def _grid(lo: float, hi: float, step: float) -> FloatArray:
     return lo + step * np.arange(n)
 
 
+def true_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Index ranges ``[a, b)`` of the runs of True in ``mask``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
 def _lam(cutoff_m: float, step_m: float, order: int = 2) -> float:
     """Whittaker smoothing strength for a cut-off wavelength (grid units)."""
     return (cutoff_m / (2.0 * math.pi * step_m)) ** (2 * order)

@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import MainlineConfig
+from ._common import true_runs
 from .gores import (
     ShoulderTaper,
     fit_shoulder_taper,
@@ -96,12 +97,6 @@ def _snap_to_hidden_gores(
     return out, np.asarray(gores, dtype=float)
 
 
-def _gap_runs(covered: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """Index ranges ``[a, b)`` of the grid stations without outer-edge points."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], (~covered).astype(np.int8), [0]])))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
 def _place_hidden_gores(
     tracks: list[_Track],
     s_out: FloatArray,
@@ -128,7 +123,7 @@ def _place_hidden_gores(
     step = float(grid[1] - grid[0])
     # where the sensor saw any marking (a gap of all of them is missing frames)
     seen = np.sort(np.concatenate([t.s_samples for t in tracks])) if tracks else None
-    for a, b in _gap_runs(covered):
+    for a, b in true_runs(~covered):
         if a == 0 or b >= grid.size:
             continue
         s_a, s_b = float(grid[a]), float(grid[b - 1])

@@ -199,7 +199,8 @@ def _tracks_from_samples(
             )
             for tr in tracks
         ]
-        evidence = [(g, v + float(frame.offset(np.array([g]))[0])) for g, v in evidence]
+        moved = frame.offset(np.array([g for g, _ in evidence], dtype=float))
+        evidence = [(g, v + float(m)) for (g, v), m in zip(evidence, moved, strict=True)]
     if d_edge is not None and covered is not None:
         # the edge closes a lane only where it was seen (a bridged gap is no evidence)
         seen_edge = np.where(covered, d_edge, np.nan)

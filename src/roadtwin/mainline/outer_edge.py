@@ -17,12 +17,13 @@ from ._common import (
     _fill_nan,
     _grid,
     robust_offset_fit,
+    true_runs,
 )
 from .edge_levels import edge_level_path, refine_step
 from .gores import (
     ShoulderTaper,
 )
-from .hidden_gores import _gap_runs, _hermite01
+from .hidden_gores import _hermite01
 from .markings import _last_marking, _Track
 
 FloatArray = NDArray[np.float64]
@@ -160,7 +161,7 @@ def _bridge_edge_gaps(
     taper fitted at a gore in the gap (``tapers``) gives the width on its side."""
     d_last = _last_marking(tracks, grid)
     out = d_edge.copy()
-    for a, b in _gap_runs(covered):
+    for a, b in true_runs(~covered):
         if a == 0 or b >= grid.size or b - a < 5:
             continue
         i0, i1 = a - 1, b

@@ -18,7 +18,7 @@ import numpy as np
 from ..config import MainlineConfig
 from ..io import MappingRun
 from ..model import Road
-from ._common import FloatArray, point_residuals
+from ._common import FloatArray, point_residuals, true_runs
 
 
 @dataclass(frozen=True)
@@ -57,11 +57,6 @@ class Stretch:
         )
 
 
-def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(np.int8), [0]])))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
 def _bins(length: float, step: float) -> FloatArray:
     return np.arange(0.0, length + step, step)
 
@@ -86,7 +81,7 @@ def poorly_determined(
     out: list[Stretch] = []
 
     def add(flags: np.ndarray, values: np.ndarray, fractions: np.ndarray, kind: str) -> None:
-        for a, b in _runs(flags):
+        for a, b in true_runs(flags):
             k = a + int(np.argmax(np.abs(np.nan_to_num(values[a:b]))))
             s0, s1 = float(edges[a]), float(min(edges[b], road.length))
             out.append(Stretch(s0, s1, kind, float(values[k]), float(fractions[k])))
@@ -112,7 +107,7 @@ def poorly_determined(
         # one bin can be a ramp line crossing the corridor near a gore; a missed marking
         # runs on (two bins or more)
         flags = np.isfinite(conc)
-        runs = [(a, b) for a, b in _runs(flags) if b - a >= 2]
+        runs = [(a, b) for a, b in true_runs(flags) if b - a >= 2]
         keep = np.zeros(n_bins, dtype=bool)
         for a, b in runs:
             keep[a:b] = True

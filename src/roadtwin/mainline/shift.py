@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ._common import true_runs
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -121,16 +123,17 @@ def common_shift(
     sharp = _sharpness(s, d, owner, mids)
     if sharp is None:
         return None
-    zero = int(np.argmin(np.abs(RATES)))
-    rate = _rate_path(sharp, zero)
-    for a, b in _true_runs(rate != 0.0):
-        total = float(np.sum(rate[a : b + 1])) * STEP_M
-        matched = _pattern_shift(s, d, owner, mids[a] - 0.5 * STEP_M, mids[b] + 0.5 * STEP_M, total)
+    rate = _rate_path(sharp, RATES)
+    for a, b in true_runs(rate != 0.0):
+        total = float(np.sum(rate[a:b])) * STEP_M
+        matched = _pattern_shift(
+            s, d, owner, mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M, total
+        )
         if matched is not None and abs(total) > 1e-9:
-            rate[a : b + 1] *= matched / total
+            rate[a:b] *= matched / total
             total = matched
         if abs(total) < MIN_TOTAL_M:
-            rate[a : b + 1] = 0.0
+            rate[a:b] = 0.0
     if not np.any(rate != 0.0):
         return None
     # the path leaves 0 late and comes back early (the gentle ends of a shift gain too
@@ -141,13 +144,13 @@ def common_shift(
     first_pass = ShiftFrame(mids, _integrate(rate))
     residual = _sharpness(s, d - first_pass.offset(s), owner, mids, FINE_RATES)
     if residual is not None:
-        fine = _rate_path(residual, int(np.argmin(np.abs(FINE_RATES))), FINE_RATES)
-        for a, b in _true_runs(rate != 0.0):
+        fine = _rate_path(residual, FINE_RATES)
+        for a, b in true_runs(rate != 0.0):
             # the refined shape, with the total the line patterns either side agree on
-            total = float(np.sum(rate[a : b + 1]))
-            refined = rate[a : b + 1] + fine[a : b + 1]
+            total = float(np.sum(rate[a:b]))
+            refined = rate[a:b] + fine[a:b]
             if abs(float(np.sum(refined))) > 1e-9:
-                rate[a : b + 1] = refined * (total / float(np.sum(refined)))
+                rate[a:b] = refined * (total / float(np.sum(refined)))
     return ShiftFrame(mids, _integrate(rate))
 
 
@@ -205,11 +208,12 @@ def _sharpness(
     return sharp
 
 
-def _rate_path(sharp: FloatArray, zero: int, rates: FloatArray = RATES) -> FloatArray:
+def _rate_path(sharp: FloatArray, rates: FloatArray) -> FloatArray:
     """The rate (m/m) of every window: the path through the rates tried that gains the
     most log-sharpness over rate 0, less ``RATE_PRIOR`` per window off 0 and
     ``RATE_CHANGE`` per unit change between windows (Viterbi)."""
     n_win, n_rate = sharp.shape
+    zero = int(np.argmin(np.abs(rates)))
     gain = np.log(sharp + 0.05) - np.log(sharp[:, zero : zero + 1] + 0.05)
     gain -= np.where(np.arange(n_rate) == zero, 0.0, RATE_PRIOR)[None, :]
     change = RATE_CHANGE * np.abs(rates[:, None] - rates[None, :])  # (to, from)
@@ -225,12 +229,6 @@ def _rate_path(sharp: FloatArray, zero: int, rates: FloatArray = RATES) -> Float
     for w in range(n_win - 1, 0, -1):
         path[w - 1] = back[w, path[w]]
     return rates[path].copy()
-
-
-def _true_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """``(first, last)`` indices of the runs of True."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    return list(zip(edges[::2].tolist(), (edges[1::2] - 1).tolist(), strict=True))
 
 
 def _pattern_shift(
