@@ -41,7 +41,7 @@ import time
 import traceback
 import warnings
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -150,18 +150,32 @@ RUNS: tuple[RealRun, ...] = (
 # ---------------------------------------------------------------------------
 
 
-def simulate(spec: RealRun, out: Path, *, osm_dir: Path, xodr_dir: Path) -> Path:
-    """Simulate ``spec`` into ``out`` (a run folder with truth)."""
+def simulate(
+    spec: RealRun, out: Path, *, osm_dir: Path, xodr_dir: Path, noisy: bool = False
+) -> Path:
+    """Simulate ``spec`` into ``out`` (a run folder with truth); ``noisy``: with
+    :func:`roadtwin.simulate.noisy_settings` (OSM and OpenDRIVE runs; a scenario keeps
+    its own noise)."""
     from roadtwin import simulate as sim
 
+    settings = sim.noisy_settings() if noisy else None
     if spec.source == "scenario":
         return sim.simulate_run(spec.path, out, seed=spec.seed)
     if spec.source == "xodr":
         return sim.simulate_xodr_run(
-            xodr_dir / spec.path, out, route=list(spec.route) or None, seed=spec.seed
+            xodr_dir / spec.path,
+            out,
+            route=list(spec.route) or None,
+            seed=spec.seed,
+            settings=settings,
         )
     return sim.simulate_osm_run(
-        osm_dir / spec.path, out, chain=spec.chain, seed=spec.seed, direction=spec.direction
+        osm_dir / spec.path,
+        out,
+        chain=spec.chain,
+        seed=spec.seed,
+        direction=spec.direction,
+        settings=settings,
     )
 
 
@@ -269,7 +283,7 @@ def _widest_lane(network) -> float:
 
 def one(args: tuple) -> tuple[str, str, list[dict]]:
     """Simulate (if needed), then build and judge one run with every method (a worker)."""
-    spec, workdir, methods, external, drive, fresh, osm_dir, xodr_dir = args
+    spec, workdir, methods, external, drive, fresh, osm_dir, xodr_dir, noisy = args
     run_dir = workdir / spec.name / "run"
     rows: list[dict] = []
     sim_error = ""
@@ -279,7 +293,7 @@ def one(args: tuple) -> tuple[str, str, list[dict]]:
         if not (run_dir / "truth.xodr").exists():
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                simulate(spec, run_dir, osm_dir=osm_dir, xodr_dir=xodr_dir)
+                simulate(spec, run_dir, osm_dir=osm_dir, xodr_dir=xodr_dir, noisy=noisy)
     except Exception as exc:
         sim_error = f"simulate: {type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
         rows = [{"method": m, "ok": False, "error": sim_error,
@@ -376,6 +390,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--osm-dir", type=Path, default=OSM_DIR)
     ap.add_argument("--xodr-dir", type=Path, default=XODR_DIR)
     ap.add_argument("--json", type=Path, default=None, help="write every row as JSON")
+    ap.add_argument(
+        "--noisy",
+        action="store_true",
+        help="simulate with a noisier sensor and poses (roadtwin.simulate.noisy_settings; "
+        "use a new --workdir)",
+    )
+    ap.add_argument(
+        "--seed-offset",
+        type=int,
+        default=0,
+        help="add this to every run's seed (fresh runs of the same routes; new --workdir)",
+    )
     args = ap.parse_args(argv)
     specs = [
         s
@@ -383,10 +409,15 @@ def main(argv: list[str] | None = None) -> int:
         if (args.split == "all" or (s.holdout == (args.split == "holdout")))
         and (not args.only or any(s.name.startswith(p) for p in args.only))
     ]
+    if args.seed_offset:
+        specs = [
+            replace(s, name=f"{s.name}+{args.seed_offset}", seed=s.seed + args.seed_offset)
+            for s in specs
+        ]
     args.workdir.mkdir(parents=True, exist_ok=True)
     work = [
         (s, args.workdir, args.methods, args.external, args.drive, args.fresh, args.osm_dir,
-         args.xodr_dir)
+         args.xodr_dir, args.noisy)
         for s in specs
     ]  # fmt: skip
     t0 = time.perf_counter()

@@ -33,24 +33,6 @@ ROUTES = (
 )
 
 
-def _noisy_settings():
-    from roadtwin.simulate.network_run import NetworkRunSettings
-    from roadtwin.simulate.scenario import Noise, Sensor
-
-    return NetworkRunSettings(
-        sensor=Sensor(
-            edge_noise_m=0.06,
-            outlier_fraction=0.05,
-            edge_dropout=0.15,
-            trucks_per_km=5.0,
-            lane_noise_m=0.06,
-            lane_miss=0.15,
-            lane_false_positive=0.02,
-        ),
-        noise=Noise(position_std_m=0.05, height_std_m=0.06, yaw_std_deg=0.1),
-    )
-
-
 def one(job: tuple[str, str, int, int, str, str]) -> dict:
     """Simulate, build, check and evaluate one route (in a worker process)."""
     import logging
@@ -63,13 +45,14 @@ def one(job: tuple[str, str, int, int, str, str]) -> dict:
     from roadtwin.io import load_run
     from roadtwin.osm import load_osm
     from roadtwin.pipeline import build_map
+    from roadtwin.simulate import noisy_settings
     from roadtwin.simulate.osm_run import simulate_osm_run
     from roadtwin.xodr import write_xodr
 
     name, osm, chain, seed, workdir, osm_dir = job
     root = Path(workdir) / name
     run_dir = simulate_osm_run(
-        Path(osm_dir) / osm, root / "run", chain=chain, seed=seed, settings=_noisy_settings()
+        Path(osm_dir) / osm, root / "run", chain=chain, seed=seed, settings=noisy_settings()
     )
     run = load_run(run_dir)
     graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)

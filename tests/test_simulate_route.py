@@ -462,3 +462,42 @@ def test_cli_simulates_a_real_osm_carriageway(tmp_path, capsys):
     assert truth["ramps"], "the Kotka chain has link ways"
     assert main(["simulate", "--from-osm", str(tmp_path / "none.osm"), "-o", str(out)]) == 2
     assert main(["simulate", "straight_curve_2km", "--from-osm", str(osm), "-o", str(out)]) == 2
+
+
+def test_a_parallel_entry_whose_line_starts_in_an_occlusion_is_attached_where_it_joins(
+    tmp_path,
+):
+    """soderleden with a noisier sensor (seed 22): the entry's lane runs beside the mainline
+    behind a line from 165 m and joins it at 240 m, where the outer edge was seen to step
+    out. A truck hid the edge where the line starts, and a gore was placed there from the
+    line's tip alone: the ramp was attached 73 m early (one ramp missed, one spurious)."""
+    from roadtwin.osm import load_osm
+    from roadtwin.pipeline import build_map
+    from roadtwin.simulate import noisy_settings
+
+    run_dir = simulate_xodr_run(
+        DATA / "soderleden.xodr", tmp_path / "run", seed=22, settings=noisy_settings()
+    )
+    run = load_run(run_dir)
+    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    result = build_map(run, graph)
+    entries = [r for r in result.ramps if r.type == "entry"]
+    assert len(entries) == 1
+    assert entries[0].station_m == pytest.approx(238.0, abs=6.0)
+
+
+def test_simulate_noisy_flag_gives_a_worse_sensor_on_the_same_route(tmp_path):
+    """``roadtwin simulate --xodr MAP --noisy``: the same route and truth, with markings
+    missed (15 %), outliers and trucks; refused for a bundled scenario."""
+    from roadtwin.cli import main
+
+    args = ["simulate", "--xodr", str(DATA / "soderleden.xodr"), "--seed", "3", "-q"]
+    assert main([*args, "-o", str(tmp_path / "plain")]) == 0
+    assert main([*args, "--noisy", "-o", str(tmp_path / "noisy")]) == 0
+    plain, noisy = load_run(tmp_path / "plain"), load_run(tmp_path / "noisy")
+    assert (tmp_path / "plain" / "truth.xodr").read_bytes() == (
+        tmp_path / "noisy" / "truth.xodr"
+    ).read_bytes()
+    assert noisy.lane_samples.shape[0] < 0.9 * plain.lane_samples.shape[0]
+    assert noisy.edges.shape[0] < 0.9 * plain.edges.shape[0]
+    assert main(["simulate", "demo", "--noisy", "-o", str(tmp_path / "demo")]) == 2

@@ -188,6 +188,12 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         help="the carriageway to drive: the scenario's / chain's own (forward) or the one "
         "running the other way beside it (opposite), in the same frame",
     )
+    p.add_argument(
+        "--noisy",
+        action="store_true",
+        help="with --xodr or --from-osm: a noisier mapping system (twice the sensor noise, "
+        "5%% outliers, missed markings, trucks, 2.5x the pose drift) to test robustness",
+    )
     g = p.add_argument_group("runs along a route through an OpenDRIVE map (the map is the truth)")
     g.add_argument("--xodr", type=Path, default=None, help="OpenDRIVE map to drive through")
     g.add_argument(
@@ -239,10 +245,11 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
     """``simulate --xodr MAP`` or ``simulate --from-osm EXTRACT``: a run along a route."""
     import time
 
-    from .simulate import NetworkRunSettings, simulate_osm_run, simulate_xodr_run
+    from .simulate import NetworkRunSettings, noisy_settings, simulate_osm_run, simulate_xodr_run
     from .simulate.markings import marking_style
     from .simulate.scenario import Car
 
+    make_settings = noisy_settings if args.noisy else NetworkRunSettings
     started = time.perf_counter()
     if args.from_osm is not None:
         if not args.from_osm.is_file():
@@ -256,7 +263,7 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             args.output,
             chain=chain,
             seed=args.seed or 0,
-            settings=NetworkRunSettings(car=Car(lane=args.lane), pass_index=args.pass_index),
+            settings=make_settings(car=Car(lane=args.lane), pass_index=args.pass_index),
             direction=args.direction,
         )
     else:
@@ -264,7 +271,7 @@ def _cmd_simulate_network(args: argparse.Namespace) -> int:
             raise InputError(f"{args.osm}: OSM file not found")
         if args.direction != "forward":
             raise InputError("simulate --xodr: choose the other direction with --route")
-        settings = NetworkRunSettings(
+        settings = make_settings(
             car=Car(lane=args.lane),
             style=marking_style(args.style),
             osm_file=str(args.osm) if args.osm is not None else "",
@@ -349,6 +356,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise InputError(f"simulate --pass {args.pass_index}: expected 1, 2, ...")
     if args.xodr is not None or args.from_osm is not None:
         return _cmd_simulate_network(args)
+    if args.noisy:
+        raise InputError("simulate --noisy: only with --xodr MAP or --from-osm EXTRACT")
     if args.direction == "opposite":
         return _cmd_simulate_opposite(args)
     started = time.perf_counter()

@@ -35,6 +35,7 @@ __all__ = [
     "Scenario",
     "bundled_scenarios",
     "load_scenario",
+    "noisy_settings",
     "simulate_network_run",
     "simulate_osm_run",
     "simulate_run",
@@ -47,6 +48,7 @@ _LAZY = {
     "simulate_osm_run": "osm_run",
     "simulate_xodr_run": "network_run",
     "NetworkRunSettings": "network_run",
+    "noisy_settings": "network_run",
 }
 
 

@@ -111,6 +111,27 @@ class NetworkRunSettings:
             raise InputError(f"pass {self.pass_index!r}: expected 1, 2, ...")
 
 
+def noisy_settings(**overrides) -> NetworkRunSettings:
+    """Settings of a noisier mapping system than the default, for robustness tests: twice
+    the sensor noise (0.06 m on edges and markings), five times the outliers (5 %), 15 %
+    of the edge points dropped, 5 trucks per km occluding the edge, 15 % of the marking
+    samples missed, 2 % false marking samples and 2.5x the pose drift (0.05 m, 0.06 m
+    height, 0.1 deg yaw). ``overrides``: other :class:`NetworkRunSettings` fields."""
+    return NetworkRunSettings(
+        sensor=Sensor(
+            edge_noise_m=0.06,
+            outlier_fraction=0.05,
+            edge_dropout=0.15,
+            trucks_per_km=5.0,
+            lane_noise_m=0.06,
+            lane_miss=0.15,
+            lane_false_positive=0.02,
+        ),
+        noise=Noise(position_std_m=0.05, height_std_m=0.06, yaw_std_deg=0.1),
+        **overrides,
+    )
+
+
 def network_frame(network: RoadNetwork, origin: Origin, start_xy) -> MappingFrame:
     """The run's mapping frame: the network's geoReference if it is a usable projected
     CRS (with the GPS origin at the route start), else ``local`` on ``origin``."""
