@@ -985,3 +985,42 @@ def test_an_edge_line_going_on_as_a_lane_line_at_an_entry_is_split_where_it_part
     out, steps = split_edge_lines_at_steps([line], grid, apart, np.array([249.0]), 0.35)
     assert out == [line]
     assert steps.tolist() == [249.0]
+
+
+def test_markings_unseen_over_a_short_gap_join_where_the_lanes_shift_sideways():
+    """town06-auto-s3, noisier sensor (seed 23): every lane line went unseen for 14 m
+    while the lanes began to shift sideways (0.64 m by the end of the gap); the lines
+    after the gap were new tracks, and the 21 m section between had one lane 13.9 m wide.
+    A line may drift by 0.04 m per metre of gap when its pair is unambiguous."""
+    from roadtwin.mainline.markings import _merge_collinear
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+    before = _const_track(0, grid, 9.7, 0.0, 300.0)
+    after = _const_track(1, grid, 9.06, 314.0, 600.0)
+    beside = _const_track(2, grid, 6.2, 0.0, 600.0)
+    out = _merge_collinear([before, after, beside], cfg, grid)
+    assert sorted((tr.lo, tr.hi) for tr in out) == [(0.0, 600.0), (0.0, 600.0)]
+    # over a 4 m gap a line moves 0.16 m at most: 0.9 m is another line
+    near = _const_track(1, grid, 9.7 - 0.9, 304.0, 600.0)
+    assert len(_merge_collinear([before, near, beside], cfg, grid)) == 3
+    # two lines starting 0.64 and 1.0 m off: which one continues is not clear
+    other = _const_track(3, grid, 10.7, 314.0, 600.0)
+    assert len(_merge_collinear([before, after, other], cfg, grid)) == 3
+
+
+def test_an_edge_lane_wider_than_any_lane_is_a_shoulder_unless_the_car_drove_in_it():
+    """melbourne-408-s1, noisier sensor (seed 21): the paved strip beside an entry's gore,
+    6.1-9.7 m wide, was a driving lane from the mainline into the junction that led
+    nowhere (the drive failed on it)."""
+    from roadtwin.mainline.sections import _lane_types
+
+    cfg = MainlineConfig()
+    gs = np.arange(0.0, 50.5, 1.0)
+    borders = np.array([0.0, 1.0, 4.5, 8.0, 14.5])[:, None] + np.zeros(gs.size)
+    assert _lane_types(borders, gs, None, cfg) == ["shoulder", "driving", "driving", "shoulder"]
+    car = (gs, np.full(gs.size, 11.0))
+    assert _lane_types(borders, gs, car, cfg)[-1] == "driving"
+    lane = borders.copy()
+    lane[-1] = 11.8  # 3.8 m: a lane without a shoulder
+    assert _lane_types(lane, gs, None, cfg)[-1] == "driving"

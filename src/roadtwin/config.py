@@ -225,6 +225,10 @@ class MainlineConfig:
     edge_lane_min_m: float = 3.3
     """... one at least this wide is a driving lane (roads without shoulders); in between a
     shoulder unless the car drove in it (hard shoulders are 2.5-3.0 m)."""
+    edge_lane_max_m: float = 5.5
+    """... and one wider than this is paved area beside the lanes (a gore opening towards
+    a ramp, a lay-by), a shoulder, unless the car drove in it (metres; a lane whose outer
+    line was missed over a long stretch is split off it as a hidden lane before)."""
     hidden_lane_min_m: float = 2.0
     """An outer shoulder wider than the run's typical one by more than this hides a lane
     whose outer marking was not observed (metres)."""

@@ -97,6 +97,22 @@ def _snap_to_hidden_gores(
     return out, np.asarray(gores, dtype=float)
 
 
+_SEEN_STEP_M = 100.0  # a lane whose edge was seen to begin (end) this close after (before)
+# its marking's tip in an occlusion gap has its gore there, not in the gap (metres)
+
+
+def _seen_steps(
+    steps: FloatArray, d_edge: FloatArray, grid: FloatArray
+) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Stations of the outer edge's seen steps and whether each steps outwards (a lane
+    begins: the edge moves away from the reference line)."""
+    steps = np.asarray(steps, dtype=float)
+    i = np.clip(np.searchsorted(grid, steps), 0, grid.size - 1)
+    after = d_edge[np.minimum(i + 3, grid.size - 1)]
+    before = d_edge[np.maximum(i - 3, 0)]
+    return steps, np.isfinite(after) & np.isfinite(before) & (after > before)
+
+
 def _place_hidden_gores(
     tracks: list[_Track],
     s_out: FloatArray,
@@ -104,6 +120,7 @@ def _place_hidden_gores(
     covered: NDArray[np.bool_],
     grid: FloatArray,
     taper_length_m: float | None = None,
+    seen_steps: tuple[FloatArray, NDArray[np.bool_]] | None = None,
 ) -> tuple[list[_Track], list[float], list[ShoulderTaper]]:
     """Gore stations inside occlusion gaps of the outer edge.
 
@@ -114,7 +131,10 @@ def _place_hidden_gores(
     ``d_out``: the outer-edge points of the mainline edge (metres, reference frame).
     Where the taper was not seen at all, the run's own taper length at gores that were
     seen (``taper_length_m``) shapes it, if the shoulder was seen at full width up to
-    where that taper would begin.
+    where that taper would begin. ``seen_steps`` (:func:`_seen_steps`): where the edge
+    was seen to step outwards within ``_SEEN_STEP_M`` after an entry marking's tip
+    (inwards before an exit marking's end), the lane's pavement begins (ends) there: that
+    is its gore (a parallel entry's line starts far upstream of it), none is placed.
     Returns the tracks, the gore stations placed and the shoulder tapers.
     """
     out = list(tracks)
@@ -134,6 +154,12 @@ def _place_hidden_gores(
                 beyond = tr.hi - s_b if entry else s_a - tr.lo
                 if not (s_a - step <= s_tip <= s_b + step) or tr.s.size < 20 or beyond < 20.0:
                     continue
+                if seen_steps is not None:
+                    st, outward = seen_steps
+                    ahead = (st > s_tip) & (st <= s_tip + _SEEN_STEP_M) & outward
+                    behind = (st < s_tip) & (st >= s_tip - _SEEN_STEP_M) & ~outward
+                    if (ahead if entry else behind).any():
+                        continue
                 d_tip = float(tr.d[0] if entry else tr.d[-1])
                 through = [
                     t

@@ -21,7 +21,12 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps
 from .edge_lines import split_edge_lines_at_steps
-from .hidden_gores import _place_hidden_gores, _snap_to_hidden_gores, _visible_taper_length
+from .hidden_gores import (
+    _place_hidden_gores,
+    _seen_steps,
+    _snap_to_hidden_gores,
+    _visible_taper_length,
+)
 from .markings import _add_hidden_lanes, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
@@ -94,7 +99,13 @@ def fit_lanes(
             breaks, d_edge, tracks, s_outer[used], d_outer[used], grid
         )
         tracks, placed, tapers = _place_hidden_gores(
-            tracks, s_outer[used], d_outer[used], covered, grid, taper_length
+            tracks,
+            s_outer[used],
+            d_outer[used],
+            covered,
+            grid,
+            taper_length,
+            _seen_steps(breaks, d_edge, grid),
         )
         # a placed gore replaces the ramp-line estimate of the same gore
         hidden = [g for g in gores if all(abs(g - p) > 40.0 for p in placed)] + placed

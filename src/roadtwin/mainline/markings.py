@@ -589,6 +589,10 @@ def _mainline_ends_inside_edge(
     return back
 
 
+_DRIFT_PER_M = 0.04  # a hidden line may have moved sideways this much per metre of gap
+_DRIFT_MAX_LANE = 0.4  # ... and at most this share of a lane (lines are a lane apart)
+
+
 def _merge_collinear(
     tracks: list[_Track],
     cfg: MainlineConfig,
@@ -597,11 +601,17 @@ def _merge_collinear(
 ) -> list[_Track]:
     """Join a track that ends and another that starts at the same offset (occlusion).
 
+    The same offset: within ``lane_link_m``, plus a drift of ``_DRIFT_PER_M`` per metre
+    of the gap (the lanes shift sideways where the markings were not seen; a line moves
+    by less than a lane) for a pair that is each other's nearest by twice the margin
+    of any other: the lines beside it are a lane away, so the pair is unambiguous.
+
     With the outer edge ``d_edge`` on ``grid``: never across a stretch where the road is
     too narrow to hold the marking (the edge comes within half a metre of the bridged
     line): there the marking really ended and another began (an exit and a later entry at
     the same offset), it was not hidden.
     """
+    lane_m = typical_lane_width(tracks, grid) if grid is not None else 3.5
 
     def road_holds(a: _Track, b: _Track) -> bool:
         if grid is None or d_edge is None:
@@ -614,15 +624,37 @@ def _merge_collinear(
         edge = d_edge[inside]
         return not np.any(np.isfinite(edge) & (edge < line + 0.5))
 
+    def follows(a: _Track, b: _Track) -> bool:
+        return b.lo > a.hi - 1.0 and b.lo - a.hi <= 5.0 * cfg.lane_max_gap_m
+
+    def allowed(a: _Track, b: _Track) -> float:
+        drift = min(_DRIFT_PER_M * max(b.lo - a.hi, 0.0), _DRIFT_MAX_LANE * lane_m)
+        return cfg.lane_link_m + max(drift, 0.0)
+
+    def clear_pair(tracks: list[_Track], i: int, j: int) -> bool:
+        a, b = tracks[i], tracks[j]
+        jump = abs(a.d[-1] - b.d[0])
+        if jump <= cfg.lane_link_m:
+            return True
+        others_b = [
+            abs(t.d[-1] - b.d[0]) for k, t in enumerate(tracks) if k not in (i, j) and follows(t, b)
+        ]
+        others_a = [
+            abs(a.d[-1] - t.d[0]) for k, t in enumerate(tracks) if k not in (i, j) and follows(a, t)
+        ]
+        return all(o > 2.0 * jump for o in others_a + others_b)
+
     tracks = sorted(tracks, key=lambda tr: tr.lo)
     merged = True
     while merged:
         merged = False
         for i, a in enumerate(tracks):
             for j, b in enumerate(tracks):
-                if i == j or b.lo <= a.hi - 1.0 or b.lo - a.hi > 5.0 * cfg.lane_max_gap_m:
+                if i == j or not follows(a, b):
                     continue
-                if abs(a.d[-1] - b.d[0]) > cfg.lane_link_m or not road_holds(a, b):
+                if abs(a.d[-1] - b.d[0]) > allowed(a, b) or not road_holds(a, b):
+                    continue
+                if not clear_pair(tracks, i, j):
                     continue
                 tracks[i] = _Track(
                     a.id,

@@ -192,8 +192,9 @@ def _lane_types(
     narrower than ``shoulder_max_m``, driving lanes when the car drove in them
     (``car``: stations and offsets of the poses) or when they are at least
     ``edge_lane_min_m`` wide (a road without shoulders, whose edge lines run along its
-    edges); in between (2.2-3.3 m: a hard shoulder or a narrow lane) a shoulder where the
-    section has three lanes or more. Lanes between two markings are driving lanes unless
+    edges) and at most ``edge_lane_max_m`` (wider: paved area beside the lanes, a gore); in
+    between (2.2-3.3 m: a hard shoulder or a narrow lane) a shoulder where the section has
+    three lanes or more. Lanes between two markings are driving lanes unless
     they are nowhere ``shoulder_max_m`` wide (a strip between an edge line and a second
     line beside it).
     """
@@ -218,7 +219,11 @@ def _lane_types(
     for i in (0, n_l - 1):
         if widths[i] < cfg.shoulder_max_m:
             types[i] = "shoulder"
-        elif share[i] > 0.3 or widths[i] >= cfg.edge_lane_min_m:
+        elif share[i] > 0.3:
+            types[i] = "driving"
+        elif widths[i] > cfg.edge_lane_max_m:
+            types[i] = "shoulder"
+        elif widths[i] >= cfg.edge_lane_min_m:
             types[i] = "driving"
         elif n_l >= 3:
             types[i] = "shoulder"
