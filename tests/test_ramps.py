@@ -11,6 +11,7 @@ attachment of every ramp to the mainline (gap <= 1 cm, heading <= 0.5 deg).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import networkx as nx
@@ -720,3 +721,24 @@ def test_a_reference_line_folded_onto_the_mainline_border_is_refused():
     inner = np.column_stack([35.0 * np.cos(angle), 35.0 * np.sin(angle)])
     _refuse_folded(inner, loop, "7")
     _refuse_folded(centre + np.array([0.0, 5.0]), centre, "7")
+
+
+def test_an_unmeasured_gore_is_where_the_mainline_lane_ends():
+    """krems-46762523-s1, noisier sensor (seed 21): the edge step at an entry's gore was not
+    seen, so no gore was measured; the ramp went to its OSM node 21 m upstream of where
+    the acceleration lane begins at full width, and the ramp's lane was linked into a
+    through lane while the acceleration lane began from nothing (esmini: "Lane id -5 not
+    available"). An attachment that matches no measured gore goes to a driving lane
+    that ends (begins) at full width without a link within 75 m."""
+    traj, road, _sections, graph = _gore_scene()
+    ramp = build_ramps(graph, road, trajectory_xy=traj, gores=()).ramps[0]
+    assert ramp.station_source == "lidar gore"
+    assert ramp.station_m == pytest.approx(520.0)
+    assert ramp.mainline_lane_ids == (-5,)
+    # a lane ending 110 m from the OSM node is another one's gore: OSM decides
+    moved = replace(
+        road, lane_sections=(*road.lane_sections[:2], replace(road.lane_sections[2], s0=580.0))
+    )
+    far = build_ramps(graph, moved, trajectory_xy=traj, gores=()).ramps[0]
+    assert far.station_source == "osm"
+    assert far.station_m == pytest.approx(470.0, abs=3.0)

@@ -5,6 +5,7 @@ gores and ramp roads into a :class:`RampSet`.
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import networkx as nx
 import numpy as np
@@ -28,6 +29,10 @@ from .records import (
 from .road import _build_ramp_road
 
 log = logging.getLogger(__name__)
+
+_SCANNED_GORE_M = 75.0  # an OSM attachment this close to an unlinked lane birth / end
+# of the mainline (no measured gore) is attached there (metres; OSM is drawn tens of
+# metres off at most)
 
 # ---------------------------------------------------------------------------
 # the stage
@@ -86,8 +91,10 @@ def build_ramps(
         ``"right"`` or ``"left"``.
     gores
         Measured gores (:func:`gores_from_lane_events` on the mainline stage's lane
-        events); ``None`` scans the road's lane sections (:func:`gore_events`); ``()``
-        uses none (OSM decides every station).
+        events); ``None`` scans the road's lane sections (:func:`gore_events`). An OSM
+        attachment that matches none of ``gores`` still goes to a driving lane of the road
+        that begins (entry) / ends (exit) at full width without a link within
+        ``_SCANNED_GORE_M`` of it (the edge step there was not measured); else OSM decides.
     edge_xy, lane_xy
         The run's measured road-edge points and lane samples (``(N, 2+)``, mapping frame,
         metres): those past each gore shape the ramp's first part and give its widths
@@ -115,6 +122,26 @@ def build_ramps(
         s, _ = mainline_road.project(np.array([[node["x"], node["y"]]]))
         stations.append(float(s[0]))
     matched = _match_gores(chains, stations, events, cfg)
+    if gores is not None:
+        # a driving lane of the mainline that begins (ends) at full width without a
+        # measured gore (the edge step unseen: noise, a truck) is where a ramp joins
+        # (leaves); an OSM attachment near one without a measured gore goes there
+        scanned = tuple(
+            g
+            for g in gore_events(mainline_road, traffic_side=traffic_side)
+            if all(g.kind != e.kind or abs(g.station_m - e.station_m) > 1.0 for e in events)
+        )
+        todo = [i for i in range(len(chains)) if i not in matched]
+        if scanned and todo:
+            near_cfg = replace(
+                cfg,
+                gore_search_upstream_m=min(cfg.gore_search_upstream_m, _SCANNED_GORE_M),
+                gore_search_downstream_m=min(cfg.gore_search_downstream_m, _SCANNED_GORE_M),
+            )
+            more = _match_gores(
+                tuple(chains[i] for i in todo), [stations[i] for i in todo], scanned, near_cfg
+            )
+            matched.update({todo[k]: ev for k, ev in more.items()})
     # KD-trees of the measured points, built once; each ramp gets the points near its gore
     measured = {}
     for key, pts in (("edge", edge_xy), ("lane", lane_xy)):
