@@ -1024,3 +1024,33 @@ def test_an_edge_lane_wider_than_any_lane_is_a_shoulder_unless_the_car_drove_in_
     lane = borders.copy()
     lane[-1] = 11.8  # 3.8 m: a lane without a shoulder
     assert _lane_types(lane, gs, None, cfg)[-1] == "driving"
+
+
+def test_no_lane_width_dips_below_zero_between_samples():
+    """oakland-11197879-s9, noisier sensor (seed 49): a shoulder opening from zero had a
+    width piece 0 at both ends of 22.5 m and -2 mm between (own check: negative_width).
+    Such a piece is replaced by a non-negative one between the same end values; others
+    stay exactly as they were."""
+    from roadtwin.mainline.seal import nonnegative_widths
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection, Line, Road
+
+    dip = CubicProfile(
+        (
+            CubicPiece(0.0, 0.0, 0.002507, -0.00027928, 7.460158e-06),
+            CubicPiece(22.5, 0.0, 0.0, 0.0, 0.0),
+            CubicPiece(40.0, 0.0, 0.05, 0.0, 0.0),
+        )
+    )
+    lanes = (Lane(-1, "driving", CubicProfile.constant(3.5)), Lane(-2, "shoulder", dip))
+    road = Road("1", (Line(0.0, 0.0, 0.0, 0.0, 60.0),), (LaneSection(0.0, right=lanes),))
+    ds = np.linspace(0.0, 60.0, 6001)
+    assert float(np.min(dip.value(ds))) < -1.5e-3
+    fixed = nonnegative_widths(road).lane_sections[0].right
+    width = fixed[1].width
+    assert float(np.min(width.value(ds))) >= -1e-9
+    for s in (0.0, 22.5, 40.0, 60.0):
+        assert float(width.value(np.array([s]))[0]) == pytest.approx(
+            float(dip.value(np.array([s]))[0]), abs=1e-6
+        )
+    assert fixed[0] is lanes[0]
+    assert width.pieces[1:] == dip.pieces[1:]

@@ -840,3 +840,47 @@ def test_mainline_is_split_where_its_driving_lanes_are_renumbered():
     assert not [f for f in findings if f.severity == "error"]
     # the shared layout's decel lane renumbers only the hard shoulder: one road
     assert len([r for r in build_topology(mainline_road(), []).roads if r.name == "mainline"]) == 1
+
+
+def test_linked_borders_meet_at_a_junction_cut_at_a_lane_offset_step():
+    """town06-auto-s9, noisier sensor (seed 49): the through connecting road starts at a
+    lane-offset step where two inner lanes begin; their widths and the step differ by
+    14.7 mm in total, so every linked border was 14.7 mm off at the joint (ASAM and own
+    check: link_gap). The through road's offset is corrected there, fading out."""
+    from roadtwin.model import CubicProfile, LaneSection
+    from roadtwin.topology import _align_linked_borders
+
+    up = Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, 100.0),),
+        (LaneSection(0.0, right=(_lane(-1, 1.6, "shoulder"), _lane(-2, 3.5), _lane(-3, 3.5))),),
+    )
+    through = Road(
+        "2",
+        (Line(0.0, 100.0, 0.0, 0.0, 20.0),),
+        (
+            LaneSection(
+                0.0,
+                right=(
+                    _lane(-1, 1.6, "shoulder"),
+                    _lane(-2, 3.4853),  # 14.7 mm narrower than the step
+                    _lane(-3, 3.5),
+                    _lane(-4, 3.5),
+                ),
+            ),
+        ),
+        lane_offset=CubicProfile.constant(3.5),
+    )
+    links = {-2: -3, -3: -4}
+    gap = float(up.lane_border_t(np.array([100.0]), -2)[0]) - float(
+        through.lane_border_t(np.array([0.0]), -3)[0]
+    )
+    assert gap == pytest.approx(-0.0147, abs=1e-9)
+    fixed = _align_linked_borders(through, up, links)
+    for a, b in links.items():
+        t_up = float(up.lane_border_t(np.array([100.0]), a)[0])
+        assert float(fixed.lane_border_t(np.array([0.0]), b)[0]) == pytest.approx(t_up, abs=1e-9)
+    # the far end is unchanged, and a gap of more than 5 cm is another lane, not a cut
+    assert float(fixed.lane_offset.value(np.array([20.0]))[0]) == pytest.approx(3.5)
+    wide = replace(through, lane_offset=CubicProfile.constant(3.6))
+    assert _align_linked_borders(wide, up, links) is wide

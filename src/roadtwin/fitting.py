@@ -686,7 +686,7 @@ def fit_cubic_profile(
         dx = x[i : j + 1] - a
         dev = np.abs(va + dx * (da + dx * (c2 + dx * c3)) - fx[i : j + 1])
         hermite = va + dx * (da + dx * (c2 + dx * c3))
-        too_low = float(hermite.min()) < floor
+        too_low = min(float(hermite.min()), cubic_min(va, da, c2, c3, h)) < floor
         if j - i > 1 and (too_low or (h > 2.0 * min_piece_m and float(dev.max()) > tolerance)):
             m = int(np.searchsorted(x, a + 0.5 * h))
             m = min(max(m, i + 1), j - 1)
@@ -695,6 +695,16 @@ def fit_cubic_profile(
             continue
         pieces.append(CubicPiece(a, va, da, float(c2), float(c3)))
     return CubicProfile(tuple(pieces))
+
+
+def cubic_min(a: float, b: float, c: float, d: float, h: float) -> float:
+    """Minimum of ``a + b t + c t^2 + d t^3`` over ``0 <= t <= h`` (at an end or where the
+    slope is zero): a Hermite piece can dip between the samples it was checked at."""
+    ts = [0.0, h]
+    roots = np.roots([3.0 * d, 2.0 * c, b]) if (d != 0.0 or c != 0.0) else np.zeros(0)
+    ts += [float(r.real) for r in np.atleast_1d(roots) if abs(r.imag) < 1e-12 and 0.0 < r.real < h]
+    t = np.asarray(ts)
+    return float(np.min(a + t * (b + t * (c + t * d))))
 
 
 def _drop_near_duplicates(

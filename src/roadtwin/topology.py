@@ -36,6 +36,7 @@ import numpy as np
 from .config import TopologyConfig
 from .lane_drops import taper_lane_drops
 from .mainline import cut_road
+from .mainline.seal import add_linear_ramp
 from .model import (
     Connection,
     CubicPiece,
@@ -335,6 +336,36 @@ def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_star
         first, left=tuple(fix(x) for x in first.left), right=tuple(fix(x) for x in first.right)
     )
     return replace(road, lane_sections=(first, *road.lane_sections[1:]))
+
+
+_ALIGN_MAX_M = 0.05  # linked borders this far apart at a joint are moved onto each other
+_ALIGN_FADE_M = 20.0  # ... by a lane-offset correction fading out over this (metres)
+
+
+def _align_linked_borders(road: Road, before: Road, links: dict[int, int]) -> Road:
+    """``road`` with its lane offset corrected at its start so that the outer borders of
+    the lanes linked from ``before`` (``links``: lane of ``before`` -> lane of ``road``)
+    meet those of ``before``'s end: two cuts of the mainline at a lane-offset step whose
+    unlinked inner lanes differ by millimetres in total leave every linked border that far
+    apart (14.7 mm on town06-auto-s9 with a noisier sensor, an ASAM error). Only a common
+    shift of at most ``_ALIGN_MAX_M`` is corrected (both roads start from the same
+    reference-line point); it fades out linearly over ``_ALIGN_FADE_M``."""
+    if not links:
+        return road
+    s_end = np.array([before.length])
+    s0 = np.array([0.0])
+    gaps = np.array(
+        [
+            float(before.lane_border_t(s_end, a)[0]) - float(road.lane_border_t(s0, b)[0])
+            for a, b in links.items()
+        ]
+    )
+    shift = float(np.median(gaps))
+    if not 1e-6 < abs(shift) <= _ALIGN_MAX_M or float(np.ptp(gaps)) > 1e-3:
+        return road
+    fade = min(_ALIGN_FADE_M, road.length)
+    offset = add_linear_ramp(road.lane_offset, 0.0, fade, shift, 0.0, road.length)
+    return replace(road, lane_offset=offset)
 
 
 def _pose(road: Road, s: float) -> tuple[float, float, float]:
@@ -898,7 +929,9 @@ def build_topology(
             into = _end_to_start_links(up, through_road, traffic_side)
             out_of = _end_to_start_links(through_road, down, traffic_side)
             through_road = _set_lane_links(
-                _continue_widths(through_road, up, into, at_start=True),
+                _align_linked_borders(
+                    _continue_widths(through_road, up, into, at_start=True), up, into
+                ),
                 predecessors={v: u for u, v in into.items()},
                 successors=out_of,
             )

@@ -37,7 +37,7 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
-from .seal import seal_lane_borders
+from .seal import nonnegative_widths, seal_lane_borders
 
 log = logging.getLogger(__name__)
 
@@ -97,7 +97,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         lane_offset=_lane_offset(median.steps, sign),
     )
     road = _join_lanes_across_offset_steps(road, median.steps.stations)
-    road = seal_lane_borders(road)
+    road = nonnegative_widths(seal_lane_borders(road))
     return _Partial(road, events, "default", tracks)
 
 

@@ -26,7 +26,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..model import CubicPiece, CubicProfile, Lane, Road
+from ..fitting import cubic_min
+from ..model import CubicPiece, CubicProfile, Lane, LaneSection, Road
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +53,7 @@ def reexpanded(piece: CubicPiece, x0: float) -> CubicPiece:
     )
 
 
-def _add_ramp(
+def add_linear_ramp(
     profile: CubicProfile, x_from: float, x_to: float, v_from: float, v_to: float, length_m: float
 ) -> CubicProfile:
     """``profile`` plus a linear correction from ``v_from`` at ``x_from`` to ``v_to`` at
@@ -78,7 +79,7 @@ def _with_start_width(lane: Lane, w_new: float, length_m: float, fade_m: float =
     fade = min(fade_m, length_m)
     if abs(delta) < 1e-12 or fade <= 0.0:
         return lane
-    return replace(lane, width=_add_ramp(lane.width, 0.0, fade, delta, 0.0, length_m))
+    return replace(lane, width=add_linear_ramp(lane.width, 0.0, fade, delta, 0.0, length_m))
 
 
 def _with_end_width(lane: Lane, w_new: float, length_m: float, fade_m: float = _FADE_M) -> Lane:
@@ -87,7 +88,7 @@ def _with_end_width(lane: Lane, w_new: float, length_m: float, fade_m: float = _
     if abs(delta) < 1e-12 or fade <= 0.0:
         return lane
     return replace(
-        lane, width=_add_ramp(lane.width, length_m - fade, length_m, 0.0, delta, length_m)
+        lane, width=add_linear_ramp(lane.width, length_m - fade, length_m, 0.0, delta, length_m)
     )
 
 
@@ -271,4 +272,59 @@ def seal_lane_borders(road: Road) -> Road:
     return replace(road, lane_sections=tuple(sections))
 
 
-__all__ = ["faded_width", "reexpanded", "seal_lane_borders"]
+def _nonnegative_piece(p: CubicPiece, h: float) -> CubicPiece:
+    """``p`` over ``0 <= t <= h`` (metres) if it stays non-negative; else the cubic Hermite
+    between its end values (clipped at zero) with the end slopes zeroed where they would
+    let it dip: a lane that closes to (opens from) zero with a noisy width wiggles a few
+    millimetres below zero otherwise."""
+    if h <= 0.0 or cubic_min(p.a, p.b, p.c, p.d, h) >= -1e-9:
+        return p
+    va = max(p.a, 0.0)
+    vb = max(p.a + h * (p.b + h * (p.c + h * p.d)), 0.0)
+    for da, db in (
+        (p.b, p.b + 2.0 * p.c * h + 3.0 * p.d * h * h),
+        (max(p.b, 0.0), min(p.b + 2.0 * p.c * h + 3.0 * p.d * h * h, 0.0)),
+        (0.0, 0.0),
+    ):
+        c2 = (3.0 * (vb - va) / h - 2.0 * da - db) / h
+        c3 = (2.0 * (va - vb) / h + da + db) / (h * h)
+        if cubic_min(va, da, c2, c3, h) >= -1e-9:
+            return CubicPiece(p.s0, va, da, c2, c3)
+    return CubicPiece(p.s0, va, 0.0, 0.0, 0.0)  # unreachable: (0, 0) is monotone
+
+
+def _nonnegative_lanes(lanes: tuple[Lane, ...], length_m: float) -> tuple[Lane, ...]:
+    out = []
+    for lane in lanes:
+        pieces = lane.width.pieces
+        ends = [p.s0 for p in pieces[1:]] + [length_m]
+        fixed = tuple(_nonnegative_piece(p, e - p.s0) for p, e in zip(pieces, ends, strict=True))
+        out.append(lane if fixed == pieces else replace(lane, width=CubicProfile(fixed)))
+    return tuple(out)
+
+
+def nonnegative_widths(road: Road) -> Road:
+    """``road`` with every lane-width piece that dips below zero inside its section
+    replaced by a non-negative one between the same end values (ASAM and ``roadtwin
+    check``: no negative lane width anywhere)."""
+    sections: list[LaneSection] = []
+    for k, sec in enumerate(road.lane_sections):
+        end = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+        length = end - sec.s0
+        sections.append(
+            replace(
+                sec,
+                right=_nonnegative_lanes(sec.right, length),
+                left=_nonnegative_lanes(sec.left, length),
+            )
+        )
+    return replace(road, lane_sections=tuple(sections))
+
+
+__all__ = [
+    "add_linear_ramp",
+    "faded_width",
+    "nonnegative_widths",
+    "reexpanded",
+    "seal_lane_borders",
+]
