@@ -884,3 +884,26 @@ def test_linked_borders_meet_at_a_junction_cut_at_a_lane_offset_step():
     assert float(fixed.lane_offset.value(np.array([20.0]))[0]) == pytest.approx(3.5)
     wide = replace(through, lane_offset=CubicProfile.constant(3.6))
     assert _align_linked_borders(wide, up, links) is wide
+
+
+def test_a_driving_lane_ending_at_full_width_into_a_wider_shoulder_closes_by_a_taper():
+    """town06-auto-s2, noisier sensor (seed 22): the outer lane's line went unseen for 72 m,
+    so the lane ended at full width where the shoulder beyond the border is as wide as the
+    lane and the shoulder together: the road does not narrow, and the lane led nowhere
+    (``roadtwin drive`` failed). It closes over the shoulder's widening, the outer edge
+    stays where it was; a lane that a driving lane beyond the border covers stays."""
+    from roadtwin.lane_drops import taper_lane_drops
+
+    road = _drop_road([1.0, 3.5, 6.0])
+    out, closed = taper_lane_drops(road, "right")
+    assert closed == [(200.0, -3)]
+    lanes = out.lane_sections[0].right
+    w = lanes[2].width.value(np.array([0.0, 139.9, 200.0]))
+    assert w == pytest.approx([3.5, 3.5, 0.0], abs=1e-9)
+    assert float(lanes[3].width.value(np.array([200.0]))[0]) == pytest.approx(6.0, abs=1e-9)
+    ds = np.linspace(0.0, 199.999, 500)
+    edge = out.lane_border_t(ds, -4)
+    assert float(np.max(np.abs(edge + 10.5))) < 1e-9
+    # beyond the border a driving lane covers it (a lane redrawn): left alone
+    covered = _drop_road([1.0, 3.5, 3.5, 2.5])
+    assert taper_lane_drops(covered, "right") == (covered, [])

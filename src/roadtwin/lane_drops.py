@@ -9,6 +9,10 @@ goes on into the ramp. So the decision is taken after the junctions are built, w
 exit's lane is linked into its ramp: a driving lane that still ends unlinked at a border
 inside a road, where the road's width on its side shrinks by that lane, is a lane drop
 and closes to zero width before the border; the lanes outside it move in with it.
+Where the road does not narrow but only a shoulder covers the lane beyond the border (its
+line unseen there, a shoulder as wide as the lane and the shoulder together), the lane
+closes into the shoulder outside it, which widens over the same taper: a dead end
+otherwise, and the outer edge stays where it was measured.
 """
 
 from __future__ import annotations
@@ -17,13 +21,14 @@ from dataclasses import replace
 
 from .config import TopologyConfig
 from .mainline.seal import _width_at, faded_width
-from .model import Road
+from .model import Lane, Road
 from .ramps.gores import _traffic_lanes
 from .ramps.records import TrafficSide
 
 _SHORTER_TAPERS_M = (40.0, 20.0, 10.0, 5.0)  # tried where the longest would go negative
 _MIN_DROP_WIDTH_M = 1.0  # a narrower lane ending is a taper already
 _ROOM_SHARE = 0.5  # the side must narrow by at least this share of the lane's width
+_SAME_WIDTH_M = 0.3  # a linked outer lane this close to the closed lane's room takes it
 
 
 def taper_lane_drops(
@@ -63,22 +68,70 @@ def taper_lane_drops(
         # the room the side loses at the border: what lanes ending there leave behind
         room = sum(widths_a) - sum(_width_at(ln, 0.0) for ln in _traffic_lanes(b, traffic_side))
         fades = tuple(min(f, len_a) for f in tapers)
+        lanes_b = list(_traffic_lanes(b, traffic_side))
         for i in reversed(range(len(lanes_a))):
             lane, w = lanes_a[i], widths_a[i]
             if lane.type != "driving" or lane.successor is not None:
                 continue
-            if w < _MIN_DROP_WIDTH_M or room < _ROOM_SHARE * w:
+            if w < _MIN_DROP_WIDTH_M:
                 continue
-            fixed = faded_width(lane, 0.0, len_a, at_start=False, fades_m=fades)
-            if fixed is None:
+            if room >= _ROOM_SHARE * w:
+                fixed = faded_width(lane, 0.0, len_a, at_start=False, fades_m=fades)
+                if fixed is None:
+                    continue
+                lanes_a[i] = fixed
+                room -= w
+                closed.append((float(b.s0), lane.id))
                 continue
-            lanes_a[i] = fixed
-            room -= w
-            closed.append((float(b.s0), lane.id))
+            into = _into_shoulder(lanes_a, widths_a, i, lanes_b, len_a, fades)
+            if into is not None:
+                lanes_a[i], lanes_a[i + 1] = into
+                closed.append((float(b.s0), lane.id))
         sections[k] = replace(a, **{traffic_side: tuple(lanes_a)})
     if not closed:
         return road, closed
     return replace(road, lane_sections=tuple(sections)), closed
+
+
+def _into_shoulder(
+    lanes_a: list[Lane],
+    widths_a: list[float],
+    i: int,
+    lanes_b: list[Lane],
+    len_a: float,
+    fades: tuple[float, ...],
+) -> tuple[Lane, Lane] | None:
+    """Lane ``i`` of a section closed into the non-driving lane outside it, or None.
+
+    The road does not narrow where the lane ends, but beyond the border only non-driving
+    lanes cover it (its line was not seen there: a shoulder as wide as the lane and the
+    shoulder before): the lane closes over the same fade as that outer lane widens, so the
+    outer edge stays where it is (metres, widths at the section's end ``len_a``)."""
+    if i + 1 >= len(lanes_a) or lanes_a[i + 1].type == "driving":
+        return None
+    inner = sum(widths_a[:i])
+    lo, hi = inner, inner + widths_a[i]
+    t = 0.0
+    for ln in lanes_b:
+        w_b = _width_at(ln, 0.0)
+        overlap = min(hi, t + w_b) - max(lo, t)
+        if ln.type == "driving" and overlap > _ROOM_SHARE * widths_a[i]:
+            return None
+        t += w_b
+    outer = lanes_a[i + 1]
+    if outer.successor is not None:
+        nxt = [ln for ln in lanes_b if ln.id == outer.successor]
+        target = widths_a[i + 1] + widths_a[i]
+        if not nxt or abs(_width_at(nxt[0], 0.0) - target) > _SAME_WIDTH_M:
+            return None  # the outer lane goes on as it is: the lane's room is not its
+    for fade in fades:
+        closed = faded_width(lanes_a[i], 0.0, len_a, at_start=False, fades_m=(fade,))
+        wider = faded_width(
+            outer, widths_a[i + 1] + widths_a[i], len_a, at_start=False, fades_m=(fade,)
+        )
+        if closed is not None and wider is not None:
+            return closed, wider
+    return None
 
 
 __all__ = ["taper_lane_drops"]
