@@ -1054,3 +1054,40 @@ def test_no_lane_width_dips_below_zero_between_samples():
         )
     assert fixed[0] is lanes[0]
     assert width.pieces[1:] == dip.pieces[1:]
+
+
+def test_a_driving_lane_goes_on_where_only_its_outer_border_meets():
+    """town06-auto-s3, noisier sensor (seed 23), at a lane-offset step: the line inside
+    the outermost lane was fitted 0.88 m further in after the border, so the lane inside it
+    (linked: its inner border met) was 0.85 m narrower and the outermost lane 0.86 m wider;
+    the outermost lane's inner border met nothing, it was left unlinked and led nowhere
+    (a route failed). Its outer border meets and its width differs by less than a metre:
+    it goes on with the width it had."""
+    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+
+    def lane(lid, w, kind="driving"):
+        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+
+    first = LaneSection(
+        0.0,
+        right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.98), lane(-3, 3.5), lane(-4, 0.6, "shoulder")),
+    )
+    second = LaneSection(
+        60.0,
+        right=(
+            lane(-1, 1.0, "shoulder"),
+            lane(-2, 3.13),
+            lane(-3, 4.36),
+            lane(-4, 0.6, "shoulder"),
+        ),
+    )
+    linked = _link_sections([first, second], [[], []], at_step=[False, False])
+    before, after = linked[0].right, linked[1].right
+    assert (before[1].successor, after[1].predecessor) == (-2, -2)
+    assert (before[2].successor, after[2].predecessor) == (-3, -3)
+    assert float(after[2].width.value(np.array([0.0]))[0]) == pytest.approx(3.5, abs=1e-9)
+    # a lane a lane and a half wide beyond the border is not this one fitted anew
+    wider = replace(second, right=(*second.right[:2], lane(-3, 4.8), second.right[3]))
+    relinked = _link_sections([first, wider], [[], []], at_step=[False, False])
+    assert relinked[1].right[2].predecessor is None

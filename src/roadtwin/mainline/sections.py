@@ -500,6 +500,20 @@ def _link_sections(
                 np.abs(w_cur[i] - w_prev) <= _WIDTH_JUMP_M
             )
             _link_first_free(i, open_prev & meets, mapping, used)
+        # ... or whose outer border does, beside a linked lane inside it that took the
+        # difference (their common line fitted anew; town06-auto-s3, noisier sensor)
+        for i in range(1, len(cur_lanes)):
+            if (
+                i in mapping
+                or i - 1 not in mapping
+                or cur_lanes[i].type != "driving"
+                or w_cur[i] < 0.3
+            ):
+                continue
+            meets = (np.abs(b_cur[i + 1] - b_prev[1:]) <= _LINK_TOLERANCE_M) & (
+                np.abs(w_cur[i] - w_prev) <= _WIDTH_JUMP_M
+            )
+            _link_first_free(i, open_prev & meets, mapping, used)
         # the same where a narrow lane begins on a driving lane's inner side and the two
         # together span the lane that ends there (the median-side shoulder's line first
         # seen there): the lane goes on, and the narrow one opens from zero width below;
