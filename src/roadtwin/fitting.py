@@ -685,8 +685,7 @@ def fit_cubic_profile(
         c3 = (2.0 * (va - vb) / h + da + db) / (h * h)
         dx = x[i : j + 1] - a
         dev = np.abs(va + dx * (da + dx * (c2 + dx * c3)) - fx[i : j + 1])
-        hermite = va + dx * (da + dx * (c2 + dx * c3))
-        too_low = min(float(hermite.min()), cubic_min(va, da, c2, c3, h)) < floor
+        too_low = cubic_min(va, da, c2, c3, h) < floor
         if j - i > 1 and (too_low or (h > 2.0 * min_piece_m and float(dev.max()) > tolerance)):
             m = int(np.searchsorted(x, a + 0.5 * h))
             m = min(max(m, i + 1), j - 1)

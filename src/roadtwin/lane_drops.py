@@ -65,10 +65,10 @@ def taper_lane_drops(
         len_a = b.s0 - a.s0
         lanes_a = list(_traffic_lanes(a, traffic_side))
         widths_a = [_width_at(ln, len_a) for ln in lanes_a]
-        # the room the side loses at the border: what lanes ending there leave behind
-        room = sum(widths_a) - sum(_width_at(ln, 0.0) for ln in _traffic_lanes(b, traffic_side))
-        fades = tuple(min(f, len_a) for f in tapers)
         lanes_b = list(_traffic_lanes(b, traffic_side))
+        # the room the side loses at the border: what lanes ending there leave behind
+        room = sum(widths_a) - sum(_width_at(ln, 0.0) for ln in lanes_b)
+        fades = tuple(min(f, len_a) for f in tapers)
         for i in reversed(range(len(lanes_a))):
             lane, w = lanes_a[i], widths_a[i]
             if lane.type != "driving" or lane.successor is not None:

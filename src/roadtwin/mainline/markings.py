@@ -628,8 +628,8 @@ def _merge_collinear(
         return b.lo > a.hi - 1.0 and b.lo - a.hi <= 5.0 * cfg.lane_max_gap_m
 
     def allowed(a: _Track, b: _Track) -> float:
-        drift = min(_DRIFT_PER_M * max(b.lo - a.hi, 0.0), _DRIFT_MAX_LANE * lane_m)
-        return cfg.lane_link_m + max(drift, 0.0)
+        gap = max(b.lo - a.hi, 0.0)  # tracks may overlap by up to a metre
+        return cfg.lane_link_m + min(_DRIFT_PER_M * gap, _DRIFT_MAX_LANE * lane_m)
 
     def clear_pair(tracks: list[_Track], i: int, j: int) -> bool:
         a, b = tracks[i], tracks[j]

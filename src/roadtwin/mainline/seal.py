@@ -281,16 +281,14 @@ def _nonnegative_piece(p: CubicPiece, h: float) -> CubicPiece:
         return p
     va = max(p.a, 0.0)
     vb = max(p.a + h * (p.b + h * (p.c + h * p.d)), 0.0)
-    for da, db in (
-        (p.b, p.b + 2.0 * p.c * h + 3.0 * p.d * h * h),
-        (max(p.b, 0.0), min(p.b + 2.0 * p.c * h + 3.0 * p.d * h * h, 0.0)),
-        (0.0, 0.0),
-    ):
+    db_end = p.b + 2.0 * p.c * h + 3.0 * p.d * h * h
+    # the last pair (flat ends) is monotone between two non-negative values: it holds
+    for da, db in ((p.b, db_end), (max(p.b, 0.0), min(db_end, 0.0)), (0.0, 0.0)):
         c2 = (3.0 * (vb - va) / h - 2.0 * da - db) / h
         c3 = (2.0 * (va - vb) / h + da + db) / (h * h)
-        if cubic_min(va, da, c2, c3, h) >= -1e-9:
-            return CubicPiece(p.s0, va, da, c2, c3)
-    return CubicPiece(p.s0, va, 0.0, 0.0, 0.0)  # unreachable: (0, 0) is monotone
+        if (da, db) == (0.0, 0.0) or cubic_min(va, da, c2, c3, h) >= -1e-9:
+            break
+    return CubicPiece(p.s0, va, da, c2, c3)
 
 
 def _nonnegative_lanes(lanes: tuple[Lane, ...], length_m: float) -> tuple[Lane, ...]:

@@ -5,7 +5,6 @@ gores and ramp roads into a :class:`RampSet`.
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
 
 import networkx as nx
 import numpy as np
@@ -44,8 +43,12 @@ def _match_gores(
     stations: list[float],
     events: tuple[GoreEvent, ...],
     cfg: RampConfig,
+    max_m: float = float("inf"),
 ) -> dict[int, GoreEvent]:
-    """Greedy one-to-one matching of chains to measured gores of their type."""
+    """Greedy one-to-one matching of chains to measured gores of their type, within the
+    configured search window and at most ``max_m`` (metres) from the OSM attachment."""
+    up = min(cfg.gore_search_upstream_m, max_m)
+    down = min(cfg.gore_search_downstream_m, max_m)
     pairs = []
     for i, (chain, s_osm) in enumerate(zip(chains, stations, strict=False)):
         for j, ev in enumerate(events):
@@ -54,7 +57,7 @@ def _match_gores(
             d = ev.station_m - s_osm
             if chain.type == "entry":
                 d = -d
-            if -cfg.gore_search_upstream_m <= d <= cfg.gore_search_downstream_m:
+            if -up <= d <= down:
                 pairs.append((abs(d), i, j))
     out: dict[int, GoreEvent] = {}
     used: set[int] = set()
@@ -133,13 +136,12 @@ def build_ramps(
         )
         todo = [i for i in range(len(chains)) if i not in matched]
         if scanned and todo:
-            near_cfg = replace(
-                cfg,
-                gore_search_upstream_m=min(cfg.gore_search_upstream_m, _SCANNED_GORE_M),
-                gore_search_downstream_m=min(cfg.gore_search_downstream_m, _SCANNED_GORE_M),
-            )
             more = _match_gores(
-                tuple(chains[i] for i in todo), [stations[i] for i in todo], scanned, near_cfg
+                tuple(chains[i] for i in todo),
+                [stations[i] for i in todo],
+                scanned,
+                cfg,
+                _SCANNED_GORE_M,
             )
             matched.update({todo[k]: ev for k, ev in more.items()})
     # KD-trees of the measured points, built once; each ramp gets the points near its gore
