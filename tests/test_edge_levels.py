@@ -101,3 +101,26 @@ def test_a_level_held_for_a_bin_at_a_step_is_one_step_not_two():
     assert steps.stations.size == 1
     assert abs(steps.stations[0] - 700.0) < 3.0
     np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -3.6], atol=0.05)
+
+
+def test_a_stray_level_before_an_unseen_stretch_does_not_double_the_step():
+    # A left fork at 700 m: the median-side edge moves 3.6 m towards the carriageway. A
+    # stray cluster farther in (5.8 m) holds the path for one bin, and the path then goes
+    # on unseen for 30 m before it is seen at the new level. The two jumps refine to
+    # stations 5 m apart; counted as two steps, every later segment lay 7.2 m off
+    # (melbourne-408-opp-s4 with a noisier sensor: a median edge 15.8 m in, lane RMSE
+    # 2.9 m).
+    rng = np.random.default_rng(15)
+    s0, d0 = _line(rng, 0.0, 700.0, lambda s: np.full(s.size, 12.0))
+    s1, d1 = _line(rng, 700.0, 1200.0, lambda s: np.full(s.size, 8.4))
+    sx, dx = _line(rng, 700.4, 700.8, lambda s: np.full(s.size, 5.8), spacing=0.1)
+    s, d = np.concatenate([s0, s1, sx]), np.concatenate([d0, d1, dx])
+    edges = np.arange(-1.0, 1201.0, 2.0)
+    c = 0.5 * (edges[1:] + edges[:-1])
+    level = np.where(c < 700.0, 12.0, 8.4)
+    level[c == 700.0] = 5.8
+    level[(c > 700.0) & (c < 730.0)] = np.nan
+    steps = edge_steps(s, d, edges, level)
+    assert steps.stations.size == 1
+    assert abs(steps.stations[0] - 700.0) < 1.0
+    np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -3.6], atol=0.05)

@@ -208,6 +208,7 @@ def refine_step(s: FloatArray, d: FloatArray, s_step: float, low: float, *, star
 
 _STEADY_SPREAD_M = 0.25  # a segment whose quarters' offsets agree this well is one level
 _STEP_MERGE_M = 5.0  # jumps that refine to stations this close are one step
+_HELD_BINS = 3  # a level held for fewer seen bins between two jumps is not a segment
 
 
 @dataclass(frozen=True)
@@ -265,10 +266,10 @@ def edge_steps(
         return EdgeSteps(np.zeros(0), np.zeros(1))
     jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
     found: list[list[float]] = []  # [station, level before, level after] per step
-    for j in jumps:
-        before = float(np.median(level[seen[max(j - 4, 0) : j + 1]]))
+    for j_first, j in _jump_groups(jumps):
+        before = float(np.median(level[seen[max(j_first - 4, 0) : j_first + 1]]))
         after = float(np.median(level[seen[j + 1 : j + 6]]))
-        guess = 0.5 * (centres[seen[j]] + centres[seen[j + 1]])
+        guess = 0.5 * (centres[seen[j_first]] + centres[seen[j_first + 1]])
         station = refine_step(s, u, guess, min(before, after), starts=after < before)
         if np.count_nonzero((s >= station - 5.0) & (s < station)) < 3:
             continue
@@ -333,6 +334,22 @@ def edge_steps(
         anchor = _weighted_median(median[steady] - offsets[steady], lengths)
         return EdgeSteps(st, offsets + anchor)
     return EdgeSteps(st, offsets).from_base(float(edges_s[0]), float(edges_s[-1]))
+
+
+def _jump_groups(jumps: NDArray[np.int64]) -> list[tuple[int, int]]:
+    """Jumps of a level path (indices into its seen bins) grouped into steps: ``(first,
+    last)`` jump of each group. A level held for fewer than ``_HELD_BINS`` seen bins
+    between two jumps is a stray cluster (outliers, a ramp edge crossing), not a segment:
+    the jumps either side are one step, from the level before the first to the level
+    after the last (a spike beyond the new level refined its two jumps 5.8 m apart and
+    the step counted twice: melbourne-408-opp-s4 with a noisier sensor, a 15.8 m offset)."""
+    groups: list[tuple[int, int]] = []
+    for j in jumps.tolist():
+        if groups and j - groups[-1][1] < _HELD_BINS:
+            groups[-1] = (groups[-1][0], j)
+        else:
+            groups.append((j, j))
+    return groups
 
 
 def _weighted_median(values: FloatArray, weights: FloatArray) -> float:
