@@ -907,3 +907,37 @@ def test_a_driving_lane_ending_at_full_width_into_a_wider_shoulder_closes_by_a_t
     # beyond the border a driving lane covers it (a lane redrawn): left alone
     covered = _drop_road([1.0, 3.5, 3.5, 2.5])
     assert taper_lane_drops(covered, "right") == (covered, [])
+
+
+def test_a_section_border_next_to_a_zone_end_does_not_leave_a_sliver():
+    # The mainline's section border lies 4 cm inside where the entry's junction zone would
+    # start. Cut there, the through connecting road began with a section 4 cm long, which
+    # esmini read past ("target lane not driving", melbourne-921-s2 with a noisier
+    # sensor); the zone now starts on the border.
+    road = mainline_road("right")
+    ramps = make_ramps(road, "right")
+    entry = next(r for r in ramps if r.type == "entry")
+    zone_start = entry.station_m - TopologyConfig().junction_length_m
+    border = zone_start + 0.04
+    secs = list(road.lane_sections)
+    k = max(i for i, sc in enumerate(secs) if sc.s0 < border)
+    before = replace(secs[k], right=tuple(replace(ln, successor=ln.id) for ln in secs[k].right))
+    after = replace(
+        secs[k], s0=border, right=tuple(replace(ln, predecessor=ln.id) for ln in secs[k].right)
+    )
+    road = replace(road, lane_sections=(*secs[:k], before, after, *secs[k + 1 :]))
+    topo = build_topology(road, ramps, traffic_side="right")
+    assert not topo.skipped
+    net = _network(topo)
+    for r in net.roads:
+        ends = [sc.s0 for sc in r.lane_sections] + [r.length]
+        assert min(np.diff(ends)) > 0.5, (r.id, r.name, ends)
+    through = [
+        r
+        for r in net.roads
+        if r.name == "connector" and r.successor is not None and r.successor.element_id == "3"
+    ]
+    assert through
+    assert through[0].length == pytest.approx(20.0 - 0.04, abs=1e-6)
+    findings = check_network(net)
+    assert not [f for f in findings if f.severity == "error"]

@@ -786,6 +786,16 @@ def build_topology(
                 b = inside[0]
             else:
                 a = inside[-1]
+        elif not direct:
+            # a border inside the zone within a metre of its free end moves that end onto
+            # it: a section a few centimetres long at the start of a connecting road is one
+            # players read past (esmini: "target lane not driving", melbourne-921-s2). Not
+            # outwards: a lane ending at a border just past the zone would then end inside
+            # the junction, leading nowhere (krems-102561705-s2 with a noisier sensor)
+            if ramp.type == "exit":
+                b = max([x for x in borders if b - 1.0 <= x < b and x > a + 1.0], default=b)
+            else:
+                a = min([x for x in borders if a < x <= a + 1.0 and x < b - 1.0], default=a)
         # at the run's ends the junction may be shorter: an exit just before the end of the
         # run (an entry just after its start) still gets its junction
         if not direct and ramp.type == "exit" and length - b < cfg.min_road_length_m:
