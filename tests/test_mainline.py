@@ -1091,3 +1091,80 @@ def test_a_driving_lane_goes_on_where_only_its_outer_border_meets():
     wider = replace(second, right=(*second.right[:2], lane(-3, 4.8), second.right[3]))
     relinked = _link_sections([first, wider], [[], []], at_step=[False, False])
     assert relinked[1].right[2].predecessor is None
+
+
+def test_a_lane_wide_shoulder_between_two_driving_lanes_it_links_is_a_driving_lane():
+    """melbourne-921-s2, noisier sensor (seed 62): where two lanes were added on the median
+    side, a 20 m section typed its 2.9-3.2 m innermost lane a shoulder (four lanes, the car
+    not in it) between the driving lanes it linked before and after; esmini's car in that
+    lane jumped 3.1 m to the next one. A narrow shoulder, or one that links a shoulder,
+    stays a shoulder."""
+    from roadtwin.mainline.sections import _drive_on_through_sections
+
+    cfg = MainlineConfig()
+
+    def section(s0, types, widths, pred=True, succ=True):
+        lanes = tuple(
+            Lane(
+                -(i + 1),
+                ty,
+                CubicProfile.constant(w),
+                (RoadMark(0.0, "broken"),),
+                -(i + 1) if pred else None,
+                -(i + 1) if succ else None,
+            )
+            for i, (ty, w) in enumerate(zip(types, widths, strict=True))
+        )
+        return LaneSection(s0, right=lanes)
+
+    widths = [3.0, 3.5, 3.5, 1.0]
+    drv = ["driving", "driving", "driving", "shoulder"]
+    mid = ["shoulder", "driving", "driving", "shoulder"]
+    secs = [
+        section(0.0, drv, widths, pred=False),
+        section(100.0, mid, widths),
+        section(120.0, mid, widths),
+        section(140.0, drv, widths, succ=False),
+    ]
+    out = _drive_on_through_sections(secs, cfg)
+    assert [[ln.type for ln in sc.right] for sc in out] == [drv, drv, drv, drv]
+    assert out[0] is secs[0]
+    assert out[3] is secs[3]
+    narrow = [
+        section(s, ty, [1.5, 3.5, 3.5, 1.0]) for s, ty in ((0.0, drv), (100, mid), (120, drv))
+    ]
+    assert [ln.type for ln in _drive_on_through_sections(narrow, cfg)[1].right] == mid
+    one_sided = [
+        section(0.0, drv, widths),
+        section(100.0, mid, widths),
+        section(120.0, mid, widths),
+    ]
+    assert [ln.type for ln in _drive_on_through_sections(one_sided, cfg)[1].right] == mid
+
+
+def test_a_median_step_close_before_an_outer_edge_step_keeps_its_lane_section():
+    """town06-auto-s9, noisier sensor (seed 49): the median-side edge stepped out by a lane
+    12.8 m before the outer edge stepped. The outer step's section start swept the median
+    step's away, so the lane offset stepped inside a section: over 12.8 m every lane lay a
+    lane width off, and four routes failed in esmini. Both steps start a section."""
+    from roadtwin.mainline.markings import _Track
+    from roadtwin.mainline.sections import _sections_from_tracks
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+    tracks = [
+        _Track(
+            k, 0.0, 600.0, grid, np.full(grid.size, d), "broken", 500, grid, np.full(grid.size, d)
+        )
+        for k, d in enumerate((1.0, 4.5, 8.0))
+    ]
+    d_edge = np.where(grid < 312.8, 12.0, 11.0)
+    d_median = np.where(grid < 300.0, 0.0, -3.5)
+    sections, _, _ = _sections_from_tracks(
+        tracks, grid, d_edge, np.array([312.8]), 1.0, cfg, None, d_median, np.array([300.0])
+    )
+    starts = [round(sc.s0, 1) for sc in sections]
+    assert 300.0 in starts
+    assert 312.8 in starts
+    inner = {round(sc.s0, 1): sc.right[0] for sc in sections}
+    assert float(inner[300.0].width.value(np.array([1.0]))[0]) == pytest.approx(4.5, abs=0.05)
