@@ -1168,3 +1168,34 @@ def test_a_median_step_close_before_an_outer_edge_step_keeps_its_lane_section():
     assert 312.8 in starts
     inner = {round(sc.s0, 1): sc.right[0] for sc in sections}
     assert float(inner[300.0].width.value(np.array([1.0]))[0]) == pytest.approx(4.5, abs=0.05)
+
+
+def test_lines_unseen_just_before_a_median_step_go_on_to_the_lines_inferred_after_it():
+    """town06-auto-s3, noisier sensor (seed 83): the inner lines were last seen 27 m
+    before a median-side step and inferred (not seen) after it; the 27 m between were
+    too short to infer lanes, and the mainline had one shoulder 11.6 m wide there. The
+    inferred lines go on from the observed ones."""
+    from roadtwin.mainline import fit_lanes
+    from roadtwin.mainline.edge_levels import EdgeSteps
+
+    rng = np.random.default_rng(5)
+
+    def line(s0, s1, d, step=0.5):
+        s = np.arange(s0, s1, step)
+        return s, d + rng.normal(0.0, 0.02, s.size)
+
+    parts = [line(0, 645, 1.0), line(0, 645, 4.5), line(0, 645, 8.0), line(0, 1000, 11.5)]
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    s_out, d_out = line(0, 1000, 13.0, 0.2)
+    median = EdgeSteps(np.array([672.0]), np.array([0.0, 2.0]))
+    sections, _, _, _ = fit_lanes(
+        s_lane, d_lane, s_out, d_out, length=1000.0, sign=1.0, config=MainlineConfig(),
+        median=median,
+    )  # fmt: skip
+    for k, sc in enumerate(sections):
+        end = sections[k + 1].s0 if k + 1 < len(sections) else 1000.0
+        ds = np.linspace(0.0, end - sc.s0 - 1e-6, 20)
+        widest = max(float(np.max(ln.width.value(ds))) for ln in sc.right)
+        assert widest < 4.0, (sc.s0, widest)
+        assert sum(ln.type == "driving" for ln in sc.right) == 3, sc.s0

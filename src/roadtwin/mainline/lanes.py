@@ -27,7 +27,7 @@ from .hidden_gores import (
     _snap_to_hidden_gores,
     _visible_taper_length,
 )
-from .markings import _add_hidden_lanes, _tracks_from_samples
+from .markings import _add_hidden_lanes, _merge_collinear, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
@@ -121,6 +121,10 @@ def fit_lanes(
             for lo, hi in painted:  # the outer-edge points there are the ramp's
                 used = used & ~((s_outer > lo) & (s_outer < hi))
     tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
+    # an inferred line may go on where an observed one stopped a few tens of metres before
+    # (lines unseen for 27 m before a median-side step: town06-auto-s3 with a noisier
+    # sensor had the inner lanes missing there, one shoulder 11.6 m wide)
+    tracks = _merge_collinear(tracks, cfg, grid, d_edge)
     tracks, breaks = split_edge_lines_at_steps(tracks, grid, d_edge, breaks, cfg.edge_line_m)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps
