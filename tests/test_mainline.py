@@ -1199,3 +1199,27 @@ def test_lines_unseen_just_before_a_median_step_go_on_to_the_lines_inferred_afte
         widest = max(float(np.max(ln.width.value(ds))) for ln in sc.right)
         assert widest < 4.0, (sc.s0, widest)
         assert sum(ln.type == "driving" for ln in sc.right) == 3, sc.s0
+
+
+def test_the_second_join_pass_only_joins_inferred_lines_to_observed_ones():
+    """After the hidden lanes are inferred, an inferred line is joined to the observed one
+    it continues; two observed tracks still apart then were split at a gore on purpose
+    (a9-10959882-s9 with a noisier sensor: joined again, a lane 6.1 m wide)."""
+    from roadtwin.mainline.markings import _merge_collinear, _Track
+
+    cfg = MainlineConfig()
+
+    def track(lo, hi, d, n):
+        g = np.arange(lo, hi + 0.5, 1.0)
+        samples = g if n else g[:0]
+        return _Track(
+            0, lo, hi, g, np.full(g.size, d), "broken", n, samples, np.full(samples.size, d)
+        )
+
+    observed = [track(0.0, 500.0, 8.2, 400), track(501.0, 900.0, 8.1, 300)]
+    assert len(_merge_collinear(observed, cfg, with_inferred_only=True)) == 2
+    assert len(_merge_collinear(observed, cfg)) == 1
+    inferred = [track(0.0, 500.0, 8.2, 400), track(530.0, 900.0, 7.7, 0)]
+    joined = _merge_collinear(inferred, cfg, with_inferred_only=True)
+    assert len(joined) == 1
+    assert (joined[0].lo, joined[0].hi) == (0.0, 900.0)

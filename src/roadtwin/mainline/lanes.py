@@ -123,8 +123,9 @@ def fit_lanes(
     tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
     # an inferred line may go on where an observed one stopped a few tens of metres before
     # (lines unseen for 27 m before a median-side step: town06-auto-s3 with a noisier
-    # sensor had the inner lanes missing there, one shoulder 11.6 m wide)
-    tracks = _merge_collinear(tracks, cfg, grid, d_edge)
+    # sensor had the inner lanes missing there, one shoulder 11.6 m wide); observed tracks
+    # still apart were split at a gore on purpose (a9-10959882-s9 +60)
+    tracks = _merge_collinear(tracks, cfg, grid, d_edge, with_inferred_only=True)
     tracks, breaks = split_edge_lines_at_steps(tracks, grid, d_edge, breaks, cfg.edge_line_m)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps

@@ -598,6 +598,8 @@ def _merge_collinear(
     cfg: MainlineConfig,
     grid: FloatArray | None = None,
     d_edge: FloatArray | None = None,
+    *,
+    with_inferred_only: bool = False,
 ) -> list[_Track]:
     """Join a track that ends and another that starts at the same offset (occlusion).
 
@@ -610,6 +612,10 @@ def _merge_collinear(
     too narrow to hold the marking (the edge comes within half a metre of the bridged
     line): there the marking really ended and another began (an exit and a later entry at
     the same offset), it was not hidden.
+
+    ``with_inferred_only``: only pairs of which one is an inferred line (no samples): two
+    observed tracks that were left apart after the first pass were split on purpose (at a
+    gore).
     """
     lane_m = typical_lane_width(tracks, grid) if grid is not None else 3.5
 
@@ -651,6 +657,8 @@ def _merge_collinear(
         for i, a in enumerate(tracks):
             for j, b in enumerate(tracks):
                 if i == j or not follows(a, b):
+                    continue
+                if with_inferred_only and a.n > 0 and b.n > 0:
                     continue
                 if abs(a.d[-1] - b.d[0]) > allowed(a, b) or not road_holds(a, b):
                     continue
