@@ -941,3 +941,44 @@ def test_a_section_border_next_to_a_zone_end_does_not_leave_a_sliver():
     assert through[0].length == pytest.approx(20.0 - 0.04, abs=1e-6)
     findings = check_network(net)
     assert not [f for f in findings if f.severity == "error"]
+
+
+def test_a_driving_lane_that_narrowed_is_not_linked_on_into_a_shoulder():
+    """town06-auto-s3 with a noisier sensor: a driving lane narrowed to 0.5 m at a
+    junction cut and was linked by its borders into the next road's 0.5 m shoulder;
+    esmini's car in that lane ended on the shoulder. Narrowed below 2 m, it has closed: no
+    link. The lanes that go on are linked as before."""
+    from roadtwin.topology import _end_to_start_links
+
+    line = (Line(0.0, 0.0, 0.0, 0.0, 100.0),)
+    narrowing = CubicProfile((_taper(W, 0.5, 0.0, 100.0),))
+    up = Road(
+        "1",
+        line,
+        (
+            LaneSection(
+                0.0,
+                right=(
+                    _lane(-1, 0.75, "shoulder", "solid"),
+                    _lane(-2, W),
+                    _lane(-3, narrowing),
+                    _lane(-4, 0.6, "shoulder", "none"),
+                ),
+            ),
+        ),
+        name="mainline",
+    )
+    down_lanes = (
+        _lane(-1, 0.75, "shoulder", "solid"),
+        _lane(-2, W),
+        _lane(-3, 0.5, "shoulder", "none"),
+        _lane(-4, 0.6, "shoulder", "none"),
+    )
+    down = Road(
+        "2", (Line(0.0, 100.0, 0.0, 0.0, 100.0),), (LaneSection(0.0, right=down_lanes),),
+        name="mainline",
+    )  # fmt: skip
+    assert _end_to_start_links(up, down, "right") == {-1: -1, -2: -2, -4: -4}
+    wide = replace(down, lane_sections=(LaneSection(0.0, right=(*down_lanes[:2],
+        _lane(-3, 0.5), down_lanes[3])),))  # fmt: skip
+    assert _end_to_start_links(up, wide, "right")[-3] == -3  # driving on: still linked

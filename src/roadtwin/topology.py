@@ -310,11 +310,28 @@ def _continuous(
     return out
 
 
+_CLOSED_LANE_M = 2.0  # a driving lane narrower than this (metres) where it meets a
+# non-driving lane has closed: it ends there instead of going on as that lane
+
+
 def _end_to_start_links(up: Road, down: Road, traffic_side: TrafficSide) -> dict[int, int]:
     """Lanes of ``up`` at its end -> lanes of ``down`` at its start: their borders meet
-    (:func:`match_lanes_at`) and their widths go on (:func:`_continuous`)."""
+    (:func:`match_lanes_at`), their widths go on (:func:`_continuous`) and a driving lane
+    narrowed below ``_CLOSED_LANE_M`` is not linked to a lane of another type (a driving
+    lane that narrowed to 0.5-1.4 m and went on as a shoulder led esmini's car onto the
+    shoulder: town06-auto-s3 and melbourne-408-opp-s9 with a noisier sensor)."""
     pairs = match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side)
-    return _continuous(pairs, up, up.length, down, 0.0)
+    links = _continuous(pairs, up, up.length, down, 0.0)
+    last = {ln.id: ln for ln in (*up.lane_sections[-1].left, *up.lane_sections[-1].right)}
+    first = {ln.id: ln for ln in (*down.lane_sections[0].left, *down.lane_sections[0].right)}
+
+    def closed(la: int, lb: int) -> bool:
+        a, b = last[la], first[lb]
+        if (a.type == "driving") == (b.type == "driving"):
+            return False
+        return _widths(up, up.length, [la])[0] < _CLOSED_LANE_M
+
+    return {la: lb for la, lb in links.items() if not closed(la, lb)}
 
 
 def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_start: bool) -> Road:
