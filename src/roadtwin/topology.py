@@ -316,22 +316,20 @@ _CLOSED_LANE_M = 2.0  # a driving lane narrower than this (metres) where it meet
 
 def _end_to_start_links(up: Road, down: Road, traffic_side: TrafficSide) -> dict[int, int]:
     """Lanes of ``up`` at its end -> lanes of ``down`` at its start: their borders meet
-    (:func:`match_lanes_at`), their widths go on (:func:`_continuous`) and a driving lane
-    narrowed below ``_CLOSED_LANE_M`` is not linked to a lane of another type (a driving
-    lane that narrowed to 0.5-1.4 m and went on as a shoulder led esmini's car onto the
-    shoulder: town06-auto-s3 and melbourne-408-opp-s9 with a noisier sensor)."""
+    (:func:`match_lanes_at`), their widths go on (:func:`_continuous`, so both lanes are
+    as wide there) and, where one is a driving lane and the other is not, they are at
+    least ``_CLOSED_LANE_M`` wide (a driving lane that narrowed to 0.5-1.4 m and went on as
+    a shoulder led esmini's car onto the shoulder: town06-auto-s3 and
+    melbourne-408-opp-s9 with a noisier sensor)."""
     pairs = match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side)
     links = _continuous(pairs, up, up.length, down, 0.0)
-    last = {ln.id: ln for ln in (*up.lane_sections[-1].left, *up.lane_sections[-1].right)}
-    first = {ln.id: ln for ln in (*down.lane_sections[0].left, *down.lane_sections[0].right)}
-
-    def closed(la: int, lb: int) -> bool:
-        a, b = last[la], first[lb]
-        if (a.type == "driving") == (b.type == "driving"):
-            return False
-        return _widths(up, up.length, [la])[0] < _CLOSED_LANE_M
-
-    return {la: lb for la, lb in links.items() if not closed(la, lb)}
+    driving_up = {ln.id for ln in up.lane_sections[-1].lanes if ln.type == "driving"}
+    driving_down = {ln.id for ln in down.lane_sections[0].lanes if ln.type == "driving"}
+    mixed = [la for la, lb in links.items() if (la in driving_up) != (lb in driving_down)]
+    narrow = {
+        la for la, w in zip(mixed, _widths(up, up.length, mixed), strict=True) if w < _CLOSED_LANE_M
+    }
+    return {la: lb for la, lb in links.items() if la not in narrow}
 
 
 def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_start: bool) -> Road:
@@ -796,23 +794,15 @@ def build_topology(
         # lane-offset step its lanes would not be linked (the mainline is split there into
         # linked roads), and lanes renumbered inside a connecting road mislead players
         # (esmini took a through lane's link into a shoulder). A section border or step
-        # inside the zone (lanes that end or begin just past the gore) ends the zone there
-        inside = [x for x in borders if a + 1.0 < x < b - 1.0]
-        if inside and not direct:
-            if ramp.type == "exit":
-                b = inside[0]
-            else:
-                a = inside[-1]
+        # inside the zone (lanes that end or begin just past the gore) ends the zone there,
+        # also one within a metre of its free end: a section a few centimetres long at the
+        # start of a connecting road is one players read past (esmini "target lane not
+        # driving", melbourne-921-s2). Never outwards: a lane ending at a border just past
+        # the zone would end inside the junction (krems-102561705-s2, noisier sensor)
+        if not direct and ramp.type == "exit":
+            b = min([x for x in borders if a + 1.0 < x < b], default=b)
         elif not direct:
-            # a border inside the zone within a metre of its free end moves that end onto
-            # it: a section a few centimetres long at the start of a connecting road is one
-            # players read past (esmini: "target lane not driving", melbourne-921-s2). Not
-            # outwards: a lane ending at a border just past the zone would then end inside
-            # the junction, leading nowhere (krems-102561705-s2 with a noisier sensor)
-            if ramp.type == "exit":
-                b = max([x for x in borders if b - 1.0 <= x < b and x > a + 1.0], default=b)
-            else:
-                a = min([x for x in borders if a < x <= a + 1.0 and x < b - 1.0], default=a)
+            a = max([x for x in borders if a < x < b - 1.0], default=a)
         # at the run's ends the junction may be shorter: an exit just before the end of the
         # run (an entry just after its start) still gets its junction
         if not direct and ramp.type == "exit" and length - b < cfg.min_road_length_m:

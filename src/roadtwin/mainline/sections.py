@@ -444,11 +444,12 @@ def _drive_on_through_sections(
     melbourne-921-s2 with a noisier sensor, where two lanes were added on the median side,
     and esmini's car in the inner lane jumped 3.1 m to the next lane."""
     lanes = [{ln.id: ln for ln in _side_lanes(sc)} for sc in sections]
+    ends = [
+        np.array([0.0, max(nxt.s0 - sc.s0 - 1e-6, 0.0)]) for sc, nxt in itertools.pairwise(sections)
+    ]
 
     def lane_wide_shoulder(n: int, lane: Lane) -> bool:
-        end = sections[n + 1].s0 if n + 1 < len(sections) else sections[n].s0 + 1e-6
-        ends = np.array([0.0, max(end - sections[n].s0 - 1e-6, 0.0)])
-        return lane.type == "shoulder" and float(np.min(lane.width.value(ends))) >= (
+        return lane.type == "shoulder" and float(np.min(lane.width.value(ends[n]))) >= (
             cfg.shoulder_max_m
         )
 
@@ -458,16 +459,15 @@ def _drive_on_through_sections(
             before = lanes[n - 1].get(lane.predecessor)  # type: ignore[arg-type]
             if before is None or before.type != "driving":
                 continue
-            chain, k, cur = [], n, lane
-            while k < len(sections) and lane_wide_shoulder(k, cur):
+            # follow the lane on while it is a lane-wide shoulder (the last section has
+            # no lane after it to end the chain on)
+            chain: list[tuple[int, int]] = []
+            k, cur = n, lane
+            while cur is not None and k < len(ends) and lane_wide_shoulder(k, cur):
                 chain.append((k, cur.id))
-                nxt = lanes[k + 1].get(cur.successor) if k + 1 < len(sections) else None  # type: ignore[arg-type]
-                if nxt is None:
-                    break
-                k, cur = k + 1, nxt
-            else:
-                if k < len(sections) and cur.type == "driving":
-                    turn.update(chain)
+                k, cur = k + 1, lanes[k + 1].get(cur.successor)  # type: ignore[arg-type]
+            if cur is not None and cur.type == "driving":
+                turn.update(chain)
     if not turn:
         return list(sections)
     out = []
