@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from lxml import etree
 
-from networks import mainline_exit_network, straight_road
+from networks import LANE_M, SHOULDER_IN_M, mainline_exit_network, straight_road
 from roadtwin._errors import InputError
 from roadtwin.cli import main
 from roadtwin.config import DriveConfig
@@ -32,7 +32,7 @@ from roadtwin.drive import (
 )
 from roadtwin.drive.esmini import Recording
 from roadtwin.drive.routes import lane_type_at
-from roadtwin.model import RoadLink, RoadNetwork
+from roadtwin.model import Arc, RoadLink, RoadNetwork
 from roadtwin.xodr import read_xodr, write_xodr
 
 ESMINI = find_esmini()
@@ -272,6 +272,44 @@ def test_too_short_a_drive_on_the_target_road_fails(straight):
     j = _judge(states, route0, net, cfg)
     assert [f.code for f in j.faults] == ["non_driving_lane", "short_on_target"]
     assert j.on_target_m == pytest.approx(20.0, abs=1.3)
+
+
+def test_a_lane_on_the_inside_of_a_tight_curve_is_judged_along_the_road():
+    """A 45 m ramp bending right at a 15 m radius: its lane -2 (centre 2.75 m right of the
+    reference line) is 18 % shorter than the reference line, along which the route plans
+    its distance; the car that drives it to the end has driven far enough."""
+    arc = Arc(0.0, 0.0, 0.0, 0.0, 45.0, curvature_per_m=-1.0 / 15.0)
+    road = dataclasses.replace(straight_road("1", 45.0), geometry=(arc,))
+    net = RoadNetwork(mainline_exit_network().header, (road,))
+    cfg = DriveConfig()
+    route = next(r for r in find_routes(net, config=cfg) if r.name == "mainline lane -2")
+    centre = -(SHOULDER_IN_M + 0.5 * LANE_M)
+    # s advances by the car's step divided by (1 - k t) = 1 - 2.75 / 15
+    step = cfg.speed_m_s * cfg.timestep_s
+    s = np.arange(route.start.s_m, route.target.s_m + 1e-9, step / (1.0 - 2.75 / 15.0))
+    xy = road.to_xy(s, np.full(s.size, centre))
+    states = {
+        "time": np.arange(s.size) * cfg.timestep_s,
+        "x": xy[:, 0],
+        "y": xy[:, 1],
+        "h": road.heading(s),
+        "road": np.full(s.size, "1", dtype=object),
+        "lane": np.full(s.size, -2),
+        "s": s,
+        "speed": np.full(s.size, cfg.speed_m_s),
+    }
+    j = _judge(states, route, net, cfg)
+    assert j.reached
+    assert j.max_jump_m < 0.01
+    # 43 m of reference line, 35 m driven: short in metres, far enough along the road
+    assert j.on_target_m == pytest.approx(0.817 * (s[-1] - s[0]), abs=0.1)
+    assert j.faults == ()
+    # a car that leaves the lane 10 m early is still too short, however it is measured
+    short = {k: v[: s.size - 8] for k, v in states.items()}
+    j = _judge(short, route, net, cfg)
+    assert "short_on_target" in [f.code for f in j.faults] or "not_reached" in [
+        f.code for f in j.faults
+    ]
 
 
 # ---------------------------------------------------------------------------

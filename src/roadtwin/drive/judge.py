@@ -3,7 +3,9 @@
 A route passes when the car
 
 * reached the target (within ``reach_tolerance_m``) and drove at least ``min_on_target_m``
-  on the target road (or as far as the route plans there, when that is shorter);
+  on the target road (or as far as the route plans there, when that is shorter), measured
+  as driven or along the road's reference line (the route's plan: a lane on the inside
+  of a tight curve is shorter than its stretch of reference line);
 * never jumped: after each step the car is within ``max_jump_m`` of where its own speed
   and heading would have put it (a continuous map gives millimetres; a gap across a link,
   or a lane link to a lane metres away, gives the size of the gap);
@@ -149,6 +151,9 @@ def judge_recording(
     ok_step = np.where(jump > cfg.max_jump_m, 0.0, step)
     on_target = (rec.road[1:] == route.target.road_id) & (rec.road[:-1] == route.target.road_id)
     driven_on_target = float(ok_step[on_target].sum())
+    # the route plans its distance along the target road's reference line: in a lane on
+    # the inside of a curve the car advances further in s than it drives (1 / (1 - k t))
+    advanced_on_target = float(np.abs(np.diff(rec.s))[on_target & (jump <= cfg.max_jump_m)].sum())
     goal = _target_xy(network, route)
     dist = np.hypot(rec.x - goal[0], rec.y - goal[1])
     reached = bool(dist.min() <= cfg.reach_tolerance_m + 0.5 * cfg.speed_m_s * cfg.timestep_s)
@@ -176,12 +181,12 @@ def judge_recording(
     # target road counts for neither road
     step_m = cfg.speed_m_s * cfg.timestep_s
     needed = min(cfg.min_on_target_m, route.on_target_m) - cfg.reach_tolerance_m - 2.0 * step_m
-    if reached and driven_on_target < needed:
+    if reached and max(driven_on_target, advanced_on_target) < needed:
         faults.append(
             _fault(
                 "short_on_target",
-                f"drove only {driven_on_target:.1f} m on the target road "
-                f"{route.target.road_id} (needed {needed:.1f} m)",
+                f"drove only {driven_on_target:.1f} m ({advanced_on_target:.1f} m along the "
+                f"road) on the target road {route.target.road_id} (needed {needed:.1f} m)",
                 rec,
                 len(rec) - 1,
             )
