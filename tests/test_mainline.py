@@ -1026,6 +1026,35 @@ def test_an_edge_lane_wider_than_any_lane_is_a_shoulder_unless_the_car_drove_in_
     assert _lane_types(lane, gs, None, cfg)[-1] == "driving"
 
 
+def test_a_lane_beyond_a_dashed_line_is_a_lane_however_narrow():
+    """melbourne-18 (seed 11): five lanes, the outermost 3.2-3.4 m between a dashed line
+    and the edge (no hard shoulder). Its width alone (2.2-3.3 m: a hard shoulder or a
+    narrow lane) made it a shoulder over 265 m; the line beside it is dashed, and a line
+    between a lane and a hard shoulder is solid."""
+    from roadtwin.mainline.markings import _dashed
+    from roadtwin.mainline.sections import _lane_types
+
+    cfg = MainlineConfig()
+    gs = np.arange(0.0, 300.5, 1.0)
+    borders = np.array([0.0, 1.0, 4.4, 7.8, 11.1, 14.3, 17.5])[:, None] + np.zeros(gs.size)
+    assert _lane_types(borders, gs, None, cfg)[-1] == "shoulder"
+    assert _lane_types(borders, gs, None, cfg, (False, True))[-1] == "driving"
+    assert _lane_types(borders, gs, None, cfg, (True, False))[0] == "shoulder"  # 1 m
+    # dashes 6 m long every 18 m, sampled every 0.5 m, some samples missed
+    rng = np.random.default_rng(3)
+    s = np.arange(0.0, 300.0, 0.5)
+    dashes = s[(s % 18.0) < 6.0]
+    dashes = dashes[rng.random(dashes.size) > 0.1]
+    assert _dashed(dashes, 0.0, 300.0, cfg)
+    # US paint: 3 m dashes every 12 m
+    assert _dashed(s[(s % 12.0) < 3.0], 0.0, 300.0, cfg)
+    # a solid line hidden by trucks over 40 and 90 m, or worn for 30 m: not a pattern
+    hidden = s[((s < 100.0) | (s > 140.0)) & ((s < 180.0) | (s > 270.0))]
+    assert not _dashed(hidden, 0.0, 300.0, cfg)
+    assert not _dashed(s[(s < 200.0) | (s > 230.0)], 0.0, 300.0, cfg)
+    assert not _dashed(s, 0.0, 300.0, cfg)
+
+
 def test_no_lane_width_dips_below_zero_between_samples():
     """oakland-11197879-s9, noisier sensor (seed 49): a shoulder opening from zero had a
     width piece 0 at both ends of 22.5 m and -2 mm between (own check: negative_width).

@@ -147,6 +147,28 @@ def _mark_type(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig)
     return "broken" if frac > cfg.broken_gap_fraction else "solid"
 
 
+def _dashed(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig) -> bool:
+    """True if the samples in [lo, hi] (stations, metres) show a dash pattern: at least
+    three gaps longer than ``broken_gap_m`` covering more than ``broken_gap_fraction`` of
+    the interval, of regular length (their spread under half their median) and separated
+    by dashes no longer than 15 m. A solid line hidden by a truck or worn for a stretch
+    leaves one or two gaps of any length, not a pattern."""
+    ss = np.sort(s_samples[(s_samples >= lo) & (s_samples <= hi)])
+    if ss.size < 4 or hi - lo <= 0:
+        return False
+    gaps = np.diff(ss)
+    spacing = float(np.median(gaps))
+    long_gap = gaps > max(cfg.broken_gap_m, 3.0 * spacing)
+    n_long = int(np.count_nonzero(long_gap))
+    if n_long < 3 or float(np.sum(gaps[long_gap])) <= cfg.broken_gap_fraction * (hi - lo):
+        return False
+    lengths = gaps[long_gap]
+    spread = float(np.subtract(*np.percentile(lengths, [75, 25])))
+    i_long = np.nonzero(long_gap)[0]
+    dashes = ss[i_long[1:]] - ss[i_long[:-1] + 1]
+    return spread < 0.5 * float(np.median(lengths)) and float(np.median(dashes)) <= 15.0
+
+
 @dataclass
 class _Track:
     id: int

@@ -32,7 +32,7 @@ from .gores import (
     smoothstep,
     taper_width,
 )
-from .markings import _mark_type, _Track
+from .markings import _dashed, _mark_type, _Track
 
 FloatArray = NDArray[np.float64]
 
@@ -185,18 +185,20 @@ def _lane_types(
     gs: FloatArray,
     car: tuple[FloatArray, FloatArray] | None,
     cfg: MainlineConfig,
+    dashed: tuple[bool, bool] = (False, False),
 ) -> list[str]:
     """Lane types of one section from its borders (rows inner to outer, on ``gs``).
 
     The lanes between a road edge and the nearest marking are shoulders when they are
     narrower than ``shoulder_max_m``, driving lanes when the car drove in them
-    (``car``: stations and offsets of the poses) or when they are at least
-    ``edge_lane_min_m`` wide (a road without shoulders, whose edge lines run along its
-    edges) and at most ``edge_lane_max_m`` (wider: paved area beside the lanes, a gore); in
-    between (2.2-3.3 m: a hard shoulder or a narrow lane) a shoulder where the section has
-    three lanes or more. Lanes between two markings are driving lanes unless
-    they are nowhere ``shoulder_max_m`` wide (a strip between an edge line and a second
-    line beside it).
+    (``car``: stations and offsets of the poses), when that marking is dashed (``dashed``:
+    the innermost and the outermost marking; a line between a lane and a shoulder is
+    solid) or when they are at least ``edge_lane_min_m`` wide (a road without shoulders,
+    whose edge lines run along its edges), all up to ``edge_lane_max_m`` (wider: paved
+    area beside the lanes, a gore); in between (2.2-3.3 m: a hard shoulder or a narrow
+    lane) a shoulder where the section has three lanes or more. Lanes between two
+    markings are driving lanes unless they are nowhere ``shoulder_max_m`` wide (a strip
+    between an edge line and a second line beside it).
     """
     n_l = borders.shape[0] - 1
     if n_l < 2:
@@ -216,14 +218,14 @@ def _lane_types(
                 d_car[on][None, :] <= borders[1:, i_g]
             )
             share = inside.mean(axis=1)
-    for i in (0, n_l - 1):
+    for i, beside_dashes in ((0, dashed[0]), (n_l - 1, dashed[1])):
         if widths[i] < cfg.shoulder_max_m:
             types[i] = "shoulder"
         elif share[i] > 0.3:
             types[i] = "driving"
         elif widths[i] > cfg.edge_lane_max_m:
             types[i] = "shoulder"
-        elif widths[i] >= cfg.edge_lane_min_m:
+        elif widths[i] >= cfg.edge_lane_min_m or beside_dashes:
             types[i] = "driving"
         elif n_l >= 3:
             types[i] = "shoulder"
@@ -389,7 +391,14 @@ def _sections_from_tracks(
         labels.append("edge")
         stack = np.maximum.accumulate(np.vstack(rows), axis=0)
         n_l = len(stack) - 1
-        types = _lane_types(stack, gs, car, cfg)
+        dashed = (False, False)
+        if len(members) >= 1:
+            lo, hi = float(gs[0]), float(gs[-1])
+            dashed = (
+                _dashed(tracks[members[0]].s_samples, lo, hi, cfg),
+                _dashed(tracks[members[-1]].s_samples, lo, hi, cfg),
+            )
+        types = _lane_types(stack, gs, car, cfg, dashed)
         lanes: list[Lane] = []
         bounds: list[tuple[object, object]] = []
         for i in range(n_l):
