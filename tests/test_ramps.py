@@ -37,6 +37,7 @@ from roadtwin.ramps import (
     find_candidates,
     infer_lane_count,
 )
+from roadtwin.ramps.candidates import _mainline_nodes, _Track
 
 DATA = Path(__file__).parent / "data" / "osm"
 
@@ -576,6 +577,38 @@ def test_flyover_joining_as_a_link_is_one_outer_entry():
     assert chains_lht[0].side == "inner"
 
 
+def test_an_exit_onto_a_frontage_road_is_an_exit():
+    """melbourne-1019 (seed 11): a tertiary frontage road runs 15 m beside the motorway
+    and the exit's link ends on it. Its nodes lay near the drive with the driven heading,
+    so the link had "both ends on the driven carriageway" and the exit was missed (its lane
+    was closed by a taper instead)."""
+    graph = nx.MultiDiGraph(crs="local")
+    traj = np.stack([np.linspace(0.0, 1000.0, 1001), np.zeros(1001)], axis=1)
+    for i, x in enumerate((0.0, 300.0, 1000.0)):
+        graph.add_node(i, x=x, y=0.0)
+    graph.add_edge(0, 1, highway="motorway", osmid=1, geometry=LineString([(0, 0), (300, 0)]))
+    graph.add_edge(1, 2, highway="motorway", osmid=1, geometry=LineString([(300, 0), (1e3, 0)]))
+    # the frontage road, 15 m right of the carriageway, same direction
+    for i, x in enumerate((0.0, 450.0, 1000.0)):
+        graph.add_node(20 + i, x=x, y=-15.0)
+    for a, b in ((20, 21), (21, 22)):
+        xa, xb = graph.nodes[a]["x"], graph.nodes[b]["x"]
+        graph.add_edge(a, b, highway="tertiary", osmid=5,
+                       geometry=LineString([(xa, -15.0), (xb, -15.0)]))  # fmt: skip
+    xl = np.linspace(300.0, 450.0, 16)
+    graph.add_edge(1, 21, highway="motorway_link", osmid=9,
+                   geometry=LineString(np.c_[xl, -15.0 * (xl - 300.0) / 150.0]))  # fmt: skip
+    chains, rejected = extract_ramp_chains(graph, traj)
+    assert not any("both ends" in why for _, why in rejected)
+    assert [(c.type, c.osm_way_ids, c.attach_node, c.side) for c in chains] == [
+        ("exit", (9,), 1, "outer")
+    ]
+    # without a motorway or trunk along the drive, a road of any class is its carriageway
+    graph.remove_edges_from([(0, 1, 0), (1, 2, 0)])
+    on_road = _mainline_nodes(graph, _Track(traj + np.array([0.0, -15.0])), RampConfig())
+    assert 21 in on_road
+
+
 def test_ramp_evidence_ignores_a_crossing_road():
     """A flyover's edges and markings crossing the measured ramp at 60 deg are another
     road's: the reference line still follows the measured ramp."""
@@ -742,3 +775,26 @@ def test_an_unmeasured_gore_is_where_the_mainline_lane_ends():
     far = build_ramps(graph, moved, trajectory_xy=traj, gores=()).ramps[0]
     assert far.station_source == "osm"
     assert far.station_m == pytest.approx(470.0, abs=3.0)
+
+
+def test_a_ramp_fit_that_turns_back_against_its_osm_line_is_not_used():
+    """Town06 exit 5011 (every seed): its OSM line bends 70 degrees within metres, and the
+    clothoid spline, which compares each OSM point with the curve at the same arc length,
+    looped round 25 m across (ramp centre RMSE 9.7 m; esmini drove the loop). At a fork of
+    melbourne-1226 the gore lay 8.5 m beside the branch's OSM line: a U-turn 30 m across.
+    Such a fit is detected and the OSM line is used as drawn; a fit beside its line, and a
+    loop ramp's fit along its looping OSM line, are kept."""
+    from roadtwin.ramps.road import _turns_back
+
+    x = np.linspace(0.0, 60.0, 61)
+    line = np.c_[x, -20.0 - 0.2 * x]
+    theta = np.linspace(0.0, np.pi, 50)  # a half circle of 15 m radius, then back
+    u_turn = np.r_[np.c_[15.0 * np.sin(theta), -15.0 + 15.0 * np.cos(theta)],
+                   np.c_[-np.linspace(1.0, 10.0, 10), np.full(10, -30.0)]]  # fmt: skip
+    assert _turns_back(u_turn, line)
+    assert not _turns_back(line + np.array([0.0, 1.5]), line)
+    # a 270 degree loop ramp fitted 1 m inside its OSM line
+    phi = np.linspace(0.0, 1.5 * np.pi, 120)
+    loop = np.c_[40.0 * np.sin(phi), 40.0 - 40.0 * np.cos(phi)]
+    fitted = np.c_[39.0 * np.sin(phi), 40.0 - 39.0 * np.cos(phi)]
+    assert not _turns_back(fitted, loop)

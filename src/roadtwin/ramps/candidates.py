@@ -176,6 +176,9 @@ def _mainline_nodes(
     last node is near the drive and aligned with it, but nothing of the carriageway
     leaves it, so the link is a ramp, not part of the carriageway. Within
     ``_TRACK_END_M`` of the drive's ends one side is enough (the extract is cut there).
+    Where the drive has motorway or trunk edges along it, only those make the carriageway:
+    a frontage road running beside it (a tertiary road 15 m off, with the exit's link
+    ending on it) is not the carriageway.
     """
     max_dh = math.radians(cfg.max_heading_diff_deg)
     node_ids = list(osm_graph.nodes)
@@ -192,23 +195,33 @@ def _mainline_nodes(
         inside = (s_e >= 0.0) & (s_e <= track.length)
         return bool(np.median(np.abs(t_e[inside] if inside.any() else t_e)) <= cfg.mainline_match_m)
 
-    out: dict[Any, EdgeKey] = {}
+    # per node: the aligned edges of each direction, motorway/trunk ones first
+    found: dict[Any, tuple[dict[bool, EdgeKey], dict[bool, EdgeKey]]] = {}
     for n, sn in near_nodes.items():
         h_track = float(track.heading(np.array([sn]))[0])
         edges = [(u, v, k, True) for u, v, k in osm_graph.out_edges(n, keys=True)]
         edges += [(u, v, k, False) for u, v, k in osm_graph.in_edges(n, keys=True)]
         aligned: dict[bool, EdgeKey] = {}
+        major: dict[bool, EdgeKey] = {}
         for u, v, k, outgoing in sorted(edges, key=lambda e: (str(e[0]), str(e[1]), e[2])):
             data = osm_graph.edges[u, v, k]
-            if outgoing in aligned or _is_link(data):
+            if outgoing in major or _is_link(data):
                 continue
             xy = edge_xy(osm_graph, u, v, k)
             h = _end_heading(xy, at_start=outgoing)
             if abs(float(_wrap(h - h_track))) <= max_dh and along_drive(xy):
-                aligned[outgoing] = (u, v, k)
+                aligned.setdefault(outgoing, (u, v, k))
+                if _carriageway_class(data):
+                    major[outgoing] = (u, v, k)
+        found[n] = (aligned, major)
+    strict = any(major for _, major in found.values())
+    out: dict[Any, EdgeKey] = {}
+    for n, (aligned, major) in found.items():
+        use = major if strict else aligned
+        sn = near_nodes[n]
         at_end = sn <= _TRACK_END_M or sn >= track.length - _TRACK_END_M
-        if len(aligned) == 2 or (aligned and at_end):
-            out[n] = aligned.get(True, aligned.get(False))
+        if len(use) == 2 or (use and at_end):
+            out[n] = use.get(True, use.get(False))
     return out
 
 

@@ -41,6 +41,34 @@ def _refuse_folded(ref: FloatArray, centre: FloatArray, road_id: str) -> None:
         raise FitError(msg)
 
 
+_KNOT_DEG = 100.0  # a fitted line heading this far from the OSM line beside it turned back
+_KNOT_RUN_M = 5.0  # ... over at least this length (metres)
+
+
+def _turns_back(fitted: FloatArray, target: FloatArray) -> bool:
+    """True if the fitted reference line ``fitted`` turns back against the OSM line
+    ``target`` it was fitted to (both ``(N, 2)``, metres, in the same order): over
+    ``_KNOT_RUN_M`` its heading differs by more than ``_KNOT_DEG`` from the heading of the
+    nearest stretch of ``target``.
+
+    The clothoid spline compares each target point with the curve at the same arc length;
+    where the OSM line turns more sharply than the curvature bound allows (Town06's exit
+    5011 bends 70 degrees within metres) or starts metres beside the gore (a fork drawn
+    from the branch's centre, melbourne-1226), its best fit is a loop 20-30 m across that
+    a car would drive. A loop ramp's OSM line loops too, so its fit follows it and passes."""
+    fit = resample_polyline(fitted, 1.0)
+    line = resample_polyline(target, 1.0)
+    if fit.shape[0] < 3 or line.shape[0] < 3:
+        return False
+    h_fit = np.arctan2(*np.gradient(fit, axis=0)[:, ::-1].T)
+    h_line = np.arctan2(*np.gradient(line, axis=0)[:, ::-1].T)
+    _, nearest = cKDTree(line).query(fit)
+    back = np.degrees(np.abs(_wrap(h_fit - h_line[nearest]))) > _KNOT_DEG
+    runs = np.diff(np.concatenate([[0], back.astype(np.int8), [0]]))
+    lengths = np.nonzero(runs == -1)[0] - np.nonzero(runs == 1)[0]
+    return bool(lengths.size) and float(lengths.max()) >= _KNOT_RUN_M
+
+
 def _build_ramp_road(
     chain_xy: FloatArray,
     mainline_road: Road,
@@ -225,6 +253,7 @@ def _build_ramp_road(
         widths=(w_in, width, w_hs),
         config=cfg,
     )
+    target_line = ref
     osm_fit = fit_shape()
     fit = None
     measured = _measured_near_ramp(
@@ -265,7 +294,15 @@ def _build_ramp_road(
                 width,
                 w_hs,
             )
-    ref = fit.xy if fit is not None else (osm_fit.xy[::-1] if backwards else osm_fit.xy)
+    fitted = osm_fit.xy if fit is None else shape.xy
+    if _turns_back(fitted, target_line):
+        log.warning(
+            "%s: the fitted ramp turns back against its OSM line (a loop); the OSM line "
+            "is used as drawn",
+            road_id,
+        )
+        fit, fitted = None, target_line
+    ref = fitted[::-1] if backwards else fitted
     w_hs_src = 0.0
     if shoulder_lane_id is not None:
         inner_id = shoulder_lane_id + (1 if shoulder_lane_id < 0 else -1)
