@@ -982,3 +982,40 @@ def test_a_driving_lane_that_narrowed_is_not_linked_on_into_a_shoulder():
     wide = replace(down, lane_sections=(LaneSection(0.0, right=(*down_lanes[:2],
         _lane(-3, 0.5), down_lanes[3])),))  # fmt: skip
     assert _end_to_start_links(up, wide, "right")[-3] == -3  # driving on: still linked
+
+
+def test_no_lane_of_the_built_roads_ends_below_zero_width():
+    """melbourne-1226 (seed 11): a lane closing at a road's end reached -1.7 mm there (an
+    error for ASAM and roadtwin check). Every width piece of every built road is kept at
+    or above zero; a lane that stays positive is left exactly as it was."""
+    drop = 3.5 + 0.002  # from 3.5 m to -2 mm over the last 150 m, flat at both ends
+    closing = CubicProfile(
+        (
+            CubicPiece(0.0, 3.5, 0.0, 0.0, 0.0),
+            CubicPiece(150.0, 3.5, 0.0, -3.0 * drop / 150.0**2, 2.0 * drop / 150.0**3),
+        )
+    )
+    end = closing.value(np.array([300.0]))[0]
+    assert -0.005 < end < 0.0  # the fitted closing lane overshoots zero at the end
+    road = Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, 300.0),),
+        (
+            LaneSection(
+                0.0,
+                right=(
+                    Lane(-1, "shoulder", CubicProfile.constant(1.0), (RoadMark(0.0, "solid"),)),
+                    Lane(-2, "driving", CubicProfile.constant(3.5), (RoadMark(0.0, "broken"),)),
+                    Lane(-3, "driving", closing, (RoadMark(0.0, "solid"),)),
+                ),
+            ),
+        ),
+        name="mainline",
+    )
+    topo = build_topology(road, [])
+    (built,) = [r for r in topo.roads if r.name == "mainline"]
+    lanes = {ln.id: ln for ln in built.lane_sections[0].right}
+    s = np.linspace(0.0, 300.0, 3001)
+    assert lanes[-3].width.value(s).min() > -1e-9
+    assert lanes[-3].width.value(np.array([300.0]))[0] == pytest.approx(0.0, abs=1e-9)
+    assert lanes[-2].width == road.lane_sections[0].right[1].width

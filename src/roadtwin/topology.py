@@ -36,7 +36,7 @@ import numpy as np
 from .config import TopologyConfig
 from .lane_drops import taper_lane_drops
 from .mainline import cut_road
-from .mainline.seal import add_linear_ramp
+from .mainline.seal import add_linear_ramp, nonnegative_widths
 from .model import (
     Connection,
     CubicPiece,
@@ -993,8 +993,11 @@ def build_topology(
         for r in _chain_roads([road, *tails[i]], traffic_side)
     ]
     main_roads = [_closing_drops(r, traffic_side, cfg.lane_drop_taper_m) for r in main_roads]
+    # the cuts, fades and tapers above re-fit widths: none may dip below zero (a lane
+    # closing at a cut ended at -1.7 mm, an error for ASAM and roadtwin check)
     roads, junctions_out = prune_zero_width_links(
-        [true_lengths(r) for r in (*main_roads, *ramp_roads, *connectors)], junctions
+        [true_lengths(nonnegative_widths(r)) for r in (*main_roads, *ramp_roads, *connectors)],
+        junctions,
     )
     log.info(
         "topology: %d mainline roads, %d ramps, %d connecting roads, %d %s junctions",
