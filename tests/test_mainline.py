@@ -519,6 +519,52 @@ def test_lanes_linked_across_a_lane_offset_step_stay_joined():
     assert joined.lane_offset.pieces[0].a == 0.0
 
 
+def test_an_offset_step_that_disagrees_with_the_lanes_by_decimetres_stays_measured():
+    """oakland-28393854-s7: the median edge steps out by 12.24 m, the lane widths said
+    12.43 m. Re-levelling moved the 800 m after the step 0.18 m off the measured median
+    edge, and every lane border with it (lane RMSE 0.110 -> 0.034 m without). The offset
+    stays as measured; the lanes beginning at the step take up the difference."""
+    from roadtwin.mainline.reference import _join_lanes_across_offset_steps
+    from roadtwin.mainline.seal import seal_lane_borders
+
+    # as in the test above, but the measured step is 3.67 m: 0.18 m more than the lanes
+    before = _section(0.0, [0.78, 3.5, 3.5], ["shoulder", "driving", "driving"], ["solid"] * 3, 1)
+    after = _section(
+        200.0,
+        [0.79, 3.5, 3.5, 3.5],
+        ["shoulder", "driving", "driving", "driving"],
+        ["solid"] * 4,
+        1,
+    )
+    after = replace(
+        after,
+        right=tuple(
+            replace(ln, predecessor=ln.id + 1 if ln.id <= -3 else None) for ln in after.right
+        ),
+    )
+    road = Road(
+        "1",
+        chain_geometry([Line(0, 0.0, 0.0, 0.0, 800.0)]),
+        (before, after),
+        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(200.0, 3.67))),
+    )
+    joined = _join_lanes_across_offset_steps(road, np.array([200.0]))
+    assert [p.a for p in joined.lane_offset.pieces] == [0.0, 3.67]
+    sealed = seal_lane_borders(joined)
+    for lid_before, lid_after in ((-2, -3), (-3, -4)):
+        t0 = sealed.lane_border_t(np.array([200.0 - 1e-6]), lid_before)[0]
+        t1 = sealed.lane_border_t(np.array([200.0]), lid_after)[0]
+        assert abs(t1 - t0) < 1e-6
+    # the median edge and, 100 m past the step, every border lie where they were measured
+    s = np.array([200.0, 300.0])
+    assert np.allclose(sealed.lane_border_t(s, 0), road.lane_border_t(s, 0), atol=1e-9)
+    far = np.array([300.0])
+    for lid in (-1, -2, -3, -4):
+        assert sealed.lane_border_t(far, lid)[0] == pytest.approx(
+            road.lane_border_t(far, lid)[0], abs=1e-6
+        )
+
+
 def _const_track(tid, grid, d, lo, hi, n=100):
     from roadtwin.mainline.markings import _Track
 
