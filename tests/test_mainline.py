@@ -563,6 +563,17 @@ def test_an_offset_step_that_disagrees_with_the_lanes_by_decimetres_stays_measur
         assert sealed.lane_border_t(far, lid)[0] == pytest.approx(
             road.lane_border_t(far, lid)[0], abs=1e-6
         )
+    # where every lane goes on across the border, none can take the difference up: the
+    # segment moves (krems-30799129 +80: else a 0.16 m gap across a road link)
+    same = _section(200.0, [0.78, 3.5, 3.5], ["shoulder", "driving", "driving"], ["solid"] * 3, 1)
+    same = replace(same, right=tuple(replace(ln, predecessor=ln.id) for ln in same.right))
+    through = replace(
+        road,
+        lane_sections=(before, same),
+        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(200.0, 0.16))),
+    )
+    moved = _join_lanes_across_offset_steps(through, np.array([200.0]))
+    assert moved.lane_offset.pieces[1].a == pytest.approx(0.0, abs=1e-9)
 
 
 def _const_track(tid, grid, d, lo, hi, n=100):

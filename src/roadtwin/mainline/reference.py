@@ -137,7 +137,8 @@ def _lane_offset(steps: EdgeSteps, sign: float) -> CubicProfile:
 _STEP_SECTION_M = 0.5  # a lane section starting this close to an offset step starts there
 _RELEVEL_MAX_M = 0.05  # a lane border this far off across an offset step is noise: the
 # segment moves; farther, the markings and the median edge disagree for real and the
-# seal fades the lane's width next to the border instead of moving the whole segment
+# seal fades the lanes beginning or ending there instead of moving the whole segment
+_RELEVEL_ANY_M = 0.5  # ... unless no such lane is there to take it up
 
 
 def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
@@ -151,7 +152,9 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
     section border there keeps its outer border (metres, t), if that moves it by at most
     ``_RELEVEL_MAX_M``. A larger difference is no noise: moving the segment by it moved
     800 m of oakland-28393854-s7 0.18 m off its measured median edge (every lane border
-    with it); :func:`~.seal.seal_lane_borders` joins the lanes there instead."""
+    with it); :func:`~.seal.seal_lane_borders` joins the lanes there instead, by the
+    widths of the lanes inside that begin or end at the border. Where there are none, the
+    segment still moves (up to ``_RELEVEL_ANY_M``): the border would be a 0.16 m gap."""
     pieces = list(road.lane_offset.pieces)
     if len(pieces) < 2 or not len(stations):
         return road
@@ -167,6 +170,11 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
         if not linked:
             continue
         lane = min(linked, key=lambda ln: abs(ln.id))
+        # lanes inside it on either side of the border (beginning or ending there) can
+        # take up a difference (the seal); without them the segment moves
+        takes_up = any(abs(ln.id) < abs(lane.id) for ln in (sec.right or sec.left)) or any(
+            abs(ln.id) < abs(int(lane.predecessor)) for ln in (prev_sec.right or prev_sec.left)
+        )
         probe = replace(road, lane_offset=CubicProfile(tuple(pieces)))
         s_before = np.array([s0s[n] - 1e-6])
         if s_before[0] < prev_sec.s0:
@@ -174,7 +182,8 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
         t_before = probe.lane_border_t(s_before, int(lane.predecessor))[0]
         t_after = probe.lane_border_t(np.array([s0s[n]]), lane.id)[0]
         shift = float(t_before - t_after)
-        if np.isfinite(shift) and abs(shift) <= _RELEVEL_MAX_M:
+        limit = _RELEVEL_MAX_M if takes_up else _RELEVEL_ANY_M
+        if np.isfinite(shift) and abs(shift) <= limit:
             pieces[k] = replace(pieces[k], a=pieces[k].a + shift)
     return replace(road, lane_offset=CubicProfile(tuple(pieces)))
 
