@@ -479,12 +479,9 @@ def test_cut_at_a_lane_offset_step_leaves_no_sliver_of_the_old_offset(right_case
     assert [(round(p.s0, 6), p.a) for p in inside.lane_offset.pieces] == [(0.0, 3.5), (100.0, 0.0)]
 
 
-def test_lanes_linked_across_a_lane_offset_step_stay_joined():
-    from roadtwin.mainline.reference import _join_lanes_across_offset_steps
-
-    # an inner lane (3.50 m) and a narrower inner shoulder join at 200 m on the median
-    # side; the measured offset step (3.49 m) disagrees with the lane widths by 1 cm +
-    # the shoulders' difference: the through lanes would jump sideways at the step
+def _road_with_a_lane_beginning_at_a_step(offset_m: float, length_m: float) -> Road:
+    """A straight road whose median-side edge steps out by ``offset_m`` at 200 m, where
+    an inner lane (3.50 m) and a narrower inner shoulder begin on the median side."""
     before = _section(0.0, [0.78, 3.5, 3.5], ["shoulder", "driving", "driving"], ["solid"] * 3, 1)
     after = _section(
         200.0,
@@ -499,12 +496,21 @@ def test_lanes_linked_across_a_lane_offset_step_stay_joined():
             replace(ln, predecessor=ln.id + 1 if ln.id <= -3 else None) for ln in after.right
         ),
     )
-    road = Road(
+    return Road(
         "1",
-        chain_geometry([Line(0, 0.0, 0.0, 0.0, 400.0)]),
+        chain_geometry([Line(0, 0.0, 0.0, 0.0, length_m)]),
         (before, after),
-        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(200.0, 3.49))),
+        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(200.0, offset_m))),
     )
+
+
+def test_lanes_linked_across_a_lane_offset_step_stay_joined():
+    from roadtwin.mainline.reference import _join_lanes_across_offset_steps
+
+    # an inner lane (3.50 m) and a narrower inner shoulder join at 200 m on the median
+    # side; the measured offset step (3.49 m) disagrees with the lane widths by 1 cm +
+    # the shoulders' difference: the through lanes would jump sideways at the step
+    road = _road_with_a_lane_beginning_at_a_step(3.49, 400.0)
     joined = _join_lanes_across_offset_steps(road, np.array([200.0]))
     for lid_before, lid_after in ((-2, -3), (-3, -4)):
         t0 = joined.lane_border_t(np.array([200.0 - 1e-6]), lid_before)[0]
@@ -528,26 +534,8 @@ def test_an_offset_step_that_disagrees_with_the_lanes_by_decimetres_stays_measur
     from roadtwin.mainline.seal import seal_lane_borders
 
     # as in the test above, but the measured step is 3.67 m: 0.18 m more than the lanes
-    before = _section(0.0, [0.78, 3.5, 3.5], ["shoulder", "driving", "driving"], ["solid"] * 3, 1)
-    after = _section(
-        200.0,
-        [0.79, 3.5, 3.5, 3.5],
-        ["shoulder", "driving", "driving", "driving"],
-        ["solid"] * 4,
-        1,
-    )
-    after = replace(
-        after,
-        right=tuple(
-            replace(ln, predecessor=ln.id + 1 if ln.id <= -3 else None) for ln in after.right
-        ),
-    )
-    road = Road(
-        "1",
-        chain_geometry([Line(0, 0.0, 0.0, 0.0, 800.0)]),
-        (before, after),
-        lane_offset=CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(200.0, 3.67))),
-    )
+    road = _road_with_a_lane_beginning_at_a_step(3.67, 800.0)
+    before = road.lane_sections[0]
     joined = _join_lanes_across_offset_steps(road, np.array([200.0]))
     assert [p.a for p in joined.lane_offset.pieces] == [0.0, 3.67]
     sealed = seal_lane_borders(joined)
