@@ -1275,6 +1275,42 @@ def test_lines_unseen_just_before_a_median_step_go_on_to_the_lines_inferred_afte
         assert sum(ln.type == "driving" for ln in sc.right) == 3, sc.s0
 
 
+def test_a_lane_out_of_the_sensors_reach_beyond_the_last_marking_is_inferred():
+    """Town06 driven in its inner lane (seed 21): the line between the outer lane and the
+    shoulders lay 12.2 m from the car, out of the sensor's reach, over the whole run; the
+    run's "typical shoulder" was then the outer lane and the shoulders together, 4.7 m,
+    and the outer lane was never inferred (lane RMSE 1.77 m). Driven more than two lanes
+    and that strip away from the edge, the strip is whole lanes and the rest shoulder."""
+    from roadtwin.mainline import fit_lanes
+
+    rng = np.random.default_rng(11)
+
+    def line(d, step=0.5):
+        s = np.arange(0.0, 800.0, step)
+        return s, d + rng.normal(0.0, 0.02, s.size)
+
+    parts = [line(1.0), line(4.5), line(8.0), line(11.5)]
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    s_out, d_out = line(16.2, 0.2)
+
+    def outer_lanes(car_d):
+        car = (np.arange(0.0, 800.0, 1.0), np.full(800, car_d))
+        sections, _, _, _ = fit_lanes(
+            s_lane, d_lane, s_out, d_out, length=800.0, sign=1.0, config=MainlineConfig(),
+            car=car,
+        )  # fmt: skip
+        return [
+            (ln.type, round(float(ln.width.value(np.array([100.0]))[0]), 1))
+            for ln in sections[0].right
+        ]
+
+    # in the inner lane: a 3.5 m lane and a 1.2 m shoulder beyond the last marking
+    assert outer_lanes(2.75)[-2:] == [("driving", 3.5), ("shoulder", 1.2)]
+    # in the lane beside the strip the sensor would have seen that line: the strip stays
+    assert outer_lanes(9.75)[-1] == ("driving", 4.7)
+
+
 def test_the_second_join_pass_only_joins_inferred_lines_to_observed_ones():
     """After the hidden lanes are inferred, an inferred line is joined to the observed one
     it continues; two observed tracks still apart then were split at a gore on purpose

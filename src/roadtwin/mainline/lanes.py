@@ -37,6 +37,13 @@ FloatArray = NDArray[np.float64]
 __all__ = ["fit_lanes", "fit_outer_edge"]
 
 
+def _car_offset(car: tuple[FloatArray, FloatArray] | None, grid: FloatArray) -> FloatArray | None:
+    """The car's offset (metres, same frame) at each grid station, None without it."""
+    if car is None or car[0].size < 2:
+        return None
+    return np.interp(grid, car[0], car[1])
+
+
 def fit_lanes(
     s_lane: FloatArray,
     d_lane: FloatArray,
@@ -120,7 +127,7 @@ def fit_lanes(
             )
             for lo, hi in painted:  # the outer-edge points there are the ramp's
                 used = used & ~((s_outer > lo) & (s_outer < hi))
-    tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg)
+    tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg, _car_offset(car, grid))
     # an inferred line may go on where an observed one stopped a few tens of metres before
     # (lines unseen for 27 m before a median-side step: town06-auto-s3 with a noisier
     # sensor had the inner lanes missing there, one shoulder 11.6 m wide); observed tracks

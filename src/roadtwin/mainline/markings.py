@@ -777,6 +777,7 @@ def _hidden_lane_count(
 
 
 _HIDDEN_SMOOTH_M = 40.0  # window of the moving median of the extreme markings (metres)
+_MIN_UNSEEN_SHOULDER_M = 0.3  # narrowest shoulder left beside lanes inferred out of sight
 
 
 _HANDOVER_M = 5.0  # an inferred line starting this close after an observed one ends ...
@@ -835,6 +836,7 @@ def _add_hidden_lanes(
     d_edge: FloatArray,
     d_median: FloatArray,
     cfg: MainlineConfig,
+    d_car: FloatArray | None = None,
 ) -> list[_Track]:
     """Infer unobserved markings where the road beyond the observed ones is lanes wide.
 
@@ -855,7 +857,13 @@ def _add_hidden_lanes(
     (56 m on town06-auto-s3, where they had been one lane 8.1 m wide).
 
     ``d_edge`` and ``d_median`` are the outer and median-side edges (metres from the
-    reference edge towards the carriageway) at ``grid``.
+    reference edge towards the carriageway) at ``grid``. ``d_car``: the car's offset at
+    ``grid`` (same frame). Where the strip beyond the outermost marking is wider than a
+    lane over most of the run while the car drove more than two lanes and that strip
+    away from the edge, the run's hard shoulder line lay beyond the sensor's reach: the
+    strip is taken as whole lanes of the typical width and what remains of it as the
+    shoulder (Town06 driven in its inner lane: the line 12.2 m from the car was never
+    seen, and the outer lane and the shoulders made one 4.7 m "lane").
     """
     if not tracks:
         return tracks
@@ -912,6 +920,11 @@ def _add_hidden_lanes(
     outer_gap = d_edge - d_last
     if np.any(np.isfinite(outer_gap)):
         shoulder = float(np.nanmedian(outer_gap))
+        if d_car is not None and shoulder >= lane_m + _MIN_UNSEEN_SHOULDER_M:
+            car_to_edge = float(np.nanmedian(d_edge - d_car))
+            if car_to_edge > 2.0 * lane_m + shoulder:
+                lanes_in = math.floor((shoulder - _MIN_UNSEEN_SHOULDER_M) / lane_m)
+                shoulder -= lanes_in * lane_m
         n_out = _hidden_lane_count(
             outer_gap - shoulder, lane_m, cfg.hidden_lane_min_m - lane_m, cfg.grid_step_m
         )
