@@ -57,6 +57,8 @@ class RealRun:
     ``source`` is ``"osm"`` (``path`` an extract, ``chain`` a way id / ref selecting the
     carriageway), ``"xodr"`` (``path`` a map, ``route`` road ids or empty for the map's
     longest through-route) or ``"scenario"`` (``path`` a bundled scenario name).
+    ``settings``: the mapping car of OSM and OpenDRIVE runs, ``{"lane": 1, "speed_kmh":
+    110.0}`` (lane counted from the median side; default the outermost lane at 90 km/h).
     """
 
     name: str
@@ -68,6 +70,9 @@ class RealRun:
     holdout: bool = False
     settings: dict = field(default_factory=dict)
     direction: str = "forward"
+
+
+_LANE1 = {"lane": 1, "speed_kmh": 110.0}  # the car next to the median-side lane, faster
 
 
 def _opposite(name: str, path: str, seed: int, chain: int) -> RealRun:
@@ -157,6 +162,24 @@ RUNS: tuple[RealRun, ...] = (
     RealRun("melbourne-1019-s11", "osm", "melbourne-lht.osm.pbf", 11, 1019, holdout=True),
     RealRun("melbourne-1226-s11", "osm", "melbourne-lht.osm.pbf", 11, 1226, holdout=True),
     RealRun("melbourne-18-s11", "osm", "melbourne-lht.osm.pbf", 11, 18, holdout=True),
+    # added 2026-11-24 (session 12) as a probe of the mapping car itself: driven in the
+    # lane next to the median-side one at 110 km/h (every run above drives the outermost
+    # lane at 90 km/h); measured first at 4f68b3b, as a probe (RESULTS, "Session 12")
+    *(
+        RealRun(f"{name}-lane1-s21", source, path, 21, chain, holdout=True, settings=_LANE1)
+        for name, source, path, chain in (
+            ("a9-206615404", "osm", "north-bayreuth-a9.osm.gz", 206615404),
+            ("a9-239192816", "osm", "north-bayreuth-a9.osm.gz", 239192816),
+            ("oakland-28393854", "osm", "west-oakland-i880.osm.bz2", 28393854),
+            ("kotka-37952515", "osm", "kotka-e18.osm.pbf", 37952515),
+            ("krems-102561705", "osm", "krems-s5-trunk.osm.gz", 102561705),
+            ("melbourne-408", "osm", "melbourne-lht.osm.pbf", 408),
+            ("melbourne-1019", "osm", "melbourne-lht.osm.pbf", 1019),
+            ("town06-auto", "xodr", "Town06.xodr", None),
+            ("soderleden", "xodr", "soderleden.xodr", None),
+            ("e6mini", "xodr", "e6mini.xodr", None),
+        )
+    ),
 )
 
 
@@ -174,6 +197,9 @@ def simulate(
     from roadtwin import simulate as sim
 
     settings = sim.noisy_settings() if noisy else None
+    if spec.settings:
+        base = settings or sim.NetworkRunSettings()
+        settings = replace(base, car=replace(base.car, **spec.settings))
     if spec.source == "scenario":
         return sim.simulate_run(spec.path, out, seed=spec.seed)
     if spec.source == "xodr":
