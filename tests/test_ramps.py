@@ -537,16 +537,24 @@ def test_zero_width_mainline_shoulder_is_not_continued():
 # ---------------------------------------------------------------------------
 
 
+def _straight_motorway(node_x: float) -> tuple[nx.MultiDiGraph, np.ndarray]:
+    """A 1 km straight motorway along x (way 1, nodes 0, 1, 2 at x = 0, ``node_x``,
+    1000 m) and a drive along it."""
+    graph = nx.MultiDiGraph(crs="local")
+    traj = np.stack([np.linspace(0.0, 1000.0, 1001), np.zeros(1001)], axis=1)
+    for i, x in enumerate((0.0, node_x, 1000.0)):
+        graph.add_node(i, x=x, y=0.0)
+    for a, b in ((0, 1), (1, 2)):
+        xa, xb = graph.nodes[a]["x"], graph.nodes[b]["x"]
+        graph.add_edge(a, b, highway="motorway", osmid=1, geometry=LineString([(xa, 0), (xb, 0)]))
+    return graph, traj
+
+
 def _flyover_graph():
     """A straight carriageway (x east, RHT) and a motorway branch that comes from the
     median side, crosses over the carriageway and ends 5 m off it on the traffic side,
     aligned with it, at x=400, where a 90 m link goes on to join it at x=490."""
-    graph = nx.MultiDiGraph(crs="local")
-    traj = np.stack([np.linspace(0.0, 1000.0, 1001), np.zeros(1001)], axis=1)
-    for i, x in enumerate((0.0, 490.0, 1000.0)):
-        graph.add_node(i, x=x, y=0.0)
-    graph.add_edge(0, 1, highway="motorway", osmid=1, geometry=LineString([(0, 0), (490, 0)]))
-    graph.add_edge(1, 2, highway="motorway", osmid=1, geometry=LineString([(490, 0), (1e3, 0)]))
+    graph, traj = _straight_motorway(490.0)
     # the branch: from 60 m left of the carriageway (the median side), across it
     xs = np.linspace(150.0, 400.0, 26)
     ys = 60.0 - 65.0 * np.clip((xs - 150.0) / 200.0, 0.0, 1.0)
@@ -582,12 +590,7 @@ def test_an_exit_onto_a_frontage_road_is_an_exit():
     and the exit's link ends on it. Its nodes lay near the drive with the driven heading,
     so the link had "both ends on the driven carriageway" and the exit was missed (its lane
     was closed by a taper instead)."""
-    graph = nx.MultiDiGraph(crs="local")
-    traj = np.stack([np.linspace(0.0, 1000.0, 1001), np.zeros(1001)], axis=1)
-    for i, x in enumerate((0.0, 300.0, 1000.0)):
-        graph.add_node(i, x=x, y=0.0)
-    graph.add_edge(0, 1, highway="motorway", osmid=1, geometry=LineString([(0, 0), (300, 0)]))
-    graph.add_edge(1, 2, highway="motorway", osmid=1, geometry=LineString([(300, 0), (1e3, 0)]))
+    graph, traj = _straight_motorway(300.0)
     # the frontage road, 15 m right of the carriageway, same direction
     for i, x in enumerate((0.0, 450.0, 1000.0)):
         graph.add_node(20 + i, x=x, y=-15.0)

@@ -141,10 +141,16 @@ def _mark_type(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig)
     if ss.size < 3 or hi - lo <= 0:
         return "solid"
     gaps = np.diff(np.concatenate([[lo], ss, [hi]]))
-    spacing = float(np.median(np.diff(ss))) if ss.size > 1 else 0.0
-    limit = max(cfg.broken_gap_m, 3.0 * spacing)
+    limit = _long_gap_m(ss, cfg)
     frac = float(np.sum(gaps[gaps > limit])) / (hi - lo)
     return "broken" if frac > cfg.broken_gap_fraction else "solid"
+
+
+def _long_gap_m(ss: FloatArray, cfg: MainlineConfig) -> float:
+    """A gap between sorted sample stations ``ss`` longer than this (metres) is a gap in
+    the paint, not in the sampling: ``broken_gap_m`` or three sample spacings."""
+    spacing = float(np.median(np.diff(ss))) if ss.size > 1 else 0.0
+    return max(cfg.broken_gap_m, 3.0 * spacing)
 
 
 def _dashed(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig) -> bool:
@@ -157,8 +163,7 @@ def _dashed(s_samples: FloatArray, lo: float, hi: float, cfg: MainlineConfig) ->
     if ss.size < 4 or hi - lo <= 0:
         return False
     gaps = np.diff(ss)
-    spacing = float(np.median(gaps))
-    long_gap = gaps > max(cfg.broken_gap_m, 3.0 * spacing)
+    long_gap = gaps > _long_gap_m(ss, cfg)
     n_long = int(np.count_nonzero(long_gap))
     if n_long < 3 or float(np.sum(gaps[long_gap])) <= cfg.broken_gap_fraction * (hi - lo):
         return False

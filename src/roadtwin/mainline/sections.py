@@ -392,7 +392,7 @@ def _sections_from_tracks(
         stack = np.maximum.accumulate(np.vstack(rows), axis=0)
         n_l = len(stack) - 1
         dashed = (False, False)
-        if len(members) >= 1:
+        if members:
             lo, hi = float(gs[0]), float(gs[-1])
             dashed = (
                 _dashed(tracks[members[0]].s_samples, lo, hi, cfg),

@@ -19,6 +19,7 @@ from scipy.spatial import cKDTree
 from .._errors import FitError
 from ..config import RampConfig
 from ..fitting import PolylineFrame, arc_length, fit_parampoly3_chain, resample_polyline
+from ..mainline._common import true_runs
 from ..model import CubicPiece, CubicProfile, Lane, LaneSection, Road, RoadMark, chain_geometry
 from .candidates import _wrap
 from .geometry import _mainline_boundary_distance, _smooth_polyline, hermite_piece
@@ -64,9 +65,7 @@ def _turns_back(fitted: FloatArray, target: FloatArray) -> bool:
     h_line = np.arctan2(*np.gradient(line, axis=0)[:, ::-1].T)
     _, nearest = cKDTree(line).query(fit)
     back = np.degrees(np.abs(_wrap(h_fit - h_line[nearest]))) > _KNOT_DEG
-    runs = np.diff(np.concatenate([[0], back.astype(np.int8), [0]]))
-    lengths = np.nonzero(runs == -1)[0] - np.nonzero(runs == 1)[0]
-    return bool(lengths.size) and float(lengths.max()) >= _KNOT_RUN_M
+    return any(b - a >= _KNOT_RUN_M for a, b in true_runs(back))
 
 
 def _build_ramp_road(
