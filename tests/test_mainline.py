@@ -1311,6 +1311,94 @@ def test_a_lane_out_of_the_sensors_reach_beyond_the_last_marking_is_inferred():
     assert outer_lanes(9.75)[-1] == ("driving", 4.7)
 
 
+def test_a_lane_opening_out_of_the_sensors_reach_opens_beside_the_through_lane():
+    """Town06 driven in its inner lane (seed 21): beyond the sensor's reach an exit lane
+    opened over 50 m beside the inferred outer lane. The strip was split evenly into its
+    whole lanes, so the inferred lane grew from 3.5 to 6.6 m and became two lanes 3.3 m
+    wide at a section border, linked to neither: esmini found no lane path to the end.
+    The through lane keeps its width and the new lane opens from zero width beside it."""
+    from roadtwin.mainline import fit_lanes
+
+    rng = np.random.default_rng(12)
+
+    def line(d, step=0.5):
+        s = np.arange(0.0, 800.0, step)
+        return s, d + rng.normal(0.0, 0.02, s.size)
+
+    parts = [line(1.0), line(4.5), line(8.0), line(11.5)]
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    s_out = np.arange(0.0, 800.0, 0.2)
+    d_out = 16.2 + 3.5 * _smoothstep(s_out, 400.0, 50.0) + rng.normal(0.0, 0.02, s_out.size)
+    car = (np.arange(0.0, 800.0, 1.0), np.full(800, 2.75))
+    sections, _, _, _ = fit_lanes(
+        s_lane, d_lane, s_out, d_out, length=800.0, sign=1.0, config=MainlineConfig(), car=car
+    )
+
+    def lanes_at(s):
+        k = max(i for i, sc in enumerate(sections) if sc.s0 <= s)
+        sc = sections[k]
+        return [(ln, float(ln.width.value(np.array([s - sc.s0]))[0])) for ln in sc.right]
+
+    for s in np.arange(5.0, 800.0, 5.0):
+        assert max(w for _, w in lanes_at(s)) < 4.3, s
+    # through the taper the outer through lane keeps its 3.5 m
+    for s in (420.0, 430.0, 440.0):
+        driving = [w for ln, w in lanes_at(s) if ln.type == "driving"]
+        assert driving[3] == pytest.approx(3.5, abs=0.15), (s, driving)
+    after = [(ln.type, round(w, 1)) for ln, w in lanes_at(600.0)]
+    assert after[-3:] == [("driving", 3.5), ("driving", 3.5), ("shoulder", 1.2)]
+    # the new lane opens from (almost) zero width where its section starts
+    k_new = next(
+        i for i, sc in enumerate(sections)
+        if sum(ln.type == "driving" for ln in sc.right) == 5
+    )  # fmt: skip
+    born = [ln for ln in sections[k_new].right if ln.predecessor is None and ln.type == "driving"]
+    assert len(born) == 1
+    assert float(born[0].width.value(np.array([0.0]))[0]) < 0.3
+    assert 380.0 < sections[k_new].s0 < 420.0
+
+
+def test_an_inferred_line_with_its_own_taper_does_not_borrow_a_later_one():
+    """An inferred line opens (closes) like an observed sibling near it (two lanes of a
+    2-lane exit, one line seen), but not one whose taper begins only after the inferred
+    line is already half open: town06-auto-lane1-s21 borrowed the taper of a median-side
+    lane opening 96 m on, and the exit lane opening out of sight lost those 96 m."""
+    from roadtwin.mainline.markings import _Track
+    from roadtwin.mainline.sections import _sections_from_tracks
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+
+    def track(k, lo, d_of, n):
+        g = grid[grid >= lo]
+        d = d_of(g)
+        samples = g if n else g[:0]
+        return _Track(k, lo, 800.0, g, d, "broken", n, samples, d_of(samples))
+
+    def flat(d):
+        return lambda g: np.full(g.size, d)
+
+    tracks = [
+        track(0, 0.0, flat(1.0), 800),
+        track(1, 0.0, flat(4.5), 800),
+        track(2, 0.0, flat(8.0), 800),
+        track(3, 0.0, flat(11.5), 800),
+        # observed: a median-side lane opening over 480-540 m
+        track(4, 490.0, lambda g: 1.0 - 3.5 * _smoothstep(g, 480.0, 60.0), 600),
+        # inferred: an outer lane opening over 400-450 m
+        track(5, 404.0, lambda g: 11.5 + 3.5 * _smoothstep(g, 400.0, 50.0), 0),
+    ]
+    _, events, _ = _sections_from_tracks(
+        tracks, grid, np.full(grid.size, 16.2), np.zeros(0), 1.0, cfg, None,
+        np.full(grid.size, -3.5),
+    )  # fmt: skip
+    births = sorted((round(ev.s_m), ev.position) for ev in events if ev.kind == "birth")
+    assert len(births) == 2
+    (s_outer,) = [s for s, pos in births if pos == "outer"]
+    assert s_outer == pytest.approx(400.0, abs=10.0)
+
+
 def test_the_second_join_pass_only_joins_inferred_lines_to_observed_ones():
     """After the hidden lanes are inferred, an inferred line is joined to the observed one
     it continues; two observed tracks still apart then were split at a gore on purpose

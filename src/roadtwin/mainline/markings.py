@@ -935,15 +935,17 @@ def _add_hidden_lanes(
         )
         # a run ends where the outermost marking is another one (a track ending): lanes
         # inferred from it would jump by a lane there
-        for a, b, n in _runs_of(n_out, _extreme_jumps(d_last, lane_m)):
-            if n == 0 or b - a < min_run:
+        for a, b, on in _runs_of((n_out > 0).astype(np.int64), _extreme_jumps(d_last, lane_m)):
+            if not on or b - a < min_run:
                 continue
-            inner, outer = d_last[a:b], d_edge[a:b] - shoulder
-            for k in range(1, n + 1):
-                add(a, b, inner + (outer - inner) * k / n, "solid" if k == n else "broken")
+            inner, outer, n = d_last[a:b], d_edge[a:b] - shoulder, n_out[a:b]
+            for a2, b2, line, mark in _outer_hidden_lines(
+                inner, outer, n, min_run, cfg.grid_step_m
+            ):
+                add(a + a2, a + b2, line, mark)
             log.info(
-                "mainline: %d unobserved outer lane(s) inferred at s=%.0f..%.0f m",
-                n,
+                "mainline: up to %d unobserved outer lane(s) inferred at s=%.0f..%.0f m",
+                int(n.max()),
                 grid[a],
                 grid[b - 1],
             )
@@ -984,6 +986,78 @@ def _add_hidden_lanes(
             grid[a],
             grid[b - 1],
         )
+    return out
+
+
+_OPEN_MIN_M = 0.2  # an inferred lane opening by a taper starts this wide (metres) ...
+_OPEN_RATE_M = 0.1  # ... and widens by at least this over _OPEN_RATE_WINDOW_M
+_OPEN_RATE_WINDOW_M = 10.0
+_OPEN_SLACK_M = 0.5  # the outermost of the lanes there is at most this wider than the others
+
+
+def _outer_hidden_lines(
+    inner: FloatArray, outer: FloatArray, n: NDArray[np.int64], min_run: int, step_m: float
+) -> list[tuple[int, int, FloatArray, str]]:
+    """The lines of the hidden outer lanes of one stretch, the shoulder's line included:
+    ``(start, stop, line, mark)`` on the stretch's grid, one per track.
+
+    ``inner`` is the outermost observed marking, ``outer`` the shoulder's line and ``n``
+    the whole lanes between them (``step_m``: the grid step; all metres). Where ``n`` is
+    the same all along, the lanes share the strip evenly. Where it changes, a lane opens
+    or closes beside the through lanes (an exit's deceleration lane, an entry's
+    acceleration lane): the through lanes keep their width (the strip's share per lane
+    where all ``n.max()`` lanes are open) and their lines ``k`` such widths out run where
+    the lane beyond is open, and on through the taper while that lane still narrows by at
+    least ``_OPEN_RATE_M`` per ``_OPEN_RATE_WINDOW_M`` and is wider than ``_OPEN_MIN_M``.
+    Where it is closed, the shoulder's line is that line's track: the shoulder's line of
+    the open stretch is a new track that diverges from it (a taper, :mod:`.sections`).
+    Split evenly instead, one lane 3.5 m wide grew to 6.6 m through an exit's taper on
+    town06-auto-lane1-s21 and became two lanes at a section border, linked to neither:
+    esmini found no lane path to the road's end.
+    """
+    strip = outer - inner
+    n_max = int(n.max())
+    if int(n.min()) == n_max:
+        lines = [(0, n.size, inner + strip * k / n_max, "broken") for k in range(1, n_max)]
+        return [*lines, (0, n.size, outer, "solid")]
+    width = float(np.median(strip[n == n_max] / n_max))
+    window = max(1, round(_OPEN_RATE_WINDOW_M / step_m))
+    # open[k - 1]: where the line k widths out is a lane's border (a lane beyond it)
+    opened = np.zeros((n_max - 1, n.size), dtype=bool)
+    for k in range(1, n_max):
+        rest = outer - (inner + k * width)  # the lanes beyond the line
+        open_k = n > k
+        for a, b, on in _runs_of(open_k.astype(np.int64)):
+            if not on:
+                continue
+            while (
+                a > 0
+                and rest[a - 1] > _OPEN_MIN_M
+                and (
+                    a - 1 + window >= rest.size
+                    or rest[a - 1 + window] - rest[a - 1] >= _OPEN_RATE_M
+                )
+            ):
+                a -= 1
+            while (
+                b < rest.size
+                and rest[b] > _OPEN_MIN_M
+                and (b - window < 0 or rest[b - window] - rest[b] >= _OPEN_RATE_M)
+            ):
+                b += 1
+            open_k[a:b] = True
+        opened[k - 1] = open_k
+    # lines open from the outside in: the count of open lines from the first
+    n_open = np.cumprod(opened, axis=0).sum(axis=0)
+    # the shoulder's line stays beside the outermost lane where the edge bulges out (at an
+    # exit's gore the edge follows the ramp away): the shoulder takes the bulge up
+    shoulder_line = np.minimum(outer, inner + (n_open + 1) * width + _OPEN_SLACK_M)
+    out = []
+    for j in range(1, n_max + 1):
+        line = np.where(j <= n_open, inner + j * width, shoulder_line)
+        for a, b, on in _runs_of((j <= n_open + 1).astype(np.int64)):
+            if on and b - a >= min_run:
+                out.append((a, b, line[a:b], "solid" if np.all(j > n_open[a:b]) else "broken"))
     return out
 
 

@@ -279,10 +279,18 @@ def _sections_from_tracks(
                 continue
             fixed = None
             if tracks[k].n == 0:
+                # a sibling opens (closes) near it, and not a taper's half or more after
+                # it begins (before it ends): an inferred line with a taper of its own
+                # (an exit lane opening out of sight) kept 96 m of it when it borrowed
+                # the taper of a median-side lane opening there (town06-auto-lane1-s21)
+                sign_end = 1.0 if end == "start" else -1.0
                 sib = [
                     (s_z, tp)
                     for _, e2, s_z, tp, _ in raw_events
-                    if e2 == end and tp > 0.0 and abs(s_z - grid[i_edge]) < 100.0
+                    if e2 == end
+                    and tp > 0.0
+                    and abs(s_z - grid[i_edge]) < 100.0
+                    and sign_end * (grid[i_edge] - s_z) > -0.5 * tp
                 ]
                 fixed = sib[0] if sib else None
             raw = (tracks[k].s_samples, tracks[k].d_samples)
