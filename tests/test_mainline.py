@@ -1399,6 +1399,32 @@ def test_an_inferred_line_with_its_own_taper_does_not_borrow_a_later_one():
     assert s_outer == pytest.approx(400.0, abs=10.0)
 
 
+def test_a_marking_ending_where_the_edge_is_not_seen_again_before_the_run_ends_is_no_gore():
+    """A marking that ends diverging inside an occlusion gap of the outer edge is an exit
+    line leaving at a hidden gore, when the edge is seen again after the gap. In a gap that
+    runs to the end of the run nothing shows a gore: with a noisier sensor the line between
+    two lanes of krems-102561705-lane1-s21 seemed to diverge over its last metres and
+    ended 12 m before the run's end; a gore was placed there, and the two lanes became one
+    lane 7.4 m wide with no lane path to the end."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+
+    cfg = MainlineConfig()
+
+    def gores(length: float) -> list[float]:
+        grid = np.arange(0.0, length + 0.5, cfg.grid_step_m)
+        through = _const_track(0, grid, 3.5, 0.0, length)
+        # parallel up to 580 m, then diverging by 0.1 m per metre up to its end at 592 m
+        ending = _const_track(
+            1, grid, lambda s: 7.0 + 0.1 * np.clip(s - 580.0, 0.0, None), 0.0, 592.0
+        )
+        covered = (grid < 585.0) | (grid > 620.0)
+        _, found = _snap_to_hidden_gores([through, ending], [], covered, grid, cfg)
+        return [round(float(g)) for g in found]
+
+    assert gores(800.0) == [579]  # the edge is seen again at 620 m: a hidden exit gore
+    assert gores(600.0) == []  # the gap runs to the run's end: no evidence
+
+
 def test_the_second_join_pass_only_joins_inferred_lines_to_observed_ones():
     """After the hidden lanes are inferred, an inferred line is joined to the observed one
     it continues; two observed tracks still apart then were split at a gore on purpose

@@ -44,10 +44,18 @@ def _snap_to_hidden_gores(
     gores: list[float] = []
     out = list(tracks)
     step = cfg.grid_step_m
+    # gaps inside the run only: where the edge is not seen again up to the run's end (its
+    # start), a marking ending (starting) there is no evidence of a gore (a noisier sensor
+    # at the end of krems-102561705-lane1-s21: a "gore" 12 m before the end, where the
+    # line between two lanes ended, made them one lane 7.4 m wide)
+    gap = ~covered
+    for a, b in true_runs(gap):
+        if a == 0 or b >= grid.size:
+            gap[a:b] = False
 
     def hidden(s_at: float) -> bool:
         i = int(np.clip(np.rint((s_at - grid[0]) / step), 0, grid.size - 1))
-        return not covered[max(i - 10, 0) : i + 11].all()
+        return bool(gap[max(i - 10, 0) : i + 11].any())
 
     # a marking that starts (ends) inside such a gap while still converging (diverging)
     # is a ramp line until it runs parallel: the gore is where it does
@@ -73,7 +81,7 @@ def _snap_to_hidden_gores(
         i_g = int(np.clip(np.rint((s_g - grid[0]) / step), 0, grid.size - 1))
         # inside (or within 10 m of) a gap of the outer-edge points
         lo_i, hi_i = max(i_g - 10, 0), min(i_g + 11, grid.size)
-        if covered[lo_i:hi_i].all():
+        if not gap[lo_i:hi_i].any():
             continue
         # it must touch a mainline marking there
         near = [
