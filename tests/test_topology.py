@@ -585,6 +585,40 @@ def _road_with_median_step() -> Road:
     )
 
 
+def test_the_lane_an_exit_leaves_from_is_not_linked_on_into_the_shoulder_beside_the_gore():
+    """Past an exit's gore the mainline's hard shoulder begins as wide as the lane that
+    left: the lanes' borders meet, so the driving lane was linked both into the ramp and
+    on into that shoulder, and esmini drove a car bound along the mainline onto the
+    shoulder (melbourne-408-lane1-s21 with a noisier sensor). The lane goes on as the
+    ramp's lane only."""
+    road = mainline_road()
+    secs = list(road.lane_sections)
+    k = next(i for i, sc in enumerate(secs) if sc.s0 == 500.0)
+    right = list(secs[k].right)
+    wide = CubicProfile((_taper(W, 2.5, 0.0, 60.0), CubicPiece(60.0, 2.5)))
+    right[-1] = _lane(-5, wide, "shoulder", "none", None, -6)
+    secs[k] = replace(secs[k], right=tuple(right))
+    road = replace(road, lane_sections=tuple(secs))
+    ramps = [r for r in make_ramps(road) if r.type == "exit"]
+    topo = build_topology(road, ramps, traffic_side="right")
+    (junction,) = topo.junctions
+    # the through connecting road ends on a mainline road
+    mains = {r.id for r in topo.roads if r.name == "mainline"}
+    through = next(
+        r for r in topo.roads
+        if r.junction == junction.id and r.successor is not None
+        and r.successor.element_id in mains
+    )  # fmt: skip
+    up = next(r for r in topo.roads if r.id == through.predecessor.element_id)
+    up_types = {ln.id: ln.type for ln in up.lane_sections[-1].right}
+    for ln in through.lane_sections[0].right:
+        if ln.predecessor is not None:
+            assert (up_types[ln.predecessor] == "driving") == (ln.type == "driving"), ln
+    assert through.lane_sections[0].right[-1].predecessor is None
+    conn = next(c for c in junction.connections if c.connecting_road == through.id)
+    assert all(link.to_lane != through.lane_sections[0].right[-1].id for link in conn.lane_links)
+
+
 def _straight_two_sections(before, after, lane_offset=None) -> Road:
     """A 1000 m straight mainline whose lanes are ``before`` up to s=500, ``after`` on."""
     sections = (LaneSection(0.0, right=tuple(before)), LaneSection(500.0, right=tuple(after)))

@@ -332,6 +332,25 @@ def _end_to_start_links(up: Road, down: Road, traffic_side: TrafficSide) -> dict
     return {la: lb for la, lb in links.items() if la not in narrow}
 
 
+def _off_ramp_lanes(
+    links: dict[int, int], up: Road, down: Road, ramp_lanes: set[int], *, exit_: bool
+) -> dict[int, int]:
+    """The through links of a junction (lanes of ``up`` at its end -> lanes of ``down``
+    at its start) less those between a driving lane that the ramp leaves from (an exit:
+    ``ramp_lanes`` are ``up``'s) or joins (an entry: ``down``'s) and a lane of another
+    type. Such a lane goes on as the ramp's lane; linked on into the shoulder beside the
+    gore as well, esmini drove a car bound along the mainline onto that shoulder
+    (melbourne-408-lane1-s21 with a noisier sensor)."""
+    driving_up = {ln.id for ln in up.lane_sections[-1].lanes if ln.type == "driving"}
+    driving_down = {ln.id for ln in down.lane_sections[0].lanes if ln.type == "driving"}
+    return {
+        la: lb
+        for la, lb in links.items()
+        if (la in driving_up) == (lb in driving_down)
+        or (la not in ramp_lanes if exit_ else lb not in ramp_lanes)
+    }
+
+
 def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_start: bool) -> Road:
     """``road`` whose first section's lanes linked from ``before``'s last section (``links``:
     lane of ``before`` -> lane of ``road``) start with the widths those lanes end with, so
@@ -905,8 +924,12 @@ def build_topology(
 
         up = replace(up, successor=RoadLink("junction", jid))
         down = replace(down, predecessor=RoadLink("junction", jid))
+        ramp_lanes_on_main = {x for x, _ in pairs}
         if direct:
-            through = _end_to_start_links(up, down, traffic_side)
+            through = _off_ramp_lanes(
+                _end_to_start_links(up, down, traffic_side), up, down, ramp_lanes_on_main,
+                exit_=ramp.type == "exit",
+            )  # fmt: skip
             conns = [
                 Connection(
                     "0",
@@ -945,6 +968,12 @@ def build_topology(
             )
             into = _end_to_start_links(up, through_road, traffic_side)
             out_of = _end_to_start_links(through_road, down, traffic_side)
+            if ramp.type == "exit":
+                into = _off_ramp_lanes(into, up, through_road, ramp_lanes_on_main, exit_=True)
+            else:
+                out_of = _off_ramp_lanes(
+                    out_of, through_road, down, ramp_lanes_on_main, exit_=False
+                )
             through_road = _set_lane_links(
                 _align_linked_borders(
                     _continue_widths(through_road, up, into, at_start=True), up, into
