@@ -73,6 +73,20 @@ class RealRun:
 
 
 _LANE1 = {"lane": 1, "speed_kmh": 110.0}  # the car next to the median-side lane, faster
+_LANE2 = {"lane": 2, "speed_kmh": 90.0}  # the third lane from the median side
+# the chains and maps the car-lane probes drive (name, source, path, chain)
+_PROBE_CHAINS = (
+    ("a9-206615404", "osm", "north-bayreuth-a9.osm.gz", 206615404),
+    ("a9-239192816", "osm", "north-bayreuth-a9.osm.gz", 239192816),
+    ("oakland-28393854", "osm", "west-oakland-i880.osm.bz2", 28393854),
+    ("kotka-37952515", "osm", "kotka-e18.osm.pbf", 37952515),
+    ("krems-102561705", "osm", "krems-s5-trunk.osm.gz", 102561705),
+    ("melbourne-408", "osm", "melbourne-lht.osm.pbf", 408),
+    ("melbourne-1019", "osm", "melbourne-lht.osm.pbf", 1019),
+    ("town06-auto", "xodr", "Town06.xodr", None),
+    ("soderleden", "xodr", "soderleden.xodr", None),
+    ("e6mini", "xodr", "e6mini.xodr", None),
+)
 
 
 def _opposite(name: str, path: str, seed: int, chain: int) -> RealRun:
@@ -167,18 +181,14 @@ RUNS: tuple[RealRun, ...] = (
     # lane at 90 km/h); measured first at 4f68b3b, as a probe (RESULTS, "Session 12")
     *(
         RealRun(f"{name}-lane1-s21", source, path, 21, chain, holdout=True, settings=_LANE1)
-        for name, source, path, chain in (
-            ("a9-206615404", "osm", "north-bayreuth-a9.osm.gz", 206615404),
-            ("a9-239192816", "osm", "north-bayreuth-a9.osm.gz", 239192816),
-            ("oakland-28393854", "osm", "west-oakland-i880.osm.bz2", 28393854),
-            ("kotka-37952515", "osm", "kotka-e18.osm.pbf", 37952515),
-            ("krems-102561705", "osm", "krems-s5-trunk.osm.gz", 102561705),
-            ("melbourne-408", "osm", "melbourne-lht.osm.pbf", 408),
-            ("melbourne-1019", "osm", "melbourne-lht.osm.pbf", 1019),
-            ("town06-auto", "xodr", "Town06.xodr", None),
-            ("soderleden", "xodr", "soderleden.xodr", None),
-            ("e6mini", "xodr", "e6mini.xodr", None),
-        )
+        for name, source, path, chain in _PROBE_CHAINS
+    ),
+    # added 2026-11-24 (session 13): the same chains driven in the third lane from the
+    # median (the outermost where there are fewer) at 90 km/h, seed 22; measured once in
+    # session 12 at 7ea7199 (RESULTS, "Session 12"), in the benchmark since session 13
+    *(
+        RealRun(f"{name}-lane2-s22", source, path, 22, chain, holdout=True, settings=_LANE2)
+        for name, source, path, chain in _PROBE_CHAINS
     ),
 )
 
