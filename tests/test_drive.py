@@ -32,7 +32,7 @@ from roadtwin.drive import (
 )
 from roadtwin.drive.esmini import Recording
 from roadtwin.drive.routes import lane_type_at
-from roadtwin.model import Arc, RoadLink, RoadNetwork
+from roadtwin.model import Arc, CubicPiece, CubicProfile, RoadLink, RoadNetwork
 from roadtwin.xodr import read_xodr, write_xodr
 
 ESMINI = find_esmini()
@@ -74,6 +74,37 @@ def test_routes_of_a_mainline_with_an_exit(junctions):
     for r in routes:
         for p in r.waypoints:
             assert lane_type_at(net, p.road_id, p.lane_id, np.array([p.s_m]))[0] == "driving"
+
+
+def test_a_lane_narrower_than_a_car_through_a_junction_is_no_connection_route():
+    """A lane that opens from zero width just before a junction is 0.1-0.4 m wide all
+    through it (melbourne-14-s11 with a noisier sensor): no driver takes that connection,
+    the car changes into the lane where it is open. It is no route, not a failed one."""
+    net = mainline_exit_network()
+
+    def opening(road_id: str, section: int, w0: float, w1: float, length: float, **links):
+        road = net.road(road_id)
+        sec = road.lane_sections[section]
+        width = CubicProfile((CubicPiece(0.0, w0, (w1 - w0) / length),))
+        lane = dataclasses.replace(sec.right[0], type="driving", width=width, **links)
+        secs = list(road.lane_sections)
+        secs[section] = dataclasses.replace(sec, right=(lane, *sec.right[1:]))
+        return dataclasses.replace(road, lane_sections=tuple(secs))
+
+    road1 = net.road("1")
+    roads = {
+        "1": opening("1", 1, 0.0, 0.1, road1.length - 100.0, predecessor=None),
+        "101": opening("101", 0, 0.1, 0.4, net.road("101").length),
+        "2": opening("2", 0, 0.4, 0.4, net.road("2").length),
+    }
+    net = dataclasses.replace(net, roads=tuple(roads.get(r.id, r) for r in net.roads))
+    routes = find_routes(net)
+    assert [(r.kind, r.name) for r in routes] == [
+        ("mainline", "mainline lane -2"),
+        ("mainline", "mainline lane -3"),
+        ("exit", "exit road 3"),
+    ]
+    assert not any(r.problem for r in routes)
 
 
 def _drop_connection(net: RoadNetwork, junction_id: str, connection_id: str) -> RoadNetwork:

@@ -615,6 +615,13 @@ def _connection_routes(ctx: _Ctx, covered: set) -> list[Route]:
             routes.append(Route(name, "connection", tuple(path), problem=problem))
             covered.update(itertools.pairwise(path))
             continue
+        inside = [n for n in path if ctx.network.road(n[0]).junction != "-1"]
+        if inside and all(_usable(ctx, n, from_entry=True) is None for n in inside):
+            # a lane narrower than a car all through the junction (a lane opening from
+            # zero width at a cut, 0.1-0.4 m there): no connection a driver takes; the
+            # car changes into the lane where it is open
+            covered.update(itertools.pairwise(path))
+            continue
         back = _extend_back(ctx, path, ctx.config.approach_m)
         core = len(back) - len(path) + 1  # the first lane inside the junction
         full = _extend_forward(ctx, back, ctx.config.follow_m)
