@@ -1275,6 +1275,19 @@ def test_lines_unseen_just_before_a_median_step_go_on_to_the_lines_inferred_afte
         assert sum(ln.type == "driving" for ln in sc.right) == 3, sc.s0
 
 
+def _four_lines_800(seed: int):
+    """Lane samples of four lines at 1.0, 4.5, 8.0 and 11.5 m over 800 m (2 cm noise) and
+    the function that samples a line (offset, step) with the same generator."""
+    rng = np.random.default_rng(seed)
+
+    def line(d, step=0.5):
+        s = np.arange(0.0, 800.0, step)
+        return s, d + rng.normal(0.0, 0.02, s.size)
+
+    parts = [line(1.0), line(4.5), line(8.0), line(11.5)]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]), line
+
+
 def test_a_lane_out_of_the_sensors_reach_beyond_the_last_marking_is_inferred():
     """Town06 driven in its inner lane (seed 21): the line between the outer lane and the
     shoulders lay 12.2 m from the car, out of the sensor's reach, over the whole run; the
@@ -1283,15 +1296,7 @@ def test_a_lane_out_of_the_sensors_reach_beyond_the_last_marking_is_inferred():
     and that strip away from the edge, the strip is whole lanes and the rest shoulder."""
     from roadtwin.mainline import fit_lanes
 
-    rng = np.random.default_rng(11)
-
-    def line(d, step=0.5):
-        s = np.arange(0.0, 800.0, step)
-        return s, d + rng.normal(0.0, 0.02, s.size)
-
-    parts = [line(1.0), line(4.5), line(8.0), line(11.5)]
-    s_lane = np.concatenate([p[0] for p in parts])
-    d_lane = np.concatenate([p[1] for p in parts])
+    s_lane, d_lane, line = _four_lines_800(11)
     s_out, d_out = line(16.2, 0.2)
 
     def outer_lanes(car_d):
@@ -1319,17 +1324,9 @@ def test_a_lane_opening_out_of_the_sensors_reach_opens_beside_the_through_lane()
     The through lane keeps its width and the new lane opens from zero width beside it."""
     from roadtwin.mainline import fit_lanes
 
-    rng = np.random.default_rng(12)
-
-    def line(d, step=0.5):
-        s = np.arange(0.0, 800.0, step)
-        return s, d + rng.normal(0.0, 0.02, s.size)
-
-    parts = [line(1.0), line(4.5), line(8.0), line(11.5)]
-    s_lane = np.concatenate([p[0] for p in parts])
-    d_lane = np.concatenate([p[1] for p in parts])
-    s_out = np.arange(0.0, 800.0, 0.2)
-    d_out = 16.2 + 3.5 * _smoothstep(s_out, 400.0, 50.0) + rng.normal(0.0, 0.02, s_out.size)
+    s_lane, d_lane, line = _four_lines_800(12)
+    s_out, d_out = line(16.2, 0.2)
+    d_out = d_out + 3.5 * _smoothstep(s_out, 400.0, 50.0)
     car = (np.arange(0.0, 800.0, 1.0), np.full(800, 2.75))
     sections, _, _, _ = fit_lanes(
         s_lane, d_lane, s_out, d_out, length=800.0, sign=1.0, config=MainlineConfig(), car=car
