@@ -1356,6 +1356,51 @@ def test_a_lane_opening_out_of_the_sensors_reach_opens_beside_the_through_lane()
     assert 380.0 < sections[k_new].s0 < 420.0
 
 
+def test_a_strip_out_of_reach_too_wide_for_its_whole_lanes_holds_one_lane_more():
+    """a9-8081560 driven in its inner lane with a noisier sensor: a 2-lane entry joined out
+    of the sensor's reach, its lanes 3.4 m wide beside observed lanes of 3.7 m. Counted in
+    whole lanes of 3.7 m with a 0.4 m tolerance, the 6.8 m they make were one lane (a lane
+    6.8 m wide, lane count 95 %). Lanes wider than 4.5 m are split while they stay 2.5 m
+    wide (the lane-width prior), here and in the count helper."""
+    from roadtwin.mainline import fit_lanes
+    from roadtwin.mainline.markings import _hidden_lane_count
+
+    def count(gap_m: float, lanes_only: bool = True) -> int:
+        gap = np.full(200, gap_m)
+        return int(_hidden_lane_count(gap, 3.7, -1.7, 1.0, lanes_only=lanes_only)[100])
+
+    assert [count(g) for g in (4.4, 4.6, 6.8, 10.5)] == [1, 1, 2, 3]
+    assert count(6.8, lanes_only=False) == 1  # a strip with a shoulder in it: as before
+
+    rng = np.random.default_rng(13)
+
+    def line(d, step=0.5):
+        s = np.arange(0.0, 1000.0, step)
+        return s, d + rng.normal(0.0, 0.02, s.size)
+
+    parts = [line(d) for d in (1.0, 4.7, 8.4, 12.1)]
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    # the edge: a lane of 3.7 m and a 2.5 m shoulder beyond the last line; from 700 m two
+    # more lanes of 3.4 m, the outer one closing over 750-850 m
+    s_out, d_out = line(18.3, 0.2)
+    d_out = d_out + np.where(s_out >= 700.0, 6.8, 0.0) - 3.4 * _smoothstep(s_out, 750.0, 100.0)
+    car = (np.arange(0.0, 1000.0, 1.0), np.full(1000, 2.85))
+    sections, _, _, _ = fit_lanes(
+        s_lane, d_lane, s_out, d_out, length=1000.0, sign=1.0, config=MainlineConfig(), car=car
+    )
+
+    def driving_at(s):
+        sc = sections[max(i for i, x in enumerate(sections) if x.s0 <= s)]
+        ds = np.array([s - sc.s0])
+        return [float(ln.width.value(ds)[0]) for ln in sc.right if ln.type == "driving"]
+
+    for s in np.arange(5.0, 1000.0, 5.0):
+        assert max(driving_at(s)) < 4.5, (s, driving_at(s))
+    assert len(driving_at(720.0)) == 6  # three observed, the one beyond, two that joined
+    assert len(driving_at(950.0)) == 5
+
+
 def test_an_inferred_line_with_its_own_taper_does_not_borrow_a_later_one():
     """An inferred line opens (closes) like an observed sibling near it (two lanes of a
     2-lane exit, one line seen), but not one whose taper begins only after the inferred

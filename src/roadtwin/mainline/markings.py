@@ -766,21 +766,36 @@ def _two_step_jumps(d_extreme: FloatArray, lane_m: float) -> NDArray[np.bool_]:
 
 
 def _hidden_lane_count(
-    gap: FloatArray, lane_m: float, min_extra_m: float, grid_step_m: float
+    gap: FloatArray,
+    lane_m: float,
+    min_extra_m: float,
+    grid_step_m: float,
+    *,
+    lanes_only: bool = False,
 ) -> NDArray[np.int64]:
     """Lanes hidden in a gap between the last observed marking and a road edge (minus its
     shoulder): 0 below one lane plus ``min_extra_m``, else the whole lanes that fit
-    (at least one; a 0.4 m tolerance for narrower lanes), from the gap smoothed over 41 m."""
+    (at least one; a 0.4 m tolerance for narrower lanes), from the gap smoothed over 41 m.
+    ``lanes_only`` (the gap holds lanes and no shoulder): one more where those would be
+    wider than ``_HIDDEN_LANE_MAX_M`` and one more keeps them ``_HIDDEN_LANE_MIN_M`` wide."""
     ok = np.isfinite(gap)
     if not ok.any():
         return np.zeros(gap.size, dtype=np.int64)
     filled = np.interp(np.arange(gap.size), np.flatnonzero(ok), gap[ok])
     smooth = moving_median(filled, window=max(3, round(41.0 / grid_step_m) | 1))
     n = np.maximum(1, np.floor((smooth + 0.4) / lane_m)).astype(np.int64)
+    # one lane more where the lanes would be wider than a lane can be and one more still
+    # leaves them lane-wide (a 2-lane entry's lanes 3.4 m wide beside lanes of 3.7 m:
+    # 6.8 m is no single lane)
+    if lanes_only:
+        more = (smooth / n > _HIDDEN_LANE_MAX_M) & (smooth / (n + 1) >= _HIDDEN_LANE_MIN_M)
+        n = n + more
     n[(smooth < lane_m + min_extra_m) | ~ok] = 0
     return n
 
 
+_HIDDEN_LANE_MAX_M = 4.5  # an inferred lane is at most this wide ...
+_HIDDEN_LANE_MIN_M = 2.5  # ... and at least this (metres; the lane-width prior)
 _HIDDEN_SMOOTH_M = 40.0  # window of the moving median of the extreme markings (metres)
 _MIN_UNSEEN_SHOULDER_M = 0.3  # narrowest shoulder left beside lanes inferred out of sight
 
@@ -931,7 +946,11 @@ def _add_hidden_lanes(
                 lanes_in = math.floor((shoulder - _MIN_UNSEEN_SHOULDER_M) / lane_m)
                 shoulder -= lanes_in * lane_m
         n_out = _hidden_lane_count(
-            outer_gap - shoulder, lane_m, cfg.hidden_lane_min_m - lane_m, cfg.grid_step_m
+            outer_gap - shoulder,
+            lane_m,
+            cfg.hidden_lane_min_m - lane_m,
+            cfg.grid_step_m,
+            lanes_only=True,
         )
         # a run ends where the outermost marking is another one (a track ending): lanes
         # inferred from it would jump by a lane there
@@ -1006,7 +1025,8 @@ def _outer_hidden_lines(
     the same all along, the lanes share the strip evenly. Where it changes, a lane opens
     or closes beside the through lanes (an exit's deceleration lane, an entry's
     acceleration lane): the through lanes keep their width (the strip's share per lane
-    where all ``n.max()`` lanes are open) and their lines ``k`` such widths out run where
+    where only the ``n.min()`` lanes open all along are) and their lines ``k`` such widths
+    out run where
     the lane beyond is open, and on through the taper while that lane still narrows by at
     least ``_OPEN_RATE_M`` per ``_OPEN_RATE_WINDOW_M`` and is wider than ``_OPEN_MIN_M``.
     Where it is closed, the shoulder's line is that line's track: the shoulder's line of
@@ -1020,7 +1040,9 @@ def _outer_hidden_lines(
     if int(n.min()) == n_max:
         lines = [(0, n.size, inner + strip * k / n_max, "broken") for k in range(1, n_max)]
         return [*lines, (0, n.size, outer, "solid")]
-    width = float(np.median(strip[n == n_max] / n_max))
+    # the through lanes are those open all along: their width where only they are
+    n_min = int(n.min())
+    width = float(np.median(strip[n == n_min] / n_min))
     window = max(1, round(_OPEN_RATE_WINDOW_M / step_m))
     # open[k - 1]: where the line k widths out is a lane's border (a lane beyond it)
     opened = np.zeros((n_max - 1, n.size), dtype=bool)
