@@ -1009,7 +1009,7 @@ def _add_hidden_lanes(
 
 
 _OPEN_MIN_M = 0.2  # an inferred lane opening by a taper starts this wide (metres) ...
-_OPEN_RATE_M = 0.1  # ... and widens by at least this over _OPEN_RATE_WINDOW_M
+_OPEN_RATE_M = 0.1  # ... and widens (closes) by at least this per _OPEN_RATE_WINDOW_M
 _OPEN_RATE_WINDOW_M = 10.0
 _OPEN_SLACK_M = 0.5  # the outermost of the lanes there is at most this wider than the others
 
@@ -1025,10 +1025,10 @@ def _outer_hidden_lines(
     the same all along, the lanes share the strip evenly. Where it changes, a lane opens
     or closes beside the through lanes (an exit's deceleration lane, an entry's
     acceleration lane): the through lanes keep their width (the strip's share per lane
-    where only the ``n.min()`` lanes open all along are) and their lines ``k`` such widths
-    out run where
-    the lane beyond is open, and on through the taper while that lane still narrows by at
-    least ``_OPEN_RATE_M`` per ``_OPEN_RATE_WINDOW_M`` and is wider than ``_OPEN_MIN_M``.
+    where only the ``n.min()`` lanes open all along are), and their lines ``k`` such
+    widths out run where the lane beyond is open, and on through the taper while that lane
+    still narrows by at least ``_OPEN_RATE_M`` per ``_OPEN_RATE_WINDOW_M`` and is wider
+    than ``_OPEN_MIN_M``.
     Where it is closed, the shoulder's line is that line's track: the shoulder's line of
     the open stretch is a new track that diverges from it (a taper, :mod:`.sections`).
     Split evenly instead, one lane 3.5 m wide grew to 6.6 m through an exit's taper on
