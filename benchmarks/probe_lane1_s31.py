@@ -1,12 +1,13 @@
 """Probe of the mapping car in an inner lane on chains the lane probes never drove.
 
-Session 13 (RESULTS, "Session 13"): twelve runs with the car next to the median-side lane
-at 110 km/h, seed 31, on OSM chains (and opposite carriageways) that the lane-1 and lane-2
-runs of ``bench_real.py`` do not drive. Measured once as a fresh holdout; not part of the
-benchmark. Takes the same options as ``bench_real.py``::
+Session 13 (RESULTS, "Session 13"): twelve runs on OSM chains (and opposite carriageways)
+that the lane-1 and lane-2 runs of ``bench_real.py`` do not drive, with the car next to
+the median-side lane at 110 km/h (seed 31) or, with ``--car-lane 2``, in the third lane
+from the median at 90 km/h (seed 32). Measured once as fresh holdouts; not part of the
+benchmark. Takes the options of ``bench_real.py``::
 
-    python benchmarks/probe_lane1_s31.py --split all --methods default --external --drive \\
-        --workdir /tmp/probe-lane1-s31 [--json FILE]
+    python benchmarks/probe_lane1_s31.py [--car-lane 2] --split all --methods default \
+        --external --drive --workdir /tmp/probe-lane1-s31 [--json FILE]
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_real
 
-_CAR = {"lane": 1, "speed_kmh": 110.0}
+_CARS = {1: ({"lane": 1, "speed_kmh": 110.0}, 31), 2: ({"lane": 2, "speed_kmh": 90.0}, 32)}
 
 _CHAINS = (  # name, extract, chain, direction
     ("a9-10959882", "north-bayreuth-a9.osm.gz", 10959882, "forward"),
@@ -35,20 +36,33 @@ _CHAINS = (  # name, extract, chain, direction
     ("melbourne-18", "melbourne-lht.osm.pbf", 18, "forward"),
 )
 
-RUNS = tuple(
-    bench_real.RealRun(
-        f"{name}-lane1-s31",
-        "osm",
-        path,
-        31,
-        chain,
-        holdout=True,
-        settings=_CAR,
-        direction=direction,
+
+def probe_runs(car_lane: int = 1) -> tuple[bench_real.RealRun, ...]:
+    """The probe's runs with the car in lane ``car_lane`` (1 or 2) from the median side."""
+    car, seed = _CARS[car_lane]
+    return tuple(
+        bench_real.RealRun(
+            f"{name}-lane{car_lane}-s{seed}",
+            "osm",
+            path,
+            seed,
+            chain,
+            holdout=True,
+            settings=car,
+            direction=direction,
+        )
+        for name, path, chain, direction in _CHAINS
     )
-    for name, path, chain, direction in _CHAINS
-)
+
+
+RUNS = probe_runs(1)
 
 if __name__ == "__main__":
-    bench_real.RUNS = RUNS
-    sys.exit(bench_real.main(sys.argv[1:]))
+    argv = sys.argv[1:]
+    lane = 1
+    if "--car-lane" in argv:
+        k = argv.index("--car-lane")
+        lane = int(argv[k + 1])
+        del argv[k : k + 2]
+    bench_real.RUNS = probe_runs(lane)
+    sys.exit(bench_real.main(argv))
