@@ -1401,6 +1401,69 @@ def test_a_strip_out_of_reach_too_wide_for_its_whole_lanes_holds_one_lane_more()
     assert len(driving_at(950.0)) == 5
 
 
+def test_a_line_first_seen_soon_after_an_entry_gore_begins_at_the_gore():
+    """a9-8081560 driven in its third lane: a 2-lane entry joined at s = 722 m; the outer
+    line of its acceleration lane was first seen 48 m later, already closing, and over
+    those metres the lane was a hard shoulder 6.4 m wide. A line first seen within 60 m
+    after an entry's step, a lane's width from its neighbour, begins at the step; not a
+    taper's tip, not one seen too late, not one beyond the edge, and not at an exit (the
+    line between the through and the exit lane ends at the painted gore's tip)."""
+    from roadtwin.mainline.sections import _lines_to_gores
+
+    grid = np.arange(0.0, 800.5, 1.0)
+    d_edge = np.where(grid < 400.0, 12.0, 19.5)  # an entry at 400 m (two lanes)
+    d_edge = np.where(grid > 650.0, 12.0, d_edge)  # an exit at 650 m
+
+    def row(lo, hi, d):
+        out = np.full(grid.size, np.nan)
+        out[(grid >= lo) & (grid <= hi)] = d
+        return out
+
+    dmat = np.vstack(
+        [
+            row(0.0, 800.0, 8.0),  # through line
+            row(400.0, 650.0, 11.5),  # the entry's inner lane's line, seen from the gore
+            row(448.0, 600.0, 14.5),  # first seen 48 m after the gore, last 50 m before
+            row(448.0, 640.0, 11.9),  # 0.4 m from its neighbour: a taper's tip
+            row(480.0, 640.0, 17.0),  # first seen 80 m after the gore
+            row(420.0, 640.0, 19.4),  # 0.1 m inside the edge: not a lane's line
+        ]
+    )
+    _lines_to_gores(dmat, grid, d_edge, np.array([400.0, 650.0]))
+    first = [int(grid[np.flatnonzero(np.isfinite(r))[0]]) for r in dmat]
+    last = [int(grid[np.flatnonzero(np.isfinite(r))[-1]]) for r in dmat]
+    assert first == [0, 400, 400, 448, 480, 420]
+    assert last == [800, 650, 600, 640, 640, 640]  # nothing moves up to the exit's step
+    assert np.nanmax(np.abs(dmat[2] - 14.5)) == 0.0  # extended at its first offset
+
+
+def test_a_late_seen_entry_line_makes_its_lane_from_the_gore():
+    """The same through the sections stage: from the gore on there are two new lanes,
+    not one lane and a shoulder 8 m wide."""
+    from roadtwin.mainline.markings import _Track
+    from roadtwin.mainline.sections import _sections_from_tracks
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+
+    def track(k, lo, d):
+        g = grid[grid >= lo]
+        return _Track(k, lo, 800.0, g, np.full(g.size, d), "broken", 400, g, np.full(g.size, d))
+
+    tracks = [track(0, 0.0, 1.0), track(1, 0.0, 4.5), track(2, 0.0, 8.0)]
+    tracks += [track(3, 400.0, 11.5), track(4, 448.0, 15.0)]
+    d_edge = np.where(grid < 400.0, 9.0, 17.5)
+    sections, events, _ = _sections_from_tracks(
+        tracks, grid, d_edge, np.array([400.0]), 1.0, cfg, None, np.zeros(grid.size)
+    )
+    sc = sections[max(i for i, x in enumerate(sections) if x.s0 <= 420.0)]
+    ds = np.array([420.0 - sc.s0])
+    lanes = [(ln.type, round(float(ln.width.value(ds)[0]), 1)) for ln in sc.right]
+    assert lanes[-3:] == [("driving", 3.5), ("driving", 3.5), ("shoulder", 2.5)]
+    births = sorted(round(ev.s_m) for ev in events if ev.kind == "birth")
+    assert births == [400, 400]
+
+
 def test_an_inferred_line_with_its_own_taper_does_not_borrow_a_later_one():
     """An inferred line opens (closes) like an observed sibling near it (two lanes of a
     2-lane exit, one line seen), but not one whose taper begins only after the inferred

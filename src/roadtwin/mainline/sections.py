@@ -45,6 +45,51 @@ _LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across
 _WIDTH_JUMP_M = 1.0  # a driving lane this much narrower/wider beyond a border is the same
 
 
+_LATE_LINE_M = 60.0  # a line first seen this soon after an entry's gore ...
+_LATE_LINE_LANE_M = 1.5  # ... this far from its neighbour (a lane, not a taper's tip)
+
+
+def _lines_to_gores(
+    dmat: FloatArray, grid: FloatArray, d_edge: FloatArray, steps: FloatArray
+) -> None:
+    """Lines first seen soon after an entry's gore begin at the gore: ``dmat`` (tracks x
+    ``grid``, offsets in metres, NaN where absent) is filled in place from the line's
+    first offset back to the step.
+
+    At an entry's step the outer edge (``d_edge``) moves out and the entry's lanes begin
+    at full width; a line between them that the sensor first saw ``_LATE_LINE_M`` or less
+    later, already at least ``_LATE_LINE_LANE_M`` from its neighbour, was there from the
+    gore. a9-8081560 driven in its third lane: an acceleration lane's outer line was first
+    seen 48 m after the gore, and over those metres the lane was a shoulder 6.4 m wide. A
+    line that would leave the road (beyond the edge) is left as it is. Not at an exit: the
+    line between the through and the exit lane ends at the painted gore's tip, tens of
+    metres before the step (extended, two exits were attached 10-24 m late)."""
+    n_g = grid.size
+    span = round(_LATE_LINE_M / max(float(grid[1] - grid[0]), 1e-9)) if n_g > 1 else 0
+    for b in steps:
+        i_b = int(np.searchsorted(grid, b))
+        if i_b <= 0 or i_b >= n_g - 1:
+            continue
+        if d_edge[min(i_b + 5, n_g - 1)] <= d_edge[max(i_b - 5, 0)]:
+            continue  # the edge moves in: an exit
+        for k in range(dmat.shape[0]):
+            idx = np.flatnonzero(np.isfinite(dmat[k]))
+            if idx.size < 10 or not 0 < int(idx[0]) - i_b <= span:
+                continue
+            i0 = int(idx[0])
+            d_k = float(dmat[k, i0])
+            others = [
+                abs(d_k - float(dmat[j, i0]))
+                for j in range(dmat.shape[0])
+                if j != k and np.isfinite(dmat[j, i0])
+            ]
+            if not others or min(others) < _LATE_LINE_LANE_M:
+                continue
+            if np.any(d_edge[i_b:i0] - d_k < 0.3):
+                continue
+            dmat[k, i_b:i0] = d_k
+
+
 def _taper(
     dmat: FloatArray,
     k: int,
@@ -251,6 +296,7 @@ def _sections_from_tracks(
         d_median = np.zeros(grid.size)
     if median_steps is None:
         median_steps = np.zeros(0)
+    outer_steps = np.asarray(breaks, dtype=float)
     breaks = np.sort(np.concatenate([breaks, median_steps]))
     length = float(grid[-1])
     side: Literal["right", "left"] = "right" if sign > 0 else "left"
@@ -265,6 +311,7 @@ def _sections_from_tracks(
         hi = length if length - tr.hi < cfg.lane_max_gap_m and cut_end else tr.hi
         sel = (grid >= lo) & (grid <= hi)
         dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
+    _lines_to_gores(dmat, grid, d_edge, outer_steps)
     # births / ends inside the run
     raw_events: list[tuple[int, str, float, float, int | None]] = []
     # observed markings first: an inferred (unobserved) one opens/closes like its sibling
