@@ -314,41 +314,34 @@ _CLOSED_LANE_M = 2.0  # a driving lane narrower than this (metres) where it meet
 # non-driving lane has closed: it ends there instead of going on as that lane
 
 
-def _end_to_start_links(up: Road, down: Road, traffic_side: TrafficSide) -> dict[int, int]:
+def _end_to_start_links(
+    up: Road,
+    down: Road,
+    traffic_side: TrafficSide,
+    *,
+    ramp_up: frozenset[int] = frozenset(),
+    ramp_down: frozenset[int] = frozenset(),
+) -> dict[int, int]:
     """Lanes of ``up`` at its end -> lanes of ``down`` at its start: their borders meet
     (:func:`match_lanes_at`), their widths go on (:func:`_continuous`, so both lanes are
     as wide there) and, where one is a driving lane and the other is not, they are at
     least ``_CLOSED_LANE_M`` wide (a driving lane that narrowed to 0.5-1.4 m and went on as
     a shoulder led esmini's car onto the shoulder: town06-auto-s3 and
-    melbourne-408-opp-s9 with a noisier sensor)."""
+    melbourne-408-opp-s9 with a noisier sensor) and neither is a lane a ramp leaves from
+    (``ramp_up``, lanes of ``up``: an exit) or joins (``ramp_down``, lanes of ``down``: an
+    entry). Such a lane goes on as the ramp's lane; linked on into the shoulder beside the
+    gore as well, esmini drove a car bound along the mainline onto that shoulder
+    (melbourne-408-lane1-s21 with a noisier sensor)."""
     pairs = match_lanes_at(up, up.length, down, 0.0, traffic_side=traffic_side)
     links = _continuous(pairs, up, up.length, down, 0.0)
     driving_up = {ln.id for ln in up.lane_sections[-1].lanes if ln.type == "driving"}
     driving_down = {ln.id for ln in down.lane_sections[0].lanes if ln.type == "driving"}
     mixed = [la for la, lb in links.items() if (la in driving_up) != (lb in driving_down)]
-    narrow = {
+    drop = {
         la for la, w in zip(mixed, _widths(up, up.length, mixed), strict=True) if w < _CLOSED_LANE_M
     }
-    return {la: lb for la, lb in links.items() if la not in narrow}
-
-
-def _off_ramp_lanes(
-    links: dict[int, int], up: Road, down: Road, ramp_lanes: set[int], *, exit_: bool
-) -> dict[int, int]:
-    """The through links of a junction (lanes of ``up`` at its end -> lanes of ``down``
-    at its start) less those between a driving lane that the ramp leaves from (an exit:
-    ``ramp_lanes`` are ``up``'s) or joins (an entry: ``down``'s) and a lane of another
-    type. Such a lane goes on as the ramp's lane; linked on into the shoulder beside the
-    gore as well, esmini drove a car bound along the mainline onto that shoulder
-    (melbourne-408-lane1-s21 with a noisier sensor)."""
-    driving_up = {ln.id for ln in up.lane_sections[-1].lanes if ln.type == "driving"}
-    driving_down = {ln.id for ln in down.lane_sections[0].lanes if ln.type == "driving"}
-    return {
-        la: lb
-        for la, lb in links.items()
-        if (la in driving_up) == (lb in driving_down)
-        or (la not in ramp_lanes if exit_ else lb not in ramp_lanes)
-    }
+    drop |= {la for la in mixed if la in ramp_up or links[la] in ramp_down}
+    return {la: lb for la, lb in links.items() if la not in drop}
 
 
 def _continue_widths(road: Road, before: Road, links: dict[int, int], *, at_start: bool) -> Road:
@@ -924,12 +917,14 @@ def build_topology(
 
         up = replace(up, successor=RoadLink("junction", jid))
         down = replace(down, predecessor=RoadLink("junction", jid))
-        ramp_lanes_on_main = {x for x, _ in pairs}
+        # the mainline lanes the ramp leaves from (exit) or joins (entry)
+        on_main = frozenset(x for x, _ in pairs)
+        ramp_up = on_main if ramp.type == "exit" else frozenset()
+        ramp_down = frozenset() if ramp.type == "exit" else on_main
         if direct:
-            through = _off_ramp_lanes(
-                _end_to_start_links(up, down, traffic_side), up, down, ramp_lanes_on_main,
-                exit_=ramp.type == "exit",
-            )  # fmt: skip
+            through = _end_to_start_links(
+                up, down, traffic_side, ramp_up=ramp_up, ramp_down=ramp_down
+            )
             conns = [
                 Connection(
                     "0",
@@ -966,14 +961,8 @@ def build_topology(
                 predecessor=RoadLink("road", up.id, "end"),
                 successor=RoadLink("road", down.id, "start"),
             )
-            into = _end_to_start_links(up, through_road, traffic_side)
-            out_of = _end_to_start_links(through_road, down, traffic_side)
-            if ramp.type == "exit":
-                into = _off_ramp_lanes(into, up, through_road, ramp_lanes_on_main, exit_=True)
-            else:
-                out_of = _off_ramp_lanes(
-                    out_of, through_road, down, ramp_lanes_on_main, exit_=False
-                )
+            into = _end_to_start_links(up, through_road, traffic_side, ramp_up=ramp_up)
+            out_of = _end_to_start_links(through_road, down, traffic_side, ramp_down=ramp_down)
             through_road = _set_lane_links(
                 _align_linked_borders(
                     _continue_widths(through_road, up, into, at_start=True), up, into

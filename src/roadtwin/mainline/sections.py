@@ -72,18 +72,15 @@ def _lines_to_gores(
             continue
         if d_edge[min(i_b + 5, n_g - 1)] <= d_edge[max(i_b - 5, 0)]:
             continue  # the edge moves in: an exit
-        for k in range(dmat.shape[0]):
-            idx = np.flatnonzero(np.isfinite(dmat[k]))
-            if idx.size < 10 or not 0 < int(idx[0]) - i_b <= span:
-                continue
-            i0 = int(idx[0])
+        seen = np.isfinite(dmat)
+        first = np.argmax(seen, axis=1)  # each track's first station
+        late = (seen.sum(axis=1) >= 10) & (first > i_b) & (first - i_b <= span)
+        for k in np.flatnonzero(late):
+            i0 = int(first[k])
             d_k = float(dmat[k, i0])
-            others = [
-                abs(d_k - float(dmat[j, i0]))
-                for j in range(dmat.shape[0])
-                if j != k and np.isfinite(dmat[j, i0])
-            ]
-            if not others or min(others) < _LATE_LINE_LANE_M:
+            sep = np.abs(np.delete(dmat[:, i0], k) - d_k)
+            sep = sep[np.isfinite(sep)]
+            if sep.size == 0 or sep.min() < _LATE_LINE_LANE_M:
                 continue
             if np.any(d_edge[i_b:i0] - d_k < 0.3):
                 continue
