@@ -442,3 +442,53 @@ def median_ramps_network() -> RoadNetwork:
         ),
     )
     return RoadNetwork(_header(), (road1, road2, road4, entry, exit_), junctions)
+
+
+# ---------------------------------------------------------------------------
+# a run that passes over itself
+# ---------------------------------------------------------------------------
+
+LOOP_RADIUS_M = 150.0
+LOOP_TURN_DEG = 350.0
+LOOP_RISE_M = 9.0
+
+
+def self_crossing_network() -> RoadNetwork:
+    """One right-hand motorway road that loops over itself: 250 m east along y = 0, a left
+    arc of ``LOOP_RADIUS_M`` through ``LOOP_TURN_DEG`` degrees rising ``LOOP_RISE_M`` m,
+    then 350 m straight, which crosses the first straight 13 m before the loop at 10
+    degrees, ``LOOP_RISE_M`` above it (the two passes run within 20 m of each other in plan
+    for about 120 m). Lanes: inner shoulder, three driving lanes, hard shoulder.
+    """
+    turn = math.radians(LOOP_TURN_DEG)
+    arc_len = LOOP_RADIUS_M * turn
+    x1 = 250.0 + LOOP_RADIUS_M * math.sin(turn)
+    y1 = LOOP_RADIUS_M * (1.0 - math.cos(turn))
+    geometry = (
+        Line(0.0, 0.0, 0.0, 0.0, 250.0),
+        Arc(250.0, 250.0, 0.0, 0.0, arc_len, curvature_per_m=1.0 / LOOP_RADIUS_M),
+        Line(250.0 + arc_len, x1, y1, turn, 350.0),
+    )
+    # flat to s = 300 m, a cubic rise to s = 800 m, flat again
+    rise_m = 500.0
+    c = 3.0 * LOOP_RISE_M / rise_m**2
+    d = -2.0 * LOOP_RISE_M / rise_m**3
+    elevation = CubicProfile(
+        (CubicPiece(0.0, 0.0), CubicPiece(300.0, 0.0, 0.0, c, d), CubicPiece(800.0, LOOP_RISE_M))
+    )
+    lanes = (
+        _lane(-1, 1.0, "shoulder", "solid"),
+        _lane(-2, LANE_M),
+        _lane(-3, LANE_M),
+        _lane(-4, LANE_M, mark="solid"),
+        _lane(-5, SHOULDER_OUT_M, "shoulder", "none"),
+    )
+    road = Road(
+        "1",
+        geometry,
+        (LaneSection(0.0, center=_center(), right=lanes),),
+        name="mainline",
+        elevation=elevation,
+        speed_limit_mps=100 / 3.6,
+    )
+    return RoadNetwork(replace(_header(), name="self_crossing"), (road,))

@@ -32,7 +32,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from ._errors import FitError
-from .model import CubicPiece, CubicProfile, ParamPoly3
+from .model import HEIGHT_WEIGHT, CubicPiece, CubicProfile, ParamPoly3
 
 FloatArray = NDArray[np.float64]
 
@@ -117,16 +117,22 @@ class PolylineFrame:
     s : (N,) stations, metres (arc length, starting at 0).
     xy : (N, 2) points, mapping frame, metres.
     tangent : (N, 2) unit tangents.
+    z : (N,) height of the road surface at each vertex (mapping frame, metres), or None.
+        With heights, points given with a z column are placed on the part of the frame
+        at their own level (see :func:`project_to_polyline`).
     """
 
     s: FloatArray
     xy: FloatArray
     tangent: FloatArray
+    z: FloatArray | None = None
 
     @staticmethod
     def from_points(xy: ArrayLike) -> PolylineFrame:
-        """Frame of an ordered dense polyline; tangents from a cubic spline in arc length."""
-        pts = _dedupe(np.asarray(xy, dtype=float)[:, :2])
+        """Frame of an ordered dense polyline ``(N, 2)``, or ``(N, 3)`` with the heights of
+        the road surface; tangents from a cubic spline in arc length."""
+        raw = _dedupe(np.asarray(xy, dtype=float))
+        pts = raw[:, :2]
         s = arc_length(pts)
         if pts.shape[0] >= 4:
             spline = CubicSpline(s, pts, bc_type="natural")
@@ -134,12 +140,19 @@ class PolylineFrame:
         else:
             d = np.gradient(pts, s, axis=0)
         tangent = d / np.linalg.norm(d, axis=1, keepdims=True)
-        return PolylineFrame(s, pts, tangent)
+        z = raw[:, 2].copy() if raw.shape[1] > 2 else None
+        return PolylineFrame(s, pts, tangent, z)
 
     @cached_property
     def tree(self) -> cKDTree:
         """KD-tree of the vertices (built once per frame)."""
         return cKDTree(self.xy)
+
+    @cached_property
+    def tree_3d(self) -> cKDTree:
+        """KD-tree of the vertices with their heights scaled by ``HEIGHT_WEIGHT``."""
+        assert self.z is not None
+        return cKDTree(np.column_stack([self.xy, HEIGHT_WEIGHT * self.z]))
 
     @property
     def normal(self) -> FloatArray:
@@ -162,6 +175,12 @@ class PolylineFrame:
         tg /= np.linalg.norm(tg, axis=-1, keepdims=True)
         return xy, tg
 
+    def height_at(self, s: ArrayLike) -> FloatArray | None:
+        """Heights at stations ``s`` (linear, metres), or None for a frame without."""
+        if self.z is None:
+            return None
+        return np.interp(np.asarray(s, dtype=float), self.s, self.z)
+
     def project(self, points: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Frenet ``(s, t)`` of points (see :func:`project_to_polyline`)."""
         return project_to_polyline(self, points)
@@ -178,7 +197,11 @@ def project_to_polyline(frame: PolylineFrame, points: ArrayLike) -> tuple[FloatA
     frame
         The polyline frame.
     points
-        ``(N, 2+)`` points, mapping frame, metres.
+        ``(N, 2+)`` points, mapping frame, metres. If the frame has heights and the points
+        a third column (z, same frame), the nearest vertex is looked up in 3-D with height
+        differences weighted ``HEIGHT_WEIGHT`` times: a point of a road stacked over or
+        under the frame's own (a run that passes over itself) is placed at its own level,
+        not on the nearest station in plan.
 
     Returns
     -------
@@ -186,10 +209,14 @@ def project_to_polyline(frame: PolylineFrame, points: ArrayLike) -> tuple[FloatA
         Stations (may fall slightly outside ``[0, length]`` beyond the ends) and lateral
         offsets (left positive), metres.
     """
-    pts = np.asarray(points, dtype=float)[:, :2]
+    raw = np.asarray(points, dtype=float)
+    pts = raw[:, :2]
     if pts.shape[0] == 0:
         return np.zeros(0), np.zeros(0)
-    _, idx = frame.tree.query(pts)
+    if frame.z is not None and raw.shape[1] > 2 and np.isfinite(raw[:, 2]).all():
+        _, idx = frame.tree_3d.query(np.column_stack([pts, HEIGHT_WEIGHT * raw[:, 2]]))
+    else:
+        _, idx = frame.tree.query(pts)
     d = pts - frame.xy[idx]
     tg = frame.tangent[idx]
     along = np.einsum("ij,ij->i", d, tg)

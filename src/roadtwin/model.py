@@ -36,6 +36,15 @@ ContactPoint = Literal["start", "end"]
 # ---------------------------------------------------------------------------
 
 
+HEIGHT_WEIGHT = 4.0
+"""Where points are matched with the nearest sample of a line that has heights, a metre of
+height difference counts as this many metres of horizontal distance: a road stacked 5 m
+over or under another (a bridge, a run that passes over itself) is then farther than a
+point 20 m beside it, while the height of a point on the line's own road (cross slope, a
+few decimetres) moves the nearest sample by well under a metre, which the projection's
+tangent or Newton steps take back."""
+
+
 @dataclass(frozen=True)
 class CubicPiece:
     """One cubic ``a + b ds + c ds^2 + d ds^3`` valid from ``s0`` (metres) on."""
@@ -542,6 +551,12 @@ class Road:
         s = np.linspace(0.0, self.length, n)
         return s, cKDTree(self.xy(s))
 
+    @cached_property
+    def _projection_index_3d(self) -> tuple[FloatArray, cKDTree]:
+        s, tree = self._projection_index
+        z = HEIGHT_WEIGHT * self.elevation.value(s)
+        return s, cKDTree(np.column_stack([tree.data, z]))
+
     def project(
         self, points: ArrayLike, *, iterations: int = 4, s_init: ArrayLike | None = None
     ) -> tuple[FloatArray, FloatArray]:
@@ -550,7 +565,10 @@ class Road:
         Parameters
         ----------
         points
-            ``(N, 2)`` or ``(N, 3)`` array (only x, y are used), mapping frame, metres.
+            ``(N, 2)`` or ``(N, 3)`` array, mapping frame, metres. With z (and a road with
+            an elevation profile) the first guess is the nearest sampled point in 3-D,
+            heights weighted ``HEIGHT_WEIGHT`` times: a point of a road that passes over
+            or under this one's other part goes to its own level.
         s_init
             Optional ``(N,)`` first guesses of the stations (metres) instead of the
             nearest sampled point, for a road that comes back near itself (a loop).
@@ -561,10 +579,21 @@ class Road:
             Station (clipped to ``[0, length]``) and signed lateral offset (left positive),
             metres. Points beyond the ends get the offset at the end station.
         """
-        pts = np.asarray(points, dtype=float)[:, :2]
+        raw = np.asarray(points, dtype=float)
+        pts = raw[:, :2]
         if s_init is None:
-            s_tab, tree = self._projection_index
-            _, nearest = tree.query(pts)
+            with_z = (
+                raw.ndim == 2
+                and raw.shape[1] > 2
+                and bool(self.elevation.pieces)
+                and bool(np.isfinite(raw[:, 2]).all())
+            )
+            if with_z:
+                s_tab, tree = self._projection_index_3d
+                _, nearest = tree.query(np.column_stack([pts, HEIGHT_WEIGHT * raw[:, 2]]))
+            else:
+                s_tab, tree = self._projection_index
+                _, nearest = tree.query(pts)
             s = s_tab[nearest]
         else:
             s = np.clip(np.asarray(s_init, dtype=float), 0.0, self.length)

@@ -195,6 +195,11 @@ def _height(road: Road, s: FloatArray, t: FloatArray) -> FloatArray:
 # ---------------------------------------------------------------------------
 
 
+_MAX_HEIGHT_GAP_M = 3.0
+"""A road surface more than this above or below a point (metres) is another level's road:
+below the clearance of any bridge, above any cross slope times a carriageway's width."""
+
+
 def _stations(length_m: float, step_m: float) -> FloatArray:
     """Stations every ``step_m`` at the middle of each step (never exactly on a road end,
     where consecutive roads meet and lane layouts may change)."""
@@ -390,7 +395,9 @@ def project_points(
     roads
         Roads in chain order (for ``station_m``).
     points
-        ``(N, 2+)`` mapping-frame points, metres.
+        ``(N, 2)`` mapping-frame points, metres, or ``(N, 3)`` with their heights: then a
+        road whose surface there lies within ``_MAX_HEIGHT_GAP_M`` of the point's height
+        comes before every other (a run passing over itself, a ramp on a bridge).
     max_lateral_m
         Largest distance outside a road's edges that still counts as on the road (metres).
     end_tolerance_m
@@ -403,7 +410,9 @@ def project_points(
         point in a road's grown bounding box is projected (the reference implementation;
         cost roads x points). Both give the same result.
     """
-    pts = np.asarray(points, dtype=float)[:, :2]
+    raw = np.asarray(points, dtype=float)
+    pts = raw[:, :2]
+    z_pts = raw[:, 2] if raw.ndim == 2 and raw.shape[1] > 2 else None
     n = pts.shape[0]
     road_index = np.full(n, -1, dtype=np.int64)
     s_out = np.full(n, np.nan)
@@ -416,6 +425,7 @@ def project_points(
     best_near = np.ones(n, dtype=bool)
     best_centre = np.full(n, np.inf)
     best_margin = np.full(n, -np.inf)
+    best_level = np.zeros(n, dtype=bool)
     tried_beyond = np.zeros(n, dtype=bool)
     tol = 0.05
     # buckets of about the reach of a road (max_lateral_m plus its edge offsets)
@@ -437,7 +447,9 @@ def project_points(
             idx = idx[np.all((pts[idx] >= box_lo) & (pts[idx] <= box_hi), axis=1)]
         if idx.size == 0:
             continue
-        s, t, beyond = _project_one(road, pts[idx], end_tolerance_m)
+        s, t, beyond = _project_one(
+            road, raw[idx, :3] if z_pts is not None else pts[idx], end_tolerance_m
+        )
         lo, hi = road_band(road, s)
         out_d = np.maximum(np.maximum(lo - t, t - hi), 0.0)
         centre = np.abs(t - 0.5 * (lo + hi))
@@ -447,8 +459,17 @@ def project_points(
         tried_beyond[idx[beyond & reach]] = True
         inside = ~beyond & reach
         o_out, o_near, o_c, o_m = best_out[idx], best_near[idx], best_centre[idx], best_margin[idx]
-        better = out_d < o_out - tol
-        eq = np.abs(out_d - o_out) <= tol
+        # a road at the point's own level first (a road stacked over or under it is not
+        # the point's road however close in plan); without heights every road is level
+        if z_pts is None:
+            level = np.ones(idx.size, dtype=bool)
+        else:
+            level = np.abs(_height(road, s, t) - z_pts[idx]) <= _MAX_HEIGHT_GAP_M
+        o_level = best_level[idx]
+        better = level & ~o_level
+        same = level == o_level
+        better |= same & (out_d < o_out - tol)
+        eq = same & (np.abs(out_d - o_out) <= tol)
         better |= eq & (~near & o_near)
         eq &= near == o_near
         better |= eq & (centre < o_c - tol)
@@ -463,6 +484,7 @@ def project_points(
         best_near[tgt] = near[better]
         best_centre[tgt] = centre[better]
         best_margin[tgt] = margin[better]
+        best_level[tgt] = level[better]
     status[road_index >= 0] = _OK
     status[(road_index < 0) & tried_beyond] = _BEYOND_ENDS
     station = np.full(n, np.nan)

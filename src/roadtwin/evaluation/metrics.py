@@ -321,8 +321,12 @@ def _truth_mainline(
     station = np.concatenate(st_l)
     z_true = np.concatenate(z_l)
     kinds_arr = np.asarray(kind_l)
+    # with their heights: a run that passes over itself has two levels of boundaries
     proj = project_points(
-        built, xy, max_lateral_m=cfg.max_lateral_m, end_tolerance_m=cfg.end_tolerance_m
+        built,
+        np.column_stack([xy, z_true]),
+        max_lateral_m=cfg.max_lateral_m,
+        end_tolerance_m=cfg.end_tolerance_m,
     )
     details: dict[str, PointErrors] = {}
     result: dict[str, Any] = {
@@ -372,8 +376,9 @@ def _slice_projection(proj: Projection, start: int, stop: int) -> Projection:
 def _centre_points(
     roads: Sequence[Road], step_m: float
 ) -> tuple[list[FloatArray], list[FloatArray]]:
-    """Per road: stations every ``step_m`` metres and the (N, 2) mapping-frame points on the
-    centre of its lanes (between the road edges of the section there)."""
+    """Per road: stations every ``step_m`` metres and the (N, 3) mapping-frame points on the
+    centre of its lanes (between the road edges of the section there) with the height of
+    the road surface there (metres)."""
     stations, centres = [], []
     for road in roads:
         s = _stations(road.length, step_m)
@@ -383,7 +388,8 @@ def _centre_points(
             sel = sec_idx == k
             t_c[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
         stations.append(s)
-        centres.append(road.to_xy(s, t_c).reshape(-1, 2))
+        xy = road.to_xy(s, t_c).reshape(-1, 2)
+        centres.append(np.column_stack([xy, _height(road, s, t_c)]))
     return stations, centres
 
 
@@ -397,7 +403,7 @@ def _lane_count(
     # one projection of all roads' points (per-point results do not depend on the batch)
     proj_all = project_points(
         built,
-        np.vstack(centres) if centres else np.zeros((0, 2)),
+        np.vstack(centres) if centres else np.zeros((0, 3)),
         max_lateral_m=cfg.max_lateral_m,
         end_tolerance_m=cfg.end_tolerance_m,
     )
@@ -492,7 +498,7 @@ def _truth_ramps(
                 m = sidx == k
                 t_ref[m] = _section_centre_t(broad, sc_[m], broad.lane_sections[int(k)])
             centre_err.append(tc_ - t_ref)
-            xy_c.append(pts_c[sel])
+            xy_c.append(pts_c[sel, :2])
             st_c.append(s[sel])
             selb = np.nonzero(owner_b == r)[0]
             s_b, t_b, beyond = _project_one(broad, pts_b[selb], cfg.end_tolerance_m)

@@ -111,14 +111,24 @@ def _sign(run: MappingRun) -> float:
     return 1.0 if run.traffic_side == "right" else -1.0
 
 
+def road_surface_poses(run: MappingRun) -> FloatArray:
+    """``(N, 3)`` the road surface under the car at each pose (the pose minus its height
+    above the road; mapping frame, metres)."""
+    poses = np.asarray(run.trajectory.xyz, dtype=float).copy()
+    poses[:, 2] -= run.pose_height_m
+    return poses
+
+
 def _trajectory_frame(run: MappingRun, *, smooth_m: float = 31.0) -> PolylineFrame:
-    """Frenet frame of the smoothed trajectory (1 m resampling, Savitzky-Golay)."""
-    xy = resample_polyline(run.trajectory.xy, 1.0)
-    if xy.shape[0] < 4:
+    """Frenet frame of the smoothed trajectory (1 m resampling, Savitzky-Golay), with the
+    height of the road surface under the car (so that points of a road the run passes over
+    or under are told from the driven road's)."""
+    xyz = resample_polyline(road_surface_poses(run), 1.0)
+    if xyz.shape[0] < 4:
         msg = "mainline: the trajectory is shorter than 4 m"
         raise InputError(msg)
-    xy = savgol_smooth(xy, window=int(smooth_m), polyorder=3)
-    return PolylineFrame.from_points(xy)
+    xyz = savgol_smooth(xyz, window=int(smooth_m), polyorder=3)
+    return PolylineFrame.from_points(xyz)
 
 
 def _split_edges(run: MappingRun, frame: PolylineFrame) -> tuple[FloatArray, FloatArray]:
@@ -220,12 +230,20 @@ def _fill_nan(x: FloatArray, y: FloatArray) -> FloatArray:
     return np.interp(x, x[ok], y[ok])
 
 
-def _road_frame(road: Road, step_m: float = 0.5) -> PolylineFrame:
-    """Dense polyline frame of a road's reference line with road stations."""
+def _road_frame(
+    road: Road, step_m: float = 0.5, *, heights: tuple[FloatArray, FloatArray] | None = None
+) -> PolylineFrame:
+    """Dense polyline frame of a road's reference line with road stations.
+
+    ``heights``: ``(s, z)`` samples of the road surface along the road (metres) to give
+    the frame heights (:class:`~roadtwin.fitting.PolylineFrame`), e.g. before the road has
+    its elevation profile.
+    """
     n = max(2, math.ceil(road.length / step_m) + 1)
     s = np.linspace(0.0, road.length, n)
     x, y, h, _ = road.evaluate(s)
-    return PolylineFrame(s, np.stack([x, y], axis=1), np.stack([np.cos(h), np.sin(h)], axis=1))
+    z = None if heights is None else np.interp(s, heights[0], heights[1])
+    return PolylineFrame(s, np.stack([x, y], axis=1), np.stack([np.cos(h), np.sin(h)], axis=1), z)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from .._errors import InputError
 from ..config import MainlineConfig
 from ..fitting import (
     PolylineFrame,
+    arc_length,
     fit_cubic_profile,
     fit_parampoly3_chain,
     resample_polyline,
@@ -33,6 +34,7 @@ from ._common import (
     _sign,
     _split_edges,
     _trajectory_frame,
+    road_surface_poses,
     robust_offset_fit,
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
@@ -61,13 +63,17 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     timings["reference_line"] = time.perf_counter() - t0
 
     base = Road("1", geometry, (LaneSection(0.0),), name="mainline")
-    frame = _road_frame(base)
+    # heights from the trajectory: points of a road the run passes over or under go to
+    # the stations at their own level
+    heights = None if median.z is None else (arc_length(median.xy), median.z)
+    frame = _road_frame(base, heights=heights)
     length = base.length
 
     t0 = time.perf_counter()
+    poses = road_surface_poses(run)
     s_out, t_out = frame.project(outer_pts)
     s_lane, t_lane = frame.project(run.lane_samples)
-    s_car, t_car = frame.project(run.trajectory.xy)
+    s_car, t_car = frame.project(poses)
     order = np.argsort(s_car)
     sections, events, tracks, used = fit_lanes(
         s_lane,
@@ -83,8 +89,6 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     timings["lanes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    poses = run.trajectory.xyz.copy()
-    poses[:, 2] -= run.pose_height_m
     elevation, superelevation = fit_elevation(
         frame, np.vstack([ref_pts, outer_pts[used]]), poses=poses, config=cfg
     )
@@ -114,10 +118,13 @@ class MedianEdge:
         side: lanes beginning or ending at full width there) and, per segment, how far
         the edge lies from the reference line (metres, towards the median): the lane
         offset of the centre lane.
+    z : ``(G,)`` height of the road surface under the car beside each point of ``xy``
+        (mapping frame, metres; from the trajectory), or None.
     """
 
     xy: FloatArray
     steps: EdgeSteps
+    z: FloatArray | None = None
 
 
 def _lane_offset(steps: EdgeSteps, sign: float) -> CubicProfile:
@@ -342,14 +349,17 @@ def fit_median_edge(
         xy = xy + (grid - np.clip(grid, 0.0, frame.length))[:, None] * tg
         nrm = np.stack([-tg[:, 1], tg[:, 0]], axis=1)
         pts = xy + off[:, None] * nrm
+        z = frame.height_at(np.clip(grid, 0.0, frame.length))
+        if z is not None:
+            pts = np.column_stack([pts, z])
         frame = PolylineFrame.from_points(resample_polyline(pts, step))
     if not has_steps:
-        return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)))
+        return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)), frame.z)
     # the steps in the final line's own stations
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
     *_, steps = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
-    return MedianEdge(frame.xy, steps)
+    return MedianEdge(frame.xy, steps, frame.z)
 
 
 def _bin_sums(

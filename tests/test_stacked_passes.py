@@ -1,0 +1,101 @@
+"""A run that passes over itself: the points of the two levels stay apart.
+
+Real chains do this (the Krems trunk road loops over itself at 6-12 degrees, 46 m above),
+and so do runs that take a loop ramp. In plan the two passes overlap, so anything that
+places a point at the nearest station in plan puts half of them on the wrong pass: the
+mainline's edges and markings then follow the other level (12 m errors, a 7 m lane on
+krems-30799129-s11). Points carry z, the trajectory carries the road surface's height:
+projections in 3-D keep each point at its own level.
+
+Case: ``tests/networks.self_crossing_network``, one motorway road that loops through 350
+degrees and crosses its own first straight at 10 degrees, 9 m above it, simulated with
+the default sensor.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from networks import LOOP_RISE_M, self_crossing_network
+from roadtwin.evaluation import evaluate_paths
+from roadtwin.fitting import PolylineFrame
+from roadtwin.io import load_run
+from roadtwin.osm import load_osm
+from roadtwin.pipeline import build_map
+from roadtwin.simulate import simulate_network_run
+from roadtwin.xodr import read_xodr, write_xodr
+
+# stations of the two passes over the crossing point (x = 237.1 m on y = 0)
+_LOW_S = 237.1
+_HIGH_S = 250.0 + 150.0 * np.radians(350.0) + 13.1
+
+
+@pytest.fixture(scope="module")
+def loop_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("loop") / "run"
+    return simulate_network_run(self_crossing_network(), out, route=["1"], seed=3, name="loop")
+
+
+@pytest.fixture(scope="module")
+def loop_map(loop_run, tmp_path_factory):
+    run = load_run(loop_run)
+    osm = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    result = build_map(run, osm)
+    path = tmp_path_factory.mktemp("loop_map") / "map.xodr"
+    write_xodr(result.network, path)
+    return path
+
+
+def _crossing_points(road, lateral_m: float) -> np.ndarray:
+    """(4, 3) points at ``lateral_m`` right of both passes near the crossing, on their
+    own road surface."""
+    s = np.array([_LOW_S - 20.0, _LOW_S + 5.0, _HIGH_S - 20.0, _HIGH_S + 5.0])
+    xy = road.to_xy(s, np.full(s.size, -lateral_m)).reshape(-1, 2)
+    return np.column_stack([xy, road.elevation.value(s)]), s
+
+
+def test_road_projection_keeps_each_point_at_its_level():
+    (road,) = self_crossing_network().roads
+    pts, s_true = _crossing_points(road, 9.0)
+    s, t = road.project(pts)
+    np.testing.assert_allclose(s, s_true, atol=1e-3)
+    np.testing.assert_allclose(t, -9.0, atol=1e-3)
+    # the same points without heights: at least one goes to the other pass
+    s_plan, _ = road.project(pts[:, :2])
+    assert np.max(np.abs(s_plan - s_true)) > 100.0
+
+
+def test_frame_projection_keeps_each_point_at_its_level():
+    (road,) = self_crossing_network().roads
+    s_line = np.linspace(0.0, road.length, int(road.length) + 1)
+    xyz = np.column_stack([road.xy(s_line), road.elevation.value(s_line)])
+    frame = PolylineFrame.from_points(xyz)
+    assert frame.z is not None and frame.z.max() == pytest.approx(LOOP_RISE_M)
+    pts, s_true = _crossing_points(road, 9.0)
+    s, t = frame.project(pts)
+    np.testing.assert_allclose(s, s_true, atol=0.01)
+    np.testing.assert_allclose(t, -9.0, atol=0.01)
+
+
+def test_truth_evaluated_against_itself_is_exact(loop_run):
+    # each true boundary point must be compared with its own level of the one road
+    rep = evaluate_paths(loop_run / "truth.xodr", [loop_run]).runs[0]
+    for kind in ("truth/road_edge", "truth/lane_boundary"):
+        err = rep.details[kind].error_m
+        assert np.max(np.abs(err)) < 1e-3, kind
+
+
+def test_mainline_of_a_run_passing_over_itself(loop_run, loop_map):
+    rep = evaluate_paths(loop_map, [loop_run]).runs[0]
+    for kind in ("truth/road_edge", "truth/lane_boundary"):
+        err = rep.details[kind].error_m
+        rmse = float(np.sqrt(np.mean(err**2)))
+        # 0.014 / 0.017 m (0.36 m and 2.5 m at most before: the crossing's points went to
+        # the other pass)
+        assert rmse < 0.05, (kind, rmse)
+        assert np.max(np.abs(err)) < 0.3, (kind, float(np.max(np.abs(err))))
+    (road,) = [r for r in read_xodr(loop_map).roads if r.name == "mainline"]
+    # the map's own road climbs where the truth does and is flat on the first straight
+    z = road.elevation.value(np.array([100.0, road.length - 100.0]))
+    np.testing.assert_allclose(z, [0.0, LOOP_RISE_M], atol=0.15)
