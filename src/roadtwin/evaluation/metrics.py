@@ -470,8 +470,10 @@ def _truth_ramps(
     n_centre_points = 0
     stations, centres = _centre_points(true_roads, cfg.truth_step_m)
     kw = {"max_lateral_m": cfg.max_lateral_m, "end_tolerance_m": cfg.end_tolerance_m}
-    # one projection of all ramps' centre points (per-point results do not depend on it)
-    proj_all = project_points(built, np.vstack(centres), **kw) if built and centres else None
+    # one projection of all ramps' centre points (per-point results do not depend on it);
+    # in plan only: a built ramp's heights come from OSM's layers, metres off on a bridge,
+    # so its level would send true points to another road
+    proj_all = project_points(built, np.vstack(centres)[:, :2], **kw) if built and centres else None
     bounds = np.concatenate([[0], np.cumsum([s.size for s in stations])])
     for i, road in enumerate(true_roads):
         s, pts_c = stations[i], centres[i]
