@@ -225,3 +225,28 @@ def test_chain_selection_by_ref_direction_and_window():
     assert b.mainline.length == pytest.approx(1200.0, rel=0.02)
     assert set(b.chain_way_ids) <= set(_chains(OAKLAND, 2)[0:2] and b.chain_way_ids)
     assert a.mainline.length > b.mainline.length
+
+
+KREMS_LINKS = OSM_DIR / "krems-s5-links.osm.gz"
+
+
+def test_links_that_would_knot_are_not_ramps():
+    # where the S5 is one carriageway, the links of the other direction meet it on the
+    # median side turning back on themselves: drawn as ramps they knotted (radius 0.2 m)
+    # and left 9 m weaving lanes between them on the mainline
+    truth = _truth(KREMS_LINKS, 53304186, 11)
+    knotted = {what.split()[2] for what, why in truth.skipped if "knot" in why}
+    assert knotted == {"102561712", "4682215", "41194190", "14823176"}
+    assert all(r.min_radius_m >= 7.5 for r in truth.ramps)
+    assert not [x.key for x in truth.layout.strips if x.kind == "aux" and x.s1 - x.s0 < 100.0]
+    assert not [f for f in check_network(truth.network) if f.severity == "error"]
+
+
+def test_short_lane_count_blip_of_the_tags_is_no_lane():
+    # melbourne chain 18: the tags say 5, 4, 2, 4 lanes over its last 82 m (short ways at
+    # a fork), no ramp there: the 17 m with 2 lanes is no lane drop and gain
+    truth = _truth(MELBOURNE, 18, 11)
+    strips = [x for x in truth.layout.strips if x.kind == "through"]
+    assert min(x.s1 - x.s0 for x in strips) >= 100.0
+    s = np.array([truth.mainline.length - 40.0, truth.mainline.length - 1.0])
+    assert lane_count_at(truth.layout, s).tolist() == [4, 4]

@@ -3,7 +3,7 @@
 Keeps every way with a ``highway`` tag that has a node inside a lon/lat box, with all of
 its nodes (so ways are complete) and their tags. Data: © OpenStreetMap contributors, ODbL.
 Run: ``python tests/data/osm/crop_extracts.py /work/shared/data/osm/north-bayreuth-a9.osm.gz
-[NAME ...]``
+[NAME ...]`` (the Krems crop from ``krems-s5-trunk.osm.gz``).
 """
 
 from __future__ import annotations
@@ -19,6 +19,9 @@ CROPS = {
     "a9-dreieck-bayreuth-kulmbach.osm.gz": (11.594, 50.0195, 11.614, 50.0305),
     # an A9 interchange with both carriageways, their ramps and the roads beyond them
     "a9-bayreuth-nord.osm.gz": (11.486, 50.0345, 11.501, 50.0425),
+    # the S5 near Krems where it is one carriageway: links of both directions meet it, on
+    # both sides (from krems-s5-trunk.osm.gz)
+    "krems-s5-links.osm.gz": (15.612, 48.4035, 15.634, 48.4115),
 }
 
 

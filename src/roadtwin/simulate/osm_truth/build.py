@@ -35,7 +35,7 @@ from .geometry import (
 from .layout import Layout, RampEvent, Strip, build_layout, tag_segments_from_chain
 from .links import OsmRamp, find_ramps, tagged_lanes
 from .network import BuiltRoad, Source, build_road, lane_pairs, set_end_links
-from .settings import OsmTruthSettings
+from .settings import OsmTruthSettings, RampShape
 from .style import RoadStyle, road_style
 
 log = logging.getLogger(__name__)
@@ -237,53 +237,45 @@ def truth_from_osm(
             continue
         accepted.append((r, g))
         last_b = b
-    events = [RampEvent(i, r.kind, r.side, g, r.lanes) for i, (r, g) in enumerate(accepted)]
-    layout = build_layout(
-        L,
-        segments,
-        events,
-        lane_width_m=lane_w,
-        ramp_lane_width_m=ramp_w,
-        inner_shoulder_m=w_in,
-        hard_shoulder_m=w_hard,
-        cross=cs,
-        events=cfg.lanes,
-        rng=_rng(seed, 2),
-    )
+    # a link that cannot be drawn as a ramp (a U-turn across the median, a crossing road
+    # meeting the chain at a node: its path knots) is left out before the lanes are laid
+    # out, so that no lane opens or ends for it
+    while True:
+        events = [RampEvent(i, r.kind, r.side, g, r.lanes) for i, (r, g) in enumerate(accepted)]
+        layout = build_layout(
+            L,
+            segments,
+            events,
+            lane_width_m=lane_w,
+            ramp_lane_width_m=ramp_w,
+            inner_shoulder_m=w_in,
+            hard_shoulder_m=w_hard,
+            cross=cs,
+            events=cfg.lanes,
+            rng=_rng(seed, 2),
+        )
+        paths = [
+            _ramp_path(
+                r, g, layout.attachments[ev.index], layout, main_geo, fld, cfg, sign, ramp_w, w_hard
+            )
+            for ev, (r, g) in zip(events, accepted, strict=True)
+        ]
+        bad = [k for k, (xy, _) in enumerate(paths) if _unbuildable(xy, cfg.ramps)]
+        if not bad:
+            break
+        for k in bad:
+            r, g = accepted[k]
+            what = f"{r.kind} way {r.way_ids[0]} at {g:.0f} m"
+            skipped.append((what, "its path bends tighter than a ramp can (a knot)"))
+        accepted = [a for k, a in enumerate(accepted) if k not in bad]
     z_main = mainline_profile(L, cfg.elevation, _rng(seed, 3))
     main_src = Source(main_geo, z_main, layout)
 
     # ---- ramps ---------------------------------------------------------------------
     ramp_srcs: list[Source] = []
     ramp_meta: list[dict] = []
-    for ev, (r, g) in zip(events, accepted, strict=True):
+    for ev, (r, g), (xy, pose) in zip(events, accepted, paths, strict=True):
         att = layout.attachments[ev.index]
-        eps = 1e-3 if r.kind == "entry" else -1e-3
-        sg = np.array([g + eps])
-        if r.side == "outer":
-            first = min((x for x in layout.strips if x.key in att.lane_keys), key=lambda x: x.rank)
-            u = float(layout.u_border(sg, first.rank)[0])
-        else:
-            u = float(layout.u_inner_edge(sg)[0])
-        attach_t = sign * u
-        away = float(sign if r.side == "outer" else -sign)
-        target_c = r.xy + fld(r.xy)
-        tc = smooth_line(target_c, window_m=cfg.ramps.smooth_window_m)
-        u_rc = cfg.cross_section.ramp_inner_shoulder_m + r.lanes * ramp_w / 2.0
-        target = tc - sign * u_rc * normals(tc)
-        sh = next((x for x in layout.strips if x.key == att.shoulder_key), None)
-        w_sh = float(sh.full(sg)[0]) if sh is not None else w_hard
-        gore_sh = cs.ramp_inner_shoulder_m if r.side == "outer" else cs.ramp_hard_shoulder_m
-        xy, pose = ramp_polyline(
-            main_geo,
-            g,
-            attach_t,
-            target,
-            kind=r.kind,
-            away_sign=away,
-            separation_m=w_sh + gore_sh + cfg.ramps.gore_gap_m,
-            cfg=cfg.ramps,
-        )
         pieces = (
             fit_line(xy, tolerance_m=cfg.fit_tolerance_m, start_pose=pose)
             if r.kind == "exit"
@@ -386,6 +378,52 @@ def truth_from_osm(
         notes=tuple(layout.notes),
         offset_centre_xy=(float(centre_xy[0]), float(centre_xy[1])),
     )
+
+
+def _ramp_path(
+    r: OsmRamp,
+    g: float,
+    att,
+    layout: Layout,
+    main_geo: Road,
+    fld,
+    cfg: OsmTruthSettings,
+    sign: int,
+    ramp_w: float,
+    w_hard: float,
+) -> tuple[NDArray, tuple[float, float, float]]:
+    """The reference line of ramp ``r`` attached at station ``g`` (dense polyline, driving
+    order) and its pose at the gore (:func:`~.geometry.ramp_polyline`); ``ramp_w`` and
+    ``w_hard`` are the ramp lane's and the hard shoulder's widths (metres)."""
+    cs = cfg.cross_section
+    sg = np.array([g + (1e-3 if r.kind == "entry" else -1e-3)])
+    if r.side == "outer":
+        first = min((x for x in layout.strips if x.key in att.lane_keys), key=lambda x: x.rank)
+        u = float(layout.u_border(sg, first.rank)[0])
+    else:
+        u = float(layout.u_inner_edge(sg)[0])
+    tc = smooth_line(r.xy + fld(r.xy), window_m=cfg.ramps.smooth_window_m)
+    u_rc = cs.ramp_inner_shoulder_m + r.lanes * ramp_w / 2.0
+    target = tc - sign * u_rc * normals(tc)
+    sh = next((x for x in layout.strips if x.key == att.shoulder_key), None)
+    w_sh = float(sh.full(sg)[0]) if sh is not None else w_hard
+    gore_sh = cs.ramp_inner_shoulder_m if r.side == "outer" else cs.ramp_hard_shoulder_m
+    return ramp_polyline(
+        main_geo,
+        g,
+        sign * u,
+        target,
+        kind=r.kind,
+        away_sign=float(sign if r.side == "outer" else -sign),
+        separation_m=w_sh + gore_sh + cfg.ramps.gore_gap_m,
+        cfg=cfg.ramps,
+    )
+
+
+def _unbuildable(xy: NDArray, shape: RampShape) -> bool:
+    """A ramp path that crosses itself or bends tighter than half the design radius."""
+    kap = np.abs(curvature(xy))
+    return bool(self_intersects(xy) or kap.max(initial=0.0) * 0.5 * shape.min_radius_m > 1.0)
 
 
 def _ramp_layout(

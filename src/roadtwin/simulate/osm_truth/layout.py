@@ -209,13 +209,12 @@ def build_layout(
             base, wander(rng, cross.width_wander_m, cross.wander_wavelength_m), lo_w, hi_w
         )
 
-    # merge equal neighbours of the tag segments
-    segs: list[list[float]] = []
-    for a, b, n in tag_segments:
-        if segs and segs[-1][2] == n:
-            segs[-1][1] = b
-        else:
-            segs.append([a, b, n])
+    segs = _merged_segments(
+        tag_segments,
+        events.min_tag_segment_m,
+        gores=[r.station_m for r in ramps],
+        snap_m=events.event_snap_m,
+    )
 
     # ----- through lanes from the tags -------------------------------------------------
     n0 = int(segs[0][2])
@@ -417,6 +416,49 @@ def build_layout(
     kept = [x.rank for x in through if x.key not in inner_touched]
     anchor = min(kept) if kept else max(x.rank for x in through) + 0.5
     return Layout(L, strips, attachments, inner_shoulder_m, anchor, notes)
+
+
+def _merged_segments(
+    tag_segments: list[tuple[float, float, int]],
+    min_length_m: float,
+    *,
+    gores: list[float] = (),  # type: ignore[assignment]
+    snap_m: float = 0.0,
+) -> list[list[float]]:
+    """``[s0, s1, lanes]`` runs of equal lane counts; an inner run shorter than
+    ``min_length_m`` takes the count of its longer neighbour (shortest first), unless one
+    of its ends lies within ``snap_m`` of a ramp's gore station (``gores``): a lane added
+    just before an exit that takes it is real."""
+    g = np.asarray(sorted(gores), dtype=float)
+
+    def at_gore(x: float) -> bool:
+        return bool(g.size) and float(np.min(np.abs(g - x))) <= snap_m
+
+    def merge(segments) -> list[list[float]]:
+        out: list[list[float]] = []
+        for a, b, n in segments:
+            if out and out[-1][2] == n:
+                out[-1][1] = b
+            else:
+                out.append([a, b, n])
+        return out
+
+    segs = merge(tag_segments)
+    while len(segs) > 2:
+        inner = [
+            i
+            for i in range(1, len(segs) - 1)
+            if segs[i][1] - segs[i][0] < min_length_m
+            and not (at_gore(segs[i][0]) or at_gore(segs[i][1]))
+        ]
+        if not inner:
+            break
+        k = min(inner, key=lambda i: segs[i][1] - segs[i][0])
+        before, after = segs[k - 1], segs[k + 1]
+        longer = before if before[1] - before[0] >= after[1] - after[0] else after
+        segs[k][2] = longer[2]
+        segs = merge(segs)
+    return segs
 
 
 def tag_segments_from_chain(

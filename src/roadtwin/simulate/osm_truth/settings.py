@@ -90,6 +90,10 @@ class LaneEvents:
     starts without a ramp opens over ``gain_taper_m``. A tag change within
     ``event_snap_m`` of a gore belongs to that ramp (exit-only lane, lane gained at an
     entry). The shoulder beside a gore re-opens (closes) over ``gore_shoulder_taper_m``.
+    A tagged lane count that holds for less than ``min_tag_segment_m`` (a short way of a
+    bridge tagged differently from its neighbours) is a tagging slip, not a lane: it
+    takes the count of its longer neighbour (real lanes open and close over hundreds of
+    metres; such a blip made lanes open and close within 35 m, their borders knotted).
     """
 
     decel_length_m: float = 220.0
@@ -101,6 +105,7 @@ class LaneEvents:
     gain_taper_m: float = 100.0
     event_snap_m: float = 120.0
     gore_shoulder_taper_m: float = 120.0
+    min_tag_segment_m: float = 100.0
 
 
 @dataclass(frozen=True)
