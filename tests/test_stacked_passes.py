@@ -99,3 +99,15 @@ def test_mainline_of_a_run_passing_over_itself(loop_run, loop_map):
     # the map's own road climbs where the truth does and is flat on the first straight
     z = road.elevation.value(np.array([100.0, road.length - 100.0]))
     np.testing.assert_allclose(z, [0.0, LOOP_RISE_M], atol=0.15)
+
+
+def test_points_without_real_heights_are_placed_in_plan():
+    # edge points exported with z = 0 along a road that climbs 9 m: their heights say
+    # nothing about the level, so plan distance decides (3-D would pull them to the low
+    # part of the loop)
+    (road,) = self_crossing_network().roads
+    s_true = np.array([900.0, 1000.0, 1100.0, 1400.0])
+    xy = road.to_xy(s_true, np.full(s_true.size, -9.0)).reshape(-1, 2)
+    s, t = road.project(np.column_stack([xy, np.zeros(s_true.size)]))
+    np.testing.assert_allclose(s, s_true, atol=1e-3)
+    np.testing.assert_allclose(t, -9.0, atol=1e-3)

@@ -32,7 +32,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
 from ._errors import FitError
-from .model import HEIGHT_WEIGHT, CubicPiece, CubicProfile, ParamPoly3
+from .model import HEIGHT_WEIGHT, CubicPiece, CubicProfile, ParamPoly3, nearest_at_level
 
 FloatArray = NDArray[np.float64]
 
@@ -198,10 +198,10 @@ def project_to_polyline(frame: PolylineFrame, points: ArrayLike) -> tuple[FloatA
         The polyline frame.
     points
         ``(N, 2+)`` points, mapping frame, metres. If the frame has heights and the points
-        a third column (z, same frame), the nearest vertex is looked up in 3-D with height
-        differences weighted ``HEIGHT_WEIGHT`` times: a point of a road stacked over or
-        under the frame's own (a run that passes over itself) is placed at its own level,
-        not on the nearest station in plan.
+        a third column (z, same frame), the nearest vertex is the nearest at the point's
+        level (:func:`~roadtwin.model.nearest_at_level`): a point of a road stacked over
+        or under the frame's own (a run that passes over itself) is placed at its own
+        level, not on the nearest station in plan.
 
     Returns
     -------
@@ -214,7 +214,8 @@ def project_to_polyline(frame: PolylineFrame, points: ArrayLike) -> tuple[FloatA
     if pts.shape[0] == 0:
         return np.zeros(0), np.zeros(0)
     if frame.z is not None and raw.shape[1] > 2 and np.isfinite(raw[:, 2]).all():
-        _, idx = frame.tree_3d.query(np.column_stack([pts, HEIGHT_WEIGHT * raw[:, 2]]))
+        z = frame.z
+        idx = nearest_at_level(frame.tree, z, lambda: frame.tree_3d, raw[:, :3])
     else:
         _, idx = frame.tree.query(pts)
     d = pts - frame.xy[idx]

@@ -13,7 +13,7 @@ stages return new networks (``dataclasses.replace``) instead of mutating.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Literal
@@ -37,12 +37,37 @@ ContactPoint = Literal["start", "end"]
 
 
 HEIGHT_WEIGHT = 4.0
-"""Where points are matched with the nearest sample of a line that has heights, a metre of
-height difference counts as this many metres of horizontal distance: a road stacked 5 m
-over or under another (a bridge, a run that passes over itself) is then farther than a
-point 20 m beside it, while the height of a point on the line's own road (cross slope, a
-few decimetres) moves the nearest sample by well under a metre, which the projection's
-tangent or Newton steps take back."""
+"""Where a point lies more than ``SAME_LEVEL_M`` above or below the line sample nearest to
+it in plan, its nearest sample is looked up in 3-D with a metre of height difference
+counting as this many metres of horizontal distance: a road stacked 5 m over or under
+another (a bridge, a run that passes over itself) is then farther than a point 20 m beside
+it, while the height of a point on the line's own road (cross slope, a few decimetres)
+moves the nearest sample by well under a metre, which the projection's tangent or Newton
+steps take back."""
+
+SAME_LEVEL_M = 3.0
+"""A point this far (metres) above or below a road surface lies on another level: more than
+any cross slope times a carriageway's width, less than the clearance under a bridge."""
+
+
+def nearest_at_level(
+    tree: cKDTree, z: FloatArray, tree_3d: Callable[[], cKDTree], points: FloatArray
+) -> NDArray[np.intp]:
+    """Index of the line sample nearest to each point ``(N, 3)``, at the point's level.
+
+    ``tree`` holds the samples in plan, ``z`` their heights (metres), ``tree_3d`` builds
+    the samples' 3-D tree (heights scaled by ``HEIGHT_WEIGHT``). A point within
+    ``SAME_LEVEL_M`` of its nearest sample in plan keeps that sample; the others are looked
+    up in 3-D. If most points are off their nearest sample's level, the heights do not
+    describe the same surface (points without real heights): plan distance decides.
+    """
+    _, idx = tree.query(points[:, :2])
+    off = np.abs(points[:, 2] - z[idx]) > SAME_LEVEL_M
+    if not off.any() or np.count_nonzero(off) > 0.5 * off.size:
+        return idx
+    _, idx_3d = tree_3d().query(np.column_stack([points[off, :2], HEIGHT_WEIGHT * points[off, 2]]))
+    idx[off] = idx_3d
+    return idx
 
 
 @dataclass(frozen=True)
@@ -552,10 +577,13 @@ class Road:
         return s, cKDTree(self.xy(s))
 
     @cached_property
-    def _projection_index_3d(self) -> tuple[FloatArray, cKDTree]:
-        s, tree = self._projection_index
-        z = HEIGHT_WEIGHT * self.elevation.value(s)
-        return s, cKDTree(np.column_stack([tree.data, z]))
+    def _projection_heights(self) -> FloatArray:
+        return self.elevation.value(self._projection_index[0])
+
+    @cached_property
+    def _projection_index_3d(self) -> cKDTree:
+        tree = self._projection_index[1]
+        return cKDTree(np.column_stack([tree.data, HEIGHT_WEIGHT * self._projection_heights]))
 
     def project(
         self, points: ArrayLike, *, iterations: int = 4, s_init: ArrayLike | None = None
@@ -566,9 +594,9 @@ class Road:
         ----------
         points
             ``(N, 2)`` or ``(N, 3)`` array, mapping frame, metres. With z (and a road with
-            an elevation profile) the first guess is the nearest sampled point in 3-D,
-            heights weighted ``HEIGHT_WEIGHT`` times: a point of a road that passes over
-            or under this one's other part goes to its own level.
+            an elevation profile) the first guess is the nearest sample at the point's
+            level (:func:`nearest_at_level`): a point of a road that passes over or under
+            this one's other part goes to its own level.
         s_init
             Optional ``(N,)`` first guesses of the stations (metres) instead of the
             nearest sampled point, for a road that comes back near itself (a loop).
@@ -588,11 +616,15 @@ class Road:
                 and bool(self.elevation.pieces)
                 and bool(np.isfinite(raw[:, 2]).all())
             )
+            s_tab, tree = self._projection_index
             if with_z:
-                s_tab, tree = self._projection_index_3d
-                _, nearest = tree.query(np.column_stack([pts, HEIGHT_WEIGHT * raw[:, 2]]))
+                nearest = nearest_at_level(
+                    tree,
+                    self._projection_heights,
+                    lambda: self._projection_index_3d,
+                    raw[:, :3],
+                )
             else:
-                s_tab, tree = self._projection_index
                 _, nearest = tree.query(pts)
             s = s_tab[nearest]
         else:

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..model import LaneSection, Road, RoadNetwork
+from ..model import SAME_LEVEL_M, LaneSection, Road, RoadNetwork
 
 FloatArray = NDArray[np.float64]
 
@@ -193,11 +193,6 @@ def _height(road: Road, s: FloatArray, t: FloatArray) -> FloatArray:
 # ---------------------------------------------------------------------------
 # projection of points onto a set of roads
 # ---------------------------------------------------------------------------
-
-
-_MAX_HEIGHT_GAP_M = 3.0
-"""A road surface more than this above or below a point (metres) is another level's road:
-below the clearance of any bridge, above any cross slope times a carriageway's width."""
 
 
 def _stations(length_m: float, step_m: float) -> FloatArray:
@@ -396,7 +391,7 @@ def project_points(
         Roads in chain order (for ``station_m``).
     points
         ``(N, 2)`` mapping-frame points, metres, or ``(N, 3)`` with their heights: then a
-        road whose surface there lies within ``_MAX_HEIGHT_GAP_M`` of the point's height
+        road whose surface there lies within ``SAME_LEVEL_M`` of the point's height
         comes before every other (a run passing over itself, a ramp on a bridge).
     max_lateral_m
         Largest distance outside a road's edges that still counts as on the road (metres).
@@ -464,7 +459,7 @@ def project_points(
         if z_pts is None:
             level = np.ones(idx.size, dtype=bool)
         else:
-            level = np.abs(_height(road, s, t) - z_pts[idx]) <= _MAX_HEIGHT_GAP_M
+            level = np.abs(_height(road, s, t) - z_pts[idx]) <= SAME_LEVEL_M
         o_level = best_level[idx]
         better = level & ~o_level
         same = level == o_level
