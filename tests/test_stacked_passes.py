@@ -21,6 +21,7 @@ from networks import LOOP_RISE_M, self_crossing_network
 from roadtwin.evaluation import evaluate_paths
 from roadtwin.fitting import PolylineFrame
 from roadtwin.io import load_run
+from roadtwin.model import HEIGHT_WEIGHT, nearest_at_level
 from roadtwin.osm import load_osm
 from roadtwin.pipeline import build_map
 from roadtwin.simulate import simulate_network_run
@@ -71,7 +72,8 @@ def test_frame_projection_keeps_each_point_at_its_level():
     s_line = np.linspace(0.0, road.length, int(road.length) + 1)
     xyz = np.column_stack([road.xy(s_line), road.elevation.value(s_line)])
     frame = PolylineFrame.from_points(xyz)
-    assert frame.z is not None and frame.z.max() == pytest.approx(LOOP_RISE_M)
+    assert frame.z is not None
+    assert frame.z.max() == pytest.approx(LOOP_RISE_M)
     pts, s_true = _crossing_points(road, 9.0)
     s, t = frame.project(pts)
     np.testing.assert_allclose(s, s_true, atol=0.01)
@@ -111,3 +113,22 @@ def test_points_without_real_heights_are_placed_in_plan():
     s, t = road.project(np.column_stack([xy, np.zeros(s_true.size)]))
     np.testing.assert_allclose(s, s_true, atol=1e-3)
     np.testing.assert_allclose(t, -9.0, atol=1e-3)
+
+
+def test_point_below_the_road_with_no_pass_there_keeps_its_station_in_plan():
+    # an edge point of a road passing 3.05 m under the climbing part: no pass of the run
+    # lies at its level, so the 3-D lookup (which finds a sample a few metres back, where
+    # the road is lower) must not move it
+    (road,) = self_crossing_network().roads
+    s_tab, tree = road._projection_index
+    z_tab = road.elevation.value(s_tab)
+    s0 = 600.0
+    xy = road.to_xy(np.array([s0]), np.array([-12.0])).reshape(-1, 2)
+    pts = np.column_stack([xy, road.elevation.value(np.array([s0])) - 3.05])
+    _, plan = tree.query(pts[:, :2])
+    idx = nearest_at_level(tree, s_tab, z_tab, lambda: road._projection_index_3d, pts)
+    assert idx.tolist() == plan.tolist()
+    _, idx_3d = road._projection_index_3d.query(
+        np.column_stack([pts[:, :2], HEIGHT_WEIGHT * pts[:, 2]])
+    )
+    assert idx_3d.tolist() != plan.tolist()  # what a plain 3-D lookup would take

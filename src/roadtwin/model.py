@@ -50,23 +50,43 @@ SAME_LEVEL_M = 3.0
 any cross slope times a carriageway's width, less than the clearance under a bridge."""
 
 
+LEVEL_REACH_M = 50.0
+"""Another pass of a line is a sample within this distance in plan (metres) and more than
+this along the line from a point's nearest sample in plan."""
+
+
 def nearest_at_level(
-    tree: cKDTree, z: FloatArray, tree_3d: Callable[[], cKDTree], points: FloatArray
+    tree: cKDTree,
+    s: FloatArray,
+    z: FloatArray,
+    tree_3d: Callable[[], cKDTree],
+    points: FloatArray,
 ) -> NDArray[np.intp]:
     """Index of the line sample nearest to each point ``(N, 3)``, at the point's level.
 
-    ``tree`` holds the samples in plan, ``z`` their heights (metres), ``tree_3d`` builds
-    the samples' 3-D tree (heights scaled by ``HEIGHT_WEIGHT``). A point within
-    ``SAME_LEVEL_M`` of its nearest sample in plan keeps that sample; the others are looked
-    up in 3-D. If most points are off their nearest sample's level, the heights do not
-    describe the same surface (points without real heights): plan distance decides.
+    ``tree`` holds the samples in plan, ``s`` their stations and ``z`` their heights
+    (metres), ``tree_3d`` builds the samples' 3-D tree (heights scaled by
+    ``HEIGHT_WEIGHT``). A point within ``SAME_LEVEL_M`` of its nearest sample in plan keeps
+    that sample. The others are looked up in 3-D and take the sample found there if it is
+    another pass of the line at their level: within ``SAME_LEVEL_M`` in height, within
+    ``LEVEL_REACH_M`` in plan and more than that along the line. A point at no level of
+    the line (a ramp passing under it) keeps its sample in plan. If most points are off
+    their nearest sample's level, the heights do not describe the same surface (points
+    without real heights): plan distance decides.
     """
     _, idx = tree.query(points[:, :2])
-    off = np.abs(points[:, 2] - z[idx]) > SAME_LEVEL_M
-    if not off.any() or np.count_nonzero(off) > 0.5 * off.size:
+    off = np.flatnonzero(np.abs(points[:, 2] - z[idx]) > SAME_LEVEL_M)
+    if not off.size or off.size > 0.5 * idx.size:
         return idx
-    _, idx_3d = tree_3d().query(np.column_stack([points[off, :2], HEIGHT_WEIGHT * points[off, 2]]))
-    idx[off] = idx_3d
+    pts = points[off]
+    _, idx_3d = tree_3d().query(np.column_stack([pts[:, :2], HEIGHT_WEIGHT * pts[:, 2]]))
+    xy_3d = tree.data[idx_3d]
+    other_pass = (
+        (np.abs(pts[:, 2] - z[idx_3d]) <= SAME_LEVEL_M)
+        & (np.hypot(pts[:, 0] - xy_3d[:, 0], pts[:, 1] - xy_3d[:, 1]) <= LEVEL_REACH_M)
+        & (np.abs(s[idx_3d] - s[idx[off]]) > LEVEL_REACH_M)
+    )
+    idx[off[other_pass]] = idx_3d[other_pass]
     return idx
 
 
@@ -620,6 +640,7 @@ class Road:
             if with_z:
                 nearest = nearest_at_level(
                     tree,
+                    s_tab,
                     self._projection_heights,
                     lambda: self._projection_index_3d,
                     raw[:, :3],
