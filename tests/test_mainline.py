@@ -1552,3 +1552,59 @@ def test_the_second_join_pass_only_joins_inferred_lines_to_observed_ones():
     joined = _merge_collinear(inferred, cfg, with_inferred_only=True)
     assert len(joined) == 1
     assert (joined[0].lo, joined[0].hi) == (0.0, 900.0)
+
+
+def test_an_edge_line_is_the_shoulders_line_where_a_shoulder_lies_beyond_it():
+    """The same solid line runs 2.4 m inside the edge (the hard shoulder's line) up to an
+    edge step at 250 m and at the edge (no hard shoulder) for the remaining 550 m: it is
+    the edge line only there. Judged for the whole run it was dropped everywhere and the
+    lane beside it took the shoulder: a lane 5.9 m wide (melbourne-18-s11+80, 7.3 m)."""
+    from roadtwin.mainline.markings import _Track
+    from roadtwin.mainline.sections import _sections_from_tracks
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+
+    def track(k, d, mark):
+        return _Track(k, 0.0, 800.0, grid, np.full(grid.size, d), mark, 600, grid, grid)
+
+    tracks = [track(0, 1.0, "solid"), track(1, 4.5, "broken"), track(2, 8.0, "solid")]
+    d_edge = np.where(grid < 250.0, 10.4, 8.1)
+    sections, _, _ = _sections_from_tracks(
+        tracks, grid, d_edge, np.array([250.0]), 1.0, cfg, None, np.zeros(grid.size)
+    )
+
+    def lanes_at(s):
+        sc = sections[max(i for i, x in enumerate(sections) if x.s0 <= s)]
+        ds = np.array([s - sc.s0])
+        return [(ln.type, round(float(ln.width.value(ds)[0]), 1)) for ln in sc.right]
+
+    assert lanes_at(100.0)[-3:] == [("driving", 3.5), ("driving", 3.5), ("shoulder", 2.4)]
+    assert max(w for _, w in lanes_at(600.0)) <= 3.6  # the edge line is no lane border
+
+
+def test_lines_from_splits_fills_back_to_where_the_neighbour_left():
+    """``_lines_from_splits``: a line first seen at 150 m at the offset a neighbouring
+    line left between 100 and 200 m begins where that line was last within 0.3 m of it;
+    not if another line lies between them, nor if the neighbour never was at its offset."""
+    from roadtwin.mainline.sections import _lines_from_splits
+
+    grid = np.arange(0.0, 400.0 + 0.5, 1.0)
+    moving = np.interp(grid, [0.0, 100.0, 200.0, 400.0], [8.0, 8.0, 11.5, 11.5])
+    late = np.where(grid >= 150.0, 8.0, np.nan)
+
+    def first(row):
+        return float(grid[np.flatnonzero(np.isfinite(row))[0]])
+
+    dmat = np.vstack([np.full(grid.size, 4.5), moving, late])
+    _lines_from_splits(dmat, grid)
+    assert 100.0 <= first(dmat[2]) <= 112.0
+    # a line between the late one and the one that left: that one is not its neighbour
+    between = np.interp(grid, [0.0, 100.0, 200.0, 400.0], [8.0, 8.0, 9.5, 9.5]) + 0.6
+    dmat = np.vstack([np.full(grid.size, 4.5), moving, between, late])
+    _lines_from_splits(dmat, grid)
+    assert first(dmat[3]) == 150.0
+    # the neighbour was never at the late line's offset
+    dmat = np.vstack([np.full(grid.size, 4.5), moving + 1.0, late])
+    _lines_from_splits(dmat, grid)
+    assert first(dmat[2]) == 150.0

@@ -47,6 +47,12 @@ _WIDTH_JUMP_M = 1.0  # a driving lane this much narrower/wider beyond a border i
 
 _LATE_LINE_M = 60.0  # a line first seen this soon after an entry's gore ...
 _LATE_LINE_LANE_M = 1.5  # ... this far from its neighbour (a lane, not a taper's tip)
+_SPLIT_SAME_M = 0.3  # a neighbour this close to a line's offset was at the line
+_SPLIT_MIN_M = 1.0  # ... and this far from it at the line's first station has left it
+
+
+_SHOULDER_LINE_M = 20.0  # shortest section in which an edge line can be a shoulder's line
+_SHOULDER_MIN_M = 1.8  # ... whose shoulder is at least this wide all through it (metres)
 
 
 def _lines_to_gores(
@@ -85,6 +91,51 @@ def _lines_to_gores(
             if np.any(d_edge[i_b:i0] - d_k < 0.3):
                 continue
             dmat[k, i_b:i0] = d_k
+
+
+def _lines_from_splits(dmat: FloatArray, grid: FloatArray) -> None:
+    """Lines first seen soon after a neighbouring line left their offset begin where it
+    left: ``dmat`` (tracks x ``grid``, offsets in metres, NaN where absent) is filled in
+    place back to the station where the neighbour was last within ``_SPLIT_SAME_M``.
+
+    A lane opens between the two: the old line's position is kept by the new lane's inner
+    (outer) line, which a noisier sensor may see only later (a broken line, markings
+    missed), while the line that moves away is the new lane's other border. Without it the
+    lane beside the old position widened to 5 m (melbourne-18-s11+80: the third lane
+    opening over 100 m from s = 17 m, its inner line first seen at 61 m). The neighbour
+    must have moved at least ``_SPLIT_MIN_M`` away by the line's first station, within
+    ``_LATE_LINE_M`` of it, with no line between them."""
+    n_g = grid.size
+    step = float(grid[1] - grid[0]) if n_g > 1 else 1.0
+    span = round(_LATE_LINE_M / max(step, 1e-9))
+    seen = np.isfinite(dmat)
+    first = np.argmax(seen, axis=1)
+    for k in np.flatnonzero((seen.sum(axis=1) >= 10) & (first > 0)):
+        i0 = int(first[k])
+        d_k = float(dmat[k, i0])
+        lo = max(i0 - span, 0)
+        best: tuple[int, int] | None = None
+        for j in range(dmat.shape[0]):
+            if j == k or not seen[j, lo : i0 + 1].all():
+                continue
+            gap = np.abs(dmat[j, lo : i0 + 1] - d_k)
+            if gap[-1] < _SPLIT_MIN_M:
+                continue
+            close = np.flatnonzero(gap < _SPLIT_SAME_M)
+            if close.size == 0:
+                continue
+            i_s = lo + int(close[-1])
+            between = [
+                m
+                for m in range(dmat.shape[0])
+                if m not in (j, k)
+                and seen[m, i_s:i0].any()
+                and np.any((dmat[m, i_s:i0] - d_k) * (dmat[j, i_s:i0] - dmat[m, i_s:i0]) > 0.0)
+            ]
+            if not between and (best is None or i_s > best[0]):
+                best = (i_s, j)
+        if best is not None:
+            dmat[k, best[0] : i0] = d_k
 
 
 def _taper(
@@ -309,6 +360,7 @@ def _sections_from_tracks(
         sel = (grid >= lo) & (grid <= hi)
         dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
     _lines_to_gores(dmat, grid, d_edge, outer_steps)
+    _lines_from_splits(dmat, grid)
     # births / ends inside the run
     raw_events: list[tuple[int, str, float, float, int | None]] = []
     # observed markings first: an inferred (unobserved) one opens/closes like its sibling
@@ -414,13 +466,26 @@ def _sections_from_tracks(
         to_median = float(np.median(dmat[k, on] - d_median[on]))
         if min(to_edge, to_median) < cfg.edge_line_m:
             edge_lines.add(k)
+
+    def shoulder_line_in(k: int, lo: int, hi: int) -> bool:
+        """An edge line that runs a whole shoulder's width inside the outer edge all
+        through the section ``lo:hi`` (at least ``_SHOULDER_LINE_M`` long) is the
+        shoulder's line there: the same solid line is the edge line where the hard
+        shoulder is missing (melbourne-18-s11+80: dropped all along, the lane beside it
+        took a 2.4 m shoulder, 7.3 m wide)."""
+        on = np.isfinite(dmat[k, lo:hi])
+        if (hi - lo) * cfg.grid_step_m < _SHOULDER_LINE_M or not on.all():
+            return False
+        gap = d_edge[lo:hi] - dmat[k, lo:hi]
+        return bool(np.min(gap) >= _SHOULDER_MIN_M)
+
     members_per: list[list[int]] = []
     for a, b in itertools.pairwise(starts):
         b_inc = min(b + 1, n_g)
         votes = present[:, a:b].mean(axis=1)
         members = [k for k in range(len(tracks)) if votes[k] > 0.5]
         members.sort(key=lambda k: float(np.nanmedian(dmat[k, a:b])))
-        members = [k for k in members if k not in edge_lines]
+        members = [k for k in members if k not in edge_lines or shoulder_line_in(k, a, b)]
         gs = grid[a:b_inc]
         s0 = s0_at.get(a, float(grid[a]))
         rel = gs - s0
