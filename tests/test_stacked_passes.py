@@ -132,3 +132,34 @@ def test_point_below_the_road_with_no_pass_there_keeps_its_station_in_plan():
         np.column_stack([pts[:, :2], HEIGHT_WEIGHT * pts[:, 2]])
     )
     assert idx_3d.tolist() != plan.tolist()  # what a plain 3-D lookup would take
+
+
+def test_dense_run_passing_over_itself(loop_run, tmp_path):
+    # 40 times the points (0.55 M, a real mapper's density): the density reduction places
+    # points in cells along the trajectory in plan; the rows keep their own heights, so
+    # the build still tells the two passes apart
+    import shutil
+
+    import laspy
+
+    dense = tmp_path / "run"
+    shutil.copytree(loop_run, dense)
+    las = laspy.read(loop_run / "road_edges.laz")
+    rng = np.random.default_rng(0)
+    k = 40
+    out = laspy.LasData(laspy.LasHeader(point_format=las.header.point_format))
+    out.header.scales, out.header.offsets = las.header.scales, las.header.offsets
+    for name, std in (("x", 0.03), ("y", 0.03), ("z", 0.02)):
+        values = np.repeat(np.asarray(getattr(las, name)), k)
+        setattr(out, name, values + rng.normal(0.0, std, values.size))
+    out.write(dense / "road_edges.laz")
+    run = load_run(dense)
+    assert run.edge_reduction is not None
+    assert run.edge_reduction.reduced
+    osm = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    path = tmp_path / "map.xodr"
+    write_xodr(build_map(run, osm).network, path)
+    rep = evaluate_paths(path, [dense]).runs[0]
+    for kind in ("truth/road_edge", "truth/lane_boundary"):
+        err = rep.details[kind].error_m
+        assert float(np.sqrt(np.mean(err**2))) < 0.05, kind
