@@ -214,8 +214,7 @@ def project_to_polyline(frame: PolylineFrame, points: ArrayLike) -> tuple[FloatA
     if pts.shape[0] == 0:
         return np.zeros(0), np.zeros(0)
     if frame.z is not None and raw.shape[1] > 2 and np.isfinite(raw[:, 2]).all():
-        z = frame.z
-        idx = nearest_at_level(frame.tree, frame.s, z, lambda: frame.tree_3d, raw[:, :3])
+        idx = nearest_at_level(frame.tree, frame.s, frame.z, lambda: frame.tree_3d, raw[:, :3])
     else:
         _, idx = frame.tree.query(pts)
     d = pts - frame.xy[idx]

@@ -55,6 +55,16 @@ _SHOULDER_LINE_M = 20.0  # shortest section in which an edge line can be a shoul
 _SHOULDER_MIN_M = 1.8  # ... whose shoulder is at least this wide all through it (metres)
 
 
+def _first_seen(
+    dmat: FloatArray, grid: FloatArray
+) -> tuple[NDArray[np.bool_], NDArray[np.intp], int]:
+    """Where each track of ``dmat`` is seen, its first grid index, and how many grid steps
+    ``_LATE_LINE_M`` spans (a late-seen line is first seen that soon after its cause)."""
+    seen = np.isfinite(dmat)
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    return seen, np.argmax(seen, axis=1), round(_LATE_LINE_M / max(step, 1e-9))
+
+
 def _lines_to_gores(
     dmat: FloatArray, grid: FloatArray, d_edge: FloatArray, steps: FloatArray
 ) -> None:
@@ -71,15 +81,13 @@ def _lines_to_gores(
     line between the through and the exit lane ends at the painted gore's tip, tens of
     metres before the step (extended, two exits were attached 10-24 m late)."""
     n_g = grid.size
-    span = round(_LATE_LINE_M / max(float(grid[1] - grid[0]), 1e-9)) if n_g > 1 else 0
     for b in steps:
         i_b = int(np.searchsorted(grid, b))
         if i_b <= 0 or i_b >= n_g - 1:
             continue
         if d_edge[min(i_b + 5, n_g - 1)] <= d_edge[max(i_b - 5, 0)]:
             continue  # the edge moves in: an exit
-        seen = np.isfinite(dmat)
-        first = np.argmax(seen, axis=1)  # each track's first station
+        seen, first, span = _first_seen(dmat, grid)  # again: earlier steps filled dmat
         late = (seen.sum(axis=1) >= 10) & (first > i_b) & (first - i_b <= span)
         for k in np.flatnonzero(late):
             i0 = int(first[k])
@@ -105,11 +113,7 @@ def _lines_from_splits(dmat: FloatArray, grid: FloatArray) -> None:
     opening over 100 m from s = 17 m, its inner line first seen at 61 m). The neighbour
     must have moved at least ``_SPLIT_MIN_M`` away by the line's first station, within
     ``_LATE_LINE_M`` of it, with no line between them."""
-    n_g = grid.size
-    step = float(grid[1] - grid[0]) if n_g > 1 else 1.0
-    span = round(_LATE_LINE_M / max(step, 1e-9))
-    seen = np.isfinite(dmat)
-    first = np.argmax(seen, axis=1)
+    seen, first, span = _first_seen(dmat, grid)
     for k in np.flatnonzero((seen.sum(axis=1) >= 10) & (first > 0)):
         i0 = int(first[k])
         d_k = float(dmat[k, i0])

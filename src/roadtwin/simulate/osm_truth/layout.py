@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -422,7 +422,7 @@ def _merged_segments(
     tag_segments: list[tuple[float, float, int]],
     min_length_m: float,
     *,
-    gores: list[float] = (),  # type: ignore[assignment]
+    gores: Sequence[float] = (),
     snap_m: float = 0.0,
 ) -> list[list[float]]:
     """``[s0, s1, lanes]`` runs of equal lane counts; an inner run shorter than
