@@ -1608,3 +1608,41 @@ def test_lines_from_splits_fills_back_to_where_the_neighbour_left():
     dmat = np.vstack([np.full(grid.size, 4.5), moving + 1.0, late])
     _lines_from_splits(dmat, grid)
     assert first(dmat[2]) == 150.0
+
+
+def test_markings_beside_a_median_edge_below_the_reference_line_are_measured():
+    """Between median-side gores the median edge lies below the reference line (here
+    3.5 m), and so does the inner shoulder's line. It is measured, not inferred a lane
+    from the next line: a 4.0 m inner lane stays 4.0 m wide (it was built 3.5 m, the
+    typical width, with its measured line never searched for)."""
+    from roadtwin.mainline.edge_levels import EdgeSteps
+    from roadtwin.mainline.lanes import fit_lanes
+
+    cfg = MainlineConfig()
+    rng = np.random.default_rng(5)
+    s = np.arange(0.0, 600.0, 0.25)
+    dashes = (s % 12.0) < 3.0
+    lines = [(-2.9, s), (1.1, s[dashes]), (4.6, s[dashes]), (8.1, s[dashes]), (11.6, s)]
+    s_lane = np.concatenate([ss for _, ss in lines])
+    d_lane = np.concatenate([np.full(ss.size, d) for d, ss in lines])
+    d_lane = d_lane + rng.normal(0.0, 0.02, d_lane.size)
+    s_out = np.arange(0.0, 600.0, 0.5)
+    d_out = 12.6 + rng.normal(0.0, 0.02, s_out.size)
+    sections, _, tracks, _ = fit_lanes(
+        s_lane,
+        d_lane,
+        s_out,
+        d_out,
+        length=600.0,
+        sign=1.0,
+        config=cfg,
+        median=EdgeSteps(np.zeros(0), np.array([3.5])),
+    )
+    inner_line = [tr for tr in tracks if abs(float(np.median(tr.d_m)) + 2.9) < 0.1]
+    assert inner_line
+    assert inner_line[0].n_samples > 1000
+    sec = sections[len(sections) // 2]
+    driving = [ln for ln in sec.right if ln.type == "driving"]
+    assert len(driving) == 4
+    innermost = min(driving, key=lambda ln: abs(ln.id))
+    assert float(innermost.width.value(np.array([100.0]))[0]) == pytest.approx(4.0, abs=0.05)

@@ -93,8 +93,18 @@ def fit_lanes(
     if np.all(np.isfinite(d_edge)):
         keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
+    # on a segment between median-side gores the median edge lies below the reference
+    # line, and so do its lanes' markings (Town06's inner shoulder line, 2.4 m below: never
+    # searched for, it was inferred, and a lane drop beside it became a dead end)
     tracks, evidence = _tracks_from_samples(
-        s_l, d_l, grid, length, cfg, d_edge if np.all(np.isfinite(d_edge)) else None, covered
+        s_l,
+        d_l,
+        grid,
+        length,
+        cfg,
+        d_edge if np.all(np.isfinite(d_edge)) else None,
+        covered,
+        below_m=max(0.0, -float(np.min(d_median))),
     )
     if not np.all(np.isfinite(d_edge)):
         last = max((float(np.max(tr.d)) for tr in tracks), default=3.0)

@@ -195,17 +195,22 @@ def _tracks_from_samples(
     cfg: MainlineConfig,
     d_edge: FloatArray | None = None,
     covered: NDArray[np.bool_] | None = None,
+    below_m: float = 0.0,
 ) -> tuple[list[_Track], list[tuple[float, float]]]:
     """Marking tracks: histogram peaks linked along s, false positives removed, samples
     assigned exclusively to the nearest track, each track smoothed robustly; where the
     marking pattern shifts sideways as a whole (:mod:`.shift`), found in the frame that
     moves with it and returned in the reference line's.
 
+    ``below_m`` (metres, >= 0): how far the median-side edge lies below the reference
+    line somewhere (on a segment between median-side gores the lanes begin beyond it); the
+    markings there are searched for too.
+
     Also returns ``(s, d)`` where ramp lines crossing the corridor were cut off (they meet
     or leave a mainline marking there: gore evidence)."""
     if s.size < 10:
         return [], []
-    centres, peaks = _find_track_peaks(s, d, length, cfg)
+    centres, peaks = _find_track_peaks(s, d, length, cfg, below_m)
     raw = _link_tracks(peaks, cfg)
     frame = _shift_frame(s, d, length, centres, raw, cfg)
     if frame is None:
@@ -213,7 +218,7 @@ def _tracks_from_samples(
     else:
         edge = None if d_edge is None else d_edge - frame.offset(grid)
         d_frame = d - frame.offset(s)
-        centres, peaks = _find_track_peaks(s, d_frame, length, cfg, frame.deepest_m)
+        centres, peaks = _find_track_peaks(s, d_frame, length, cfg, frame.deepest_m + below_m)
         raw = _link_tracks(peaks, cfg)
         tracks, evidence = _tracks_in_frame(
             s, d_frame, grid, length, cfg, edge, centres, raw, frame
