@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import percentile_filter
 
 from .._errors import InputError
 from ..config import MainlineConfig
@@ -284,6 +285,80 @@ def _median_levels(
     return side, u, edges, level, edge_steps(s, u, edges, level, config=cfg)
 
 
+_EXCURSION_OUT_M = 0.5  # a median-side edge level this far outward of its base ...
+_EXCURSION_MAX_M = 120.0  # ... over at most this many metres of station ...
+_EXCURSION_AGREE_M = 0.6  # ... with the levels either side this close: a ramp's edge
+_EXCURSION_SLOPE = 0.02  # ... moving away from (towards) the road by this (m/m) at least
+_EXCURSION_ONSET_M = 0.1  # ... from where it is this far out of the base to where it is back
+_EXCURSION_BASE_M = 80.0  # the base: a low percentile of the level over this (metres)
+_EXCURSION_BASE_PERCENT = 20
+_EXCURSION_SIDE_BINS = 3  # bins either side that tell the levels before and after
+
+
+def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Stretches where the median-side edge's level path leaves outward and comes back.
+
+    A ramp leaving (joining) on the median side without a lane ending (beginning) at full
+    width: its edge peels off the mainline's (the level path follows it outward for a
+    few tens of metres), and beyond the gore the mainline's own edge goes on at the level
+    it had. Those points are the ramp's; fitted into the reference line they bent the
+    whole road 2 m towards the ramp over 30 m (Town06's inner exit, every lane with it).
+    A step or a taper to a new level is no excursion: the levels either side differ.
+
+    Parameters
+    ----------
+    centres, level
+        Station bin centres (metres) and the level path (metres towards the median, NaN
+        where unseen) of :func:`~.edge_levels.edge_level_path`.
+
+    Returns
+    -------
+    ``(k, 2)`` station intervals (metres) of the excursions and ``(k,)`` the base level
+    (metres) in each, the mean of the levels either side.
+    """
+    ok = np.isfinite(level)
+    if np.count_nonzero(ok) < 2 * _EXCURSION_SIDE_BINS + 1:
+        return np.zeros((0, 2)), np.zeros(0)
+    step = float(np.median(np.diff(centres)))
+    window = max(3, round(_EXCURSION_BASE_M / step) | 1)
+    filled = np.interp(centres, centres[ok], level[ok])
+    # a low percentile: an excursion is outward, and the base must not rise with it (or
+    # with a step to a farther level beside it)
+    base = percentile_filter(filled, _EXCURSION_BASE_PERCENT, size=window, mode="nearest")
+    out = ok & (level - base > _EXCURSION_OUT_M)
+    # runs of outward bins, unseen bins inside a run included (the gore's nose)
+    idx = np.flatnonzero(out)
+    spans, bases = [], []
+    if idx.size:
+        for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1 + round(10.0 / step)) + 1):
+            a, b = int(run[0]), int(run[-1])
+            # from where the edge starts to leave its base to where it is back on it (the
+            # gore's nose unseen in between)
+            while a > 0 and (not ok[a - 1] or level[a - 1] - base[a - 1] > _EXCURSION_ONSET_M):
+                a -= 1
+            while b + 1 < level.size and (
+                not ok[b + 1] or level[b + 1] - base[b + 1] > _EXCURSION_ONSET_M
+            ):
+                b += 1
+            if (b - a + 1) * step > _EXCURSION_MAX_M:
+                continue
+            # a ramp's edge keeps moving away (towards the join); an auxiliary lane on the
+            # median side (an entry's lane to the next exit) steps out and stays: no ramp
+            # (town06-auto-s3 +20: the weaving lane between its inner ramps was dropped)
+            sel = run[np.isfinite(level[run])]
+            if sel.size < 2 or abs(np.polyfit(centres[sel], level[sel], 1)[0]) < _EXCURSION_SLOPE:
+                continue
+            before = level[:a][ok[:a]][-_EXCURSION_SIDE_BINS:]
+            after = level[b + 1 :][ok[b + 1 :]][:_EXCURSION_SIDE_BINS]
+            if before.size < _EXCURSION_SIDE_BINS or after.size < _EXCURSION_SIDE_BINS:
+                continue
+            if abs(float(np.mean(before)) - float(np.mean(after))) > _EXCURSION_AGREE_M:
+                continue
+            spans.append((centres[a] - 0.5 * step, centres[b] + 0.5 * step))
+            bases.append(0.5 * (float(np.mean(before)) + float(np.mean(after))))
+    return np.asarray(spans, dtype=float).reshape(-1, 2), np.asarray(bases, dtype=float)
+
+
 def fit_median_edge(
     ref_pts: FloatArray, traj: PolylineFrame, *, config: MainlineConfig | None = None
 ) -> MedianEdge:
@@ -296,7 +371,9 @@ def fit_median_edge(
     points form levels (:func:`~.edge_levels.edge_level_path`, the level nearest the
     carriageway is the road's edge, ramp edges and the median lie beyond it); segments
     between steps are shifted onto the level of the longest stretch before the fit, so
-    the reference line stays smooth and the steps become the centre lane's offset.
+    the reference line stays smooth and the steps become the centre lane's offset. Where
+    a ramp's edge peels off (joins) on the median side and the edge goes on at its level
+    beyond the gore (:func:`median_excursions`), the ramp's points are left out.
     """
     cfg = config or MainlineConfig()
     step = cfg.grid_step_m
@@ -324,6 +401,16 @@ def fit_median_edge(
         if it == 0 or has_steps:
             side, u, edges, level, steps = _median_levels(s, t, side, lo, hi, cfg)
             has_steps = bool(steps.stations.size)
+        else:
+            side, u, edges, level, _ = _median_levels(s, t, side, lo, hi, cfg)
+        # a ramp's edge peeling off on the median side is not the road's edge (in every
+        # pass: the first one's bend would stay in the frames of the others)
+        spans, bases = median_excursions(0.5 * (edges[1:] + edges[:-1]), level)
+        if spans.size:
+            k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
+            inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
+            ramp = inside & (u > bases[k] + _EXCURSION_AGREE_M)
+            s, t, u = s[~ramp], t[~ramp], u[~ramp]
         if has_steps:
             # points on the edge's own level, each segment moved onto the base level
             centres = 0.5 * (edges[1:] + edges[:-1])

@@ -1,0 +1,91 @@
+"""A ramp leaving on the median side with no lane ending at full width: its edge peels off
+the mainline's median edge and the mainline's own edge goes on beyond the gore at the
+level it had. The reference line (the median edge) must not follow the ramp's edge.
+
+Town06's inner exits are such ramps. Fitted into the reference line, the ramp's edge bent
+the whole road up to 3 m towards the ramp over 40 m, every lane with it (edge RMSE 0.79 m
+on the cropped Town06 route, 5.2 m off at 20-120 m from the exit's gore)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from roadtwin.io import load_run
+from roadtwin.mainline.reference import median_excursions
+from roadtwin.xodr import read_xodr
+
+TOWN06 = Path(__file__).parent / "data" / "xodr" / "town06-35-38.xodr.gz"
+
+
+def _levels(bump_m: float, after_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """A level path on 2 m bins over 400 m: 0 up to 200 m, a bump outward rising to
+    ``bump_m`` over 200-224 m (unseen over 224-230 m: the gore's nose), then
+    ``after_m``."""
+    centres = np.arange(1.0, 400.0, 2.0)
+    level = np.zeros(centres.size)
+    ramp = (centres > 200.0) & (centres < 224.0)
+    level[ramp] = bump_m * (centres[ramp] - 200.0) / 24.0
+    level[(centres >= 224.0) & (centres < 230.0)] = np.nan
+    level[centres >= 230.0] = after_m
+    return centres, level
+
+
+def test_an_outward_bump_that_comes_back_is_an_excursion():
+    spans, bases = median_excursions(*_levels(3.0, 0.0))
+    assert spans.shape == (1, 2)
+    # from where the ramp's edge leaves the base to the gore's nose
+    assert spans[0, 0] == pytest.approx(200.0, abs=2.0)
+    assert spans[0, 1] == pytest.approx(230.0, abs=2.0)
+    assert bases[0] == pytest.approx(0.0, abs=0.05)
+
+
+@pytest.mark.parametrize("after_m", [3.5, -3.5, 1.0])
+def test_a_step_or_taper_to_another_level_is_no_excursion(after_m):
+    """The levels either side differ: lanes begin or end there (a gore step, a taper)."""
+    spans, _ = median_excursions(*_levels(3.0, after_m))
+    assert spans.shape == (0, 2)
+
+
+def test_an_auxiliary_lane_beside_the_median_is_no_excursion():
+    """An entry's lane on the median side that runs on to the next exit: the edge steps
+    out by a lane for 100 m and back, and stays level in between."""
+    centres = np.arange(1.0, 800.0, 2.0)
+    level = np.where((centres > 300.0) & (centres < 400.0), 3.5, 0.0)
+    spans, _ = median_excursions(centres, level)
+    assert spans.shape == (0, 2)
+
+
+def test_a_long_departure_is_no_excursion():
+    """An edge that is away for longer than a ramp's peel-off is the road's own."""
+    centres = np.arange(1.0, 800.0, 2.0)
+    level = np.where((centres > 200.0) & (centres < 500.0), 2.0, 0.0)
+    spans, _ = median_excursions(centres, level)
+    assert spans.shape == (0, 2)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_mainline_does_not_bend_towards_an_inner_exit(tmp_path, seed):
+    from roadtwin.evaluation import evaluate
+    from roadtwin.osm import load_osm
+    from roadtwin.pipeline import build_map
+    from roadtwin.simulate import simulate_xodr_run
+
+    out = simulate_xodr_run(TOWN06, tmp_path / "run", route=["35", "36", "37", "38"], seed=seed)
+    run = load_run(out)
+    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    network = build_map(run, graph).network
+    info = json.loads((out / "truth.json").read_text())
+    rep = evaluate(network, run, truth=read_xodr(out / "truth.xodr"), truth_info=info).runs[0]
+    edge = rep.details["truth/road_edge"]
+    (exit_,) = [r for r in info["ramps"] if r["station_m"] < 100.0]
+    assert exit_["side"] == "inner"
+    # 20-90 m past the gore, clear of its junction zone and the entry's: the road's own
+    gap = edge.station_m - exit_["station_m"]
+    past = (gap > 20.0) & (gap < 90.0)
+    assert np.count_nonzero(past) > 100
+    assert float(np.max(np.abs(edge.error_m[past]))) < 0.6  # 5.2 m before
+    assert rep.truth["road_edge"]["rmse_m"] < 0.3  # 0.79 m before
