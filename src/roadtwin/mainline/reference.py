@@ -286,13 +286,17 @@ def _median_levels(
 
 
 _EXCURSION_OUT_M = 0.5  # a median-side edge level this far outward of its base ...
+_EXCURSION_SLOPE = 0.02  # ... moving away from (towards) the road by this (m/m) at least ...
 _EXCURSION_MAX_M = 120.0  # ... over at most this many metres of station ...
 _EXCURSION_AGREE_M = 0.6  # ... with the levels either side this close: a ramp's edge
-_EXCURSION_SLOPE = 0.02  # ... moving away from (towards) the road by this (m/m) at least
-_EXCURSION_ONSET_M = 0.1  # ... from where it is this far out of the base to where it is back
+_EXCURSION_ONSET_M = 0.1  # it runs from where it is this far out of the base to where it
+# is back (the bins in between that are unseen included)
+_EXCURSION_JOIN_M = 10.0  # outward bins this close along belong to one excursion
 _EXCURSION_BASE_M = 80.0  # the base: a low percentile of the level over this (metres)
 _EXCURSION_BASE_PERCENT = 20
 _EXCURSION_SIDE_BINS = 3  # bins either side that tell the levels before and after
+_EXCURSION_POINT_M = 0.6  # a point inside an excursion this far outward of its base is
+# the ramp's
 
 
 def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -302,7 +306,8 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
     width: its edge peels off the mainline's (the level path follows it outward for a
     few tens of metres), and beyond the gore the mainline's own edge goes on at the level
     it had. Those points are the ramp's; fitted into the reference line they bent the
-    whole road 2 m towards the ramp over 30 m (Town06's inner exit, every lane with it).
+    whole road up to 3 m towards the ramp over 40 m (Town06's inner exits, every lane
+    with it).
     A step or a taper to a new level is no excursion: the levels either side differ.
 
     Parameters
@@ -330,7 +335,9 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
     idx = np.flatnonzero(out)
     spans, bases = [], []
     if idx.size:
-        for run in np.split(idx, np.flatnonzero(np.diff(idx) > 1 + round(10.0 / step)) + 1):
+        for run in np.split(
+            idx, np.flatnonzero(np.diff(idx) > 1 + round(_EXCURSION_JOIN_M / step)) + 1
+        ):
             a, b = int(run[0]), int(run[-1])
             # from where the edge starts to leave its base to where it is back on it (the
             # gore's nose unseen in between)
@@ -409,7 +416,7 @@ def fit_median_edge(
         if spans.size:
             k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
             inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
-            ramp = inside & (u > bases[k] + _EXCURSION_AGREE_M)
+            ramp = inside & (u > bases[k] + _EXCURSION_POINT_M)
             s, t, u = s[~ramp], t[~ramp], u[~ramp]
         if has_steps:
             # points on the edge's own level, each segment moved onto the base level
