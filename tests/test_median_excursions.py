@@ -59,6 +59,125 @@ def test_an_auxiliary_lane_beside_the_median_is_no_excursion():
     assert spans.shape == (0, 2)
 
 
+def test_an_auxiliary_lane_unseen_in_the_middle_is_no_excursion():
+    """An auxiliary lane beside the median (between an inner entry and an inner exit),
+    seen only at its ends, as the first pass of a fresh noisy Town06 run (seed 41)
+    measured it from the trajectory (2 m bins). Its edge rises towards the exit at the
+    lane's end; judged from that end, the whole lane looked like a ramp's edge, and its
+    edge points were left out."""
+    nan = np.nan
+    lane = np.array(
+        [
+            13.39,
+            13.39,
+            13.42,
+            13.35,
+            13.42,
+            13.42,
+            13.42,
+            13.37,
+            13.42,
+            13.28,
+            13.17,
+            13.17,
+            13.10,
+            12.98,
+            12.92,
+            12.89,
+            12.88,
+            12.88,
+            12.67,
+            nan,
+            17.14,
+            16.98,
+            16.92,
+            16.92,
+            16.92,
+            16.89,
+            16.88,
+            16.92,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            nan,
+            16.92,
+            16.92,
+            16.83,
+            16.95,
+            16.92,
+            16.88,
+            16.98,
+            17.17,
+            17.48,
+            17.85,
+            nan,
+            13.11,
+            12.95,
+            13.06,
+            13.12,
+            13.17,
+            13.20,
+            13.33,
+            13.33,
+            13.39,
+            13.42,
+            13.46,
+            13.42,
+            13.42,
+            13.48,
+            13.40,
+            13.42,
+            13.42,
+            13.42,
+            13.42,
+            13.42,
+            13.39,
+        ]
+    )
+    centres = np.arange(1001.0, 1999.0, 2.0)
+    level = np.full(centres.size, 13.4)
+    first = int(np.searchsorted(centres, 1381.0))
+    level[first : first + lane.size] = lane
+    spans, _ = median_excursions(centres, level)
+    assert spans.shape == (0, 2)
+
+
 def test_a_long_departure_is_no_excursion():
     """An edge that is away for longer than a ramp's peel-off is the road's own."""
     centres = np.arange(1.0, 800.0, 2.0)

@@ -287,7 +287,8 @@ def _median_levels(
 
 _EXCURSION_OUT_M = 0.5  # a median-side edge level this far outward of its base ...
 _EXCURSION_SLOPE = 0.02  # ... moving away from (towards) the road by this (m/m) at least ...
-_EXCURSION_MAX_M = 120.0  # ... over at most this many metres of station ...
+_EXCURSION_MAX_M = 80.0  # ... over at most this many metres of station (an auxiliary
+# lane beside the median runs 100 m and more) ...
 _EXCURSION_AGREE_M = 0.6  # ... with the levels either side this close: a ramp's edge
 _EXCURSION_ONSET_M = 0.1  # it runs from where it is this far out of the base to where it
 # is back (the bins in between that are unseen included)
@@ -333,7 +334,9 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
     out = ok & (level - base > _EXCURSION_OUT_M)
     # runs of outward bins, unseen bins inside a run included (the gore's nose)
     idx = np.flatnonzero(out)
-    spans, bases = [], []
+    spans: list[tuple[float, float]] = []
+    bases: list[float] = []
+    last_b = -1
     if idx.size:
         for run in np.split(
             idx, np.flatnonzero(np.diff(idx) > 1 + round(_EXCURSION_JOIN_M / step)) + 1
@@ -347,12 +350,16 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
                 not ok[b + 1] or level[b + 1] - base[b + 1] > _EXCURSION_ONSET_M
             ):
                 b += 1
+            if a <= last_b:  # extended into the previous run: one stretch, judged once
+                continue
+            last_b = b
             if (b - a + 1) * step > _EXCURSION_MAX_M:
                 continue
             # a ramp's edge keeps moving away (towards the join); an auxiliary lane on the
             # median side (an entry's lane to the next exit) steps out and stays: no ramp
             # (town06-auto-s3 +20: the weaving lane between its inner ramps was dropped)
-            sel = run[np.isfinite(level[run])]
+            span = np.arange(a, b + 1)
+            sel = span[ok[span]]
             if sel.size < 2 or abs(np.polyfit(centres[sel], level[sel], 1)[0]) < _EXCURSION_SLOPE:
                 continue
             before = level[:a][ok[:a]][-_EXCURSION_SIDE_BINS:]
