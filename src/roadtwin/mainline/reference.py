@@ -276,13 +276,13 @@ def _smoothest_steps(
 
 def _median_levels(
     s: FloatArray, t: FloatArray, side: float, lo: float, hi: float, cfg: MainlineConfig
-):
-    """Level path and steps of the median-side edge points (``t`` signed, left positive;
-    ``side`` +1 when the median lies left), with ``u`` = offset towards the median."""
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Level path of the median-side edge points (``t`` signed, left positive; ``side`` +1
+    when the median lies left): ``u`` = offset towards the median, the 2 m station bin
+    edges and the level per bin (:func:`~.edge_levels.edge_level_path`)."""
     u = side * t
     edges = np.arange(lo - 1.0, hi + 3.0, 2.0)
-    level = edge_level_path(s, u, edges, config=cfg)
-    return side, u, edges, level, edge_steps(s, u, edges, level, config=cfg)
+    return u, edges, edge_level_path(s, u, edges, config=cfg)
 
 
 _EXCURSION_OUT_M = 0.5  # a median-side edge level this far outward of its base ...
@@ -366,10 +366,11 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
             after = level[b + 1 :][ok[b + 1 :]][:_EXCURSION_SIDE_BINS]
             if before.size < _EXCURSION_SIDE_BINS or after.size < _EXCURSION_SIDE_BINS:
                 continue
-            if abs(float(np.mean(before)) - float(np.mean(after))) > _EXCURSION_AGREE_M:
+            m_before, m_after = float(np.mean(before)), float(np.mean(after))
+            if abs(m_before - m_after) > _EXCURSION_AGREE_M:
                 continue
             spans.append((centres[a] - 0.5 * step, centres[b] + 0.5 * step))
-            bases.append(0.5 * (float(np.mean(before)) + float(np.mean(after))))
+            bases.append(0.5 * (m_before + m_after))
     return np.asarray(spans, dtype=float).reshape(-1, 2), np.asarray(bases, dtype=float)
 
 
@@ -412,14 +413,14 @@ def fit_median_edge(
             # the median lies on the side of the trajectory the points are on; later frames
             # are the edge itself, with points on both sides of it
             side = 1.0 if np.median(t) >= 0.0 else -1.0
+        u, edges, level = _median_levels(s, t, side, lo, hi, cfg)
+        centres = 0.5 * (edges[1:] + edges[:-1])
         if it == 0 or has_steps:
-            side, u, edges, level, steps = _median_levels(s, t, side, lo, hi, cfg)
+            steps = edge_steps(s, u, edges, level, config=cfg)
             has_steps = bool(steps.stations.size)
-        else:
-            side, u, edges, level, _ = _median_levels(s, t, side, lo, hi, cfg)
         # a ramp's edge peeling off on the median side is not the road's edge (in every
         # pass: the first one's bend would stay in the frames of the others)
-        spans, bases = median_excursions(0.5 * (edges[1:] + edges[:-1]), level)
+        spans, bases = median_excursions(centres, level)
         if spans.size:
             k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
             inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
@@ -427,7 +428,6 @@ def fit_median_edge(
             s, t, u = s[~ramp], t[~ramp], u[~ramp]
         if has_steps:
             # points on the edge's own level, each segment moved onto the base level
-            centres = 0.5 * (edges[1:] + edges[:-1])
             path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
             near = np.abs(u - path) < 0.8
             if it > 0:
@@ -459,7 +459,8 @@ def fit_median_edge(
     # the steps in the final line's own stations
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
-    *_, steps = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
+    u, edges, level = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
+    steps = edge_steps(s_f[ok], u, edges, level, config=cfg)
     return MedianEdge(frame.xy, steps, frame.z)
 
 
