@@ -325,8 +325,11 @@ def test_shifted_map_against_truth_reports_shift(truth):
         assert res[kind]["rmse_m"] == pytest.approx(0.3, abs=0.01)
         assert res[kind]["p95_m"] == pytest.approx(0.3, abs=0.01)
         assert res[kind]["max_m"] == pytest.approx(0.3, abs=0.01)
-    # every 1 m along 1280 m of mainline, 2 edges and 3 markings
-    assert res["road_edge"]["n"] == 2 * 1280
+    # every 1 m along 1280 m of mainline, 2 edges and 3 markings; where the entry's
+    # connecting road converges across the through connector's hard shoulder (J300), 30 m
+    # of the outer edge lie on the entry's pavement and are no edge
+    assert res["road_edge"]["n"] == 2 * 1280 - 30
+    assert res["on_ramp_points"] == 30
     assert res["lane_boundary"]["n"] == 3 * 1280
     assert res["covered_fraction"] == pytest.approx(1.0)
     assert res["elevation"]["max_m"] == pytest.approx(0.0, abs=1e-9)

@@ -120,6 +120,27 @@ def section_boundaries(section: LaneSection) -> list[tuple[str, int]]:
     return out
 
 
+def unseen_boundary(section: LaneSection, lane_id: int) -> bool:
+    """Whether the outer border of lane ``lane_id`` is a border no sensor can see: it
+    divides two lanes of which neither is a driving lane (two shoulder or border strips of
+    one paved area, e.g. CARLA's inner shoulder split 0.64 + 0.5 m) and carries no marking
+    anywhere in the section. Such a border marks nothing on the road; the truth's lane
+    boundaries leave it out (:func:`roadtwin.evaluation.metrics`), as a built map cannot
+    place it but by chance."""
+    for side in (section.right, section.left):
+        ids = [lane.id for lane in side]
+        if lane_id not in ids:
+            continue
+        i = ids.index(lane_id)
+        if i + 1 >= len(side):
+            return False  # the road edge
+        lane, outer = side[i], side[i + 1]
+        if "driving" in (lane.type, outer.type):
+            return False
+        return all(mark.type == "none" for mark in lane.road_marks)
+    return False
+
+
 def _section_centre_t(road: Road, s: FloatArray, section: LaneSection) -> FloatArray:
     """Lateral offset of the middle between the two road edges of a section."""
     edges = [lid for kind, lid in section_boundaries(section) if kind == EDGE]
@@ -250,6 +271,29 @@ def _project_one(road: Road, pts: FloatArray, end_tol: float):
     along = (pts[:, 0] - x) * np.cos(h) + (pts[:, 1] - y) * np.sin(h)
     beyond = ((s <= 1e-9) & (along < -end_tol)) | ((s >= road.length - 1e-9) & (along > end_tol))
     return s, t, beyond
+
+
+def on_pavement_of(
+    roads: Sequence[Road], points: FloatArray, *, margin_m: float
+) -> NDArray[np.bool_]:
+    """Mask of points that lie on the pavement of one of ``roads``: at least ``margin_m``
+    inside its road edges (metres) and, for ``(N, 3)`` points, within ``SAME_LEVEL_M`` of
+    its surface (a road passing over or under is not the same pavement)."""
+    raw = np.asarray(points, dtype=float)
+    out = np.zeros(raw.shape[0], dtype=bool)
+    if not roads or raw.shape[0] == 0:
+        return out
+    proj = project_points(roads, raw, max_lateral_m=0.0, end_tolerance_m=0.0)
+    for r in np.unique(proj.road_index[proj.ok]):
+        sel = np.nonzero(proj.ok & (proj.road_index == r))[0]
+        road = roads[int(r)]
+        s, t = proj.s[sel], proj.t[sel]
+        lo, hi = road_band(road, s)
+        inside = (t > lo + margin_m) & (t < hi - margin_m)
+        if raw.shape[1] > 2:
+            inside &= np.abs(_height(road, s, t) - raw[sel, 2]) <= SAME_LEVEL_M
+        out[sel] = inside
+    return out
 
 
 def road_band(road: Road, s: FloatArray) -> tuple[FloatArray, FloatArray]:

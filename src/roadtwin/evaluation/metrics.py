@@ -29,9 +29,11 @@ from .frenet import (
     driving_lane_count,
     mainline_roads,
     nearest_boundary,
+    on_pavement_of,
     project_points,
     ramp_roads,
     section_boundaries,
+    unseen_boundary,
 )
 
 log = logging.getLogger(__name__)
@@ -270,9 +272,10 @@ def self_consistency(
 
 
 def _sample_boundaries(
-    road: Road, step_m: float
+    road: Road, step_m: float, *, seen_only: bool = False
 ) -> tuple[FloatArray, FloatArray, list[str], NDArray[np.int64], FloatArray]:
-    """Points every ``step_m`` along every boundary of a road.
+    """Points every ``step_m`` along every boundary of a road; ``seen_only``: without the
+    unmarked borders between two non-driving lanes (:func:`~.frenet.unseen_boundary`).
 
     Returns ``s, t, kinds, lane_ids, z`` (flat arrays over boundaries and stations).
     """
@@ -281,7 +284,10 @@ def _sample_boundaries(
     sec_idx = road.section_index(s_all)
     for k in np.unique(sec_idx):
         s = s_all[sec_idx == k]
-        for kind, lid in section_boundaries(road.lane_sections[int(k)]):
+        section = road.lane_sections[int(k)]
+        for kind, lid in section_boundaries(section):
+            if seen_only and kind == LANE and unseen_boundary(section, lid):
+                continue
             s_list.append(s)
             t_list.append(road.lane_border_t(s, lid))
             kinds += [kind] * s.size
@@ -292,6 +298,11 @@ def _sample_boundaries(
     return s, t, kinds, lane_ids, _height(road, s, t)
 
 
+_ON_RAMP_MARGIN_M = 0.3
+"""A true mainline boundary point this far inside a true ramp's road edges (metres) lies on
+the ramp's pavement and is left out of the mainline's truth."""
+
+
 def _truth_mainline(
     network: RoadNetwork, truth: RoadNetwork, cfg: EvaluationConfig
 ) -> tuple[dict[str, Any], dict[str, PointErrors]]:
@@ -300,7 +311,7 @@ def _truth_mainline(
     offsets = np.concatenate([[0.0], np.cumsum([r.length for r in true_roads])])
     xy_l, st_l, kind_l, z_l, id_l = [], [], [], [], []
     for i, road in enumerate(true_roads):
-        s, t, kinds, lane_ids, z = _sample_boundaries(road, cfg.truth_step_m)
+        s, t, kinds, lane_ids, z = _sample_boundaries(road, cfg.truth_step_m, seen_only=True)
         xy_l.append(road.to_xy(s, t).reshape(-1, 2))
         st_l.append(offsets[i] + s)
         kind_l += kinds
@@ -321,6 +332,12 @@ def _truth_mainline(
     station = np.concatenate(st_l)
     z_true = np.concatenate(z_l)
     kinds_arr = np.asarray(kind_l)
+    # a true boundary on the pavement of a true ramp is no border of anything: truths that
+    # keep a diverging lane on the mainline while the ramp road already covers it (or grow
+    # an entry's lanes under the ramp's end) sweep their "edge" across the ramp there
+    others = ramp_roads(truth)
+    on_ramp = on_pavement_of(others, np.column_stack([xy, z_true]), margin_m=_ON_RAMP_MARGIN_M)
+    kinds_arr = np.where(on_ramp, "", kinds_arr)
     # with their heights: a run that passes over itself has two levels of boundaries
     proj = project_points(
         built,
@@ -332,6 +349,7 @@ def _truth_mainline(
     result: dict[str, Any] = {
         "mainline_roads": len(true_roads),
         "true_points": int(xy.shape[0]),
+        "on_ramp_points": int(np.count_nonzero(on_ramp)),
         "covered_fraction": float(np.mean(proj.ok)) if proj.ok.size else 0.0,
     }
     for kind in (EDGE, LANE):

@@ -1,0 +1,128 @@
+"""What a truth's lane boundaries are: borders a sensor can see, on no other road.
+
+Two conventions of real truths are not mapping errors of a build:
+
+* an HD map may split a shoulder into two unmarked strips (CARLA Town06: 0.64 m + 0.5 m
+  beside the median): the border between them marks nothing on the road, and a build
+  measured 0.5 m off it over the whole run;
+* a truth may keep a diverging lane on the mainline road for metres after the ramp road
+  has begun on the same pavement (or grow an entry's lanes under the ramp's end): the
+  mainline's "edge" then sweeps across the ramp's lanes.
+
+Both are left out of the truth's boundaries; everything else is measured as before."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from roadtwin.evaluation import evaluate
+from roadtwin.evaluation.frenet import on_pavement_of, unseen_boundary
+from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection, Line, Road, RoadMark
+from test_evaluation import MAIN_WIDTHS, TRUTH_INFO, _lanes, make_run, make_truth
+
+
+def _strip(lane_id: int, lane_type: str, width: float, mark: str) -> Lane:
+    return Lane(lane_id, lane_type, CubicProfile.constant(width), (RoadMark(0.0, mark),))
+
+
+SPLIT_SHOULDER = LaneSection(
+    0.0,
+    right=(
+        _strip(-1, "shoulder", 0.64, "none"),
+        _strip(-2, "shoulder", 0.5, "solid"),
+        _strip(-3, "driving", 3.75, "broken"),
+        _strip(-4, "driving", 3.75, "solid"),
+        _strip(-5, "shoulder", 2.5, "none"),
+    ),
+)
+
+
+def test_only_an_unmarked_border_between_two_non_driving_lanes_is_unseen():
+    assert unseen_boundary(SPLIT_SHOULDER, -1)  # shoulder | shoulder, no paint
+    assert not unseen_boundary(SPLIT_SHOULDER, -2)  # shoulder | driving
+    assert not unseen_boundary(SPLIT_SHOULDER, -3)  # driving | driving
+    assert not unseen_boundary(SPLIT_SHOULDER, -5)  # the road edge
+    painted = replace(
+        SPLIT_SHOULDER,
+        right=(_strip(-1, "shoulder", 0.64, "solid"), *SPLIT_SHOULDER.right[1:]),
+    )
+    assert not unseen_boundary(painted, -1)  # a painted line is seen
+
+
+def _with_first_section(network, road_id: str, section: LaneSection):
+    roads = tuple(
+        replace(r, lane_sections=(section, *r.lane_sections[1:])) if r.id == road_id else r
+        for r in network.roads
+    )
+    return replace(network, roads=roads)
+
+
+def test_a_split_shoulder_is_measured_as_the_shoulder_it_is():
+    """Truth road 1 has the inner shoulder split 0.64 + 0.5 m (0.75 m + 3.75 + 3.75 +
+    2.5 m otherwise the same); the build has one 1.14 m shoulder: a perfect map."""
+    built = make_truth()
+    whole = ((-1, "shoulder", 1.14), *MAIN_WIDTHS[1:])
+    truth = _with_first_section(built, "1", SPLIT_SHOULDER)
+    built = _with_first_section(built, "1", LaneSection(0.0, right=_lanes(whole)))
+    run = make_run(built, edge_sigma=0.0, lane_sigma=0.0, seed=5)
+    res = evaluate(built, run, truth=truth, truth_info=TRUTH_INFO).runs[0].truth
+    assert res["lane_boundary"]["max_m"] == pytest.approx(0.0, abs=1e-6)  # 0.5 m if counted
+    assert res["road_edge"]["max_m"] == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_lane_kept_on_the_mainline_under_a_ramp_is_not_the_mainlines_edge():
+    """Over road 1's last 20 m the truth keeps an exit lane (closing from 3.75 m to zero)
+    while a true exit road already covers it: the truth's outer edge and the lane's border
+    sweep across the exit's pavement. A build without that lane is exact; the points
+    there are counted as on the ramp."""
+    base = make_truth()
+    road1 = next(r for r in base.roads if r.id == "1")
+    closing = Lane(
+        -4,
+        "driving",
+        CubicProfile((CubicPiece(0.0, 3.75, 0.0, -3 * 3.75 / 400.0, 2 * 3.75 / 8000.0),)),
+        (RoadMark(0.0, "solid"),),
+    )
+    last = LaneSection(
+        380.0,
+        right=(*_lanes(MAIN_WIDTHS[:3]), closing, *_lanes(((-5, "shoulder", 2.5),))),
+    )
+    truth_road1 = replace(road1, lane_sections=(road1.lane_sections[0], last))
+    # the exit's pavement from s = 380 m: 3.75 m lane and 2.5 m shoulder beyond the
+    # through lanes (t = -8.25 .. -14.5 m)
+    exit_early = Road(
+        "11",
+        (Line(0.0, 380.0, -8.25, 0.0, 60.0),),
+        (LaneSection(0.0, right=_lanes(((-1, "driving", 3.75), (-2, "shoulder", 2.5)))),),
+        name="exit",
+    )
+    truth = replace(
+        base,
+        roads=(*tuple(truth_road1 if r.id == "1" else r for r in base.roads), exit_early),
+    )
+    run = make_run(base, edge_sigma=0.0, lane_sigma=0.0, seed=6)
+    rep = evaluate(base, run, truth=truth, truth_info=TRUTH_INFO).runs[0]
+    assert rep.truth["on_ramp_points"] >= 30  # two borders over most of the 20 m
+    off = {
+        kind: np.count_nonzero(np.abs(rep.details[f"truth/{kind}"].error_m) > 0.35)
+        for kind in ("road_edge", "lane_boundary")
+    }
+    # where the closing lane starts its edge is the exit's own edge (within the 0.3 m
+    # margin of it): 3 points; 20 + 19 if the sweep were counted
+    assert off == {"road_edge": 3, "lane_boundary": 0}
+
+
+def test_on_pavement_needs_the_same_level():
+    road = Road(
+        "9",
+        (Line(0.0, 0.0, 0.0, 0.0, 100.0),),
+        (LaneSection(0.0, right=_lanes(((-1, "driving", 3.5),))),),
+        name="exit",
+    )
+    pts = np.array([[50.0, -1.75, 0.0], [50.0, -1.75, 7.0], [50.0, -3.4, 0.0], [50.0, 2.0, 0.0]])
+    np.testing.assert_array_equal(
+        on_pavement_of([road], pts, margin_m=0.3), [True, False, False, False]
+    )
