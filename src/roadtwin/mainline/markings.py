@@ -805,6 +805,7 @@ _HIDDEN_SMOOTH_M = 40.0  # window of the moving median of the extreme markings (
 _MIN_UNSEEN_SHOULDER_M = 0.3  # narrowest shoulder left beside lanes inferred out of sight
 
 
+_SEEN_BEYOND_MIN_M = 10.0  # a wide outer strip a line seen beyond confirms holds lanes from this long
 _HANDOVER_M = 5.0  # an inferred line starting this close after an observed one ends ...
 _HANDOVER_D_M = 0.5  # ... this close to its offset continues it (metres)
 
@@ -904,6 +905,7 @@ def _add_hidden_lanes(
     d_last = np.where(has, moving_median(d_last, window=window), np.nan)
     d_first = np.where(has, moving_median(d_first, window=window), np.nan)
     min_run = math.ceil(cfg.lane_min_track_m / cfg.grid_step_m)
+    min_run_seen = math.ceil(_SEEN_BEYOND_MIN_M / cfg.grid_step_m)
     out = list(tracks)
 
     def add(a: int, b: int, d: FloatArray, mark: str) -> None:
@@ -959,12 +961,21 @@ def _add_hidden_lanes(
         )
         # a run ends where the outermost marking is another one (a track ending): lanes
         # inferred from it would jump by a lane there
-        for a, b, on in _runs_of((n_out > 0).astype(np.int64), _extreme_jumps(d_last, lane_m)):
-            if not on or b - a < min_run:
+        jumps = _extreme_jumps(d_last, lane_m)
+        for a, b, on in _runs_of((n_out > 0).astype(np.int64), jumps):
+            # a shorter wide strip is a gore, unless a line seen beyond it shows the lane:
+            # the outer line of a lane that opens, lost across the taper as it moved
+            # out with the edge, seen again at its new offset where the strip ends (or
+            # seen before a lane's taper where it begins)
+            seen_beyond = (b < grid.size and jumps[b - 1] and d_last[b] > d_last[b - 1]) or (
+                a > 0 and jumps[a - 1] and d_last[a - 1] > d_last[a]
+            )
+            shortest = min_run_seen if seen_beyond else min_run
+            if not on or b - a < shortest:
                 continue
             inner, outer, n = d_last[a:b], d_edge[a:b] - shoulder, n_out[a:b]
             for a2, b2, line, mark in _outer_hidden_lines(
-                inner, outer, n, min_run, cfg.grid_step_m
+                inner, outer, n, shortest, cfg.grid_step_m
             ):
                 add(a + a2, a + b2, line, mark)
             log.info(
