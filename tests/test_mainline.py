@@ -945,11 +945,18 @@ def test_a_lane_drops_edge_line_converging_inside_the_edge_is_the_mainlines_own(
     tracks, evidence = _converging_edge_line(None)
     assert all(float(tr.d[0]) < 7.5 for tr in tracks)
     assert len(evidence) == 1
-    # past an entry's nose the ramp's line converges inside the edge too: still cut (the
-    # painted gore is not a lane of the mainline)
-    tracks, evidence = _converging_edge_line(2.5, nose=True)
+    # past an entry's nose the ramp's inner line converges inside the edge too, with the
+    # ramp's lane and shoulder beyond it: still cut (the painted gore is not a lane of the
+    # mainline)
+    tracks, evidence = _converging_edge_line(6.0, nose=True)
     assert all(float(tr.d[0]) < 7.5 for tr in tracks)
     assert len(evidence) == 1
+    # with only a shoulder beyond it the line is an acceleration lane's, closing by a taper
+    # from the nose on (a taper-type entry): kept from where it is first seen
+    tracks, evidence = _converging_edge_line(2.5, nose=True)
+    solid = max(tracks, key=lambda tr: float(tr.d[0]))
+    assert solid.lo == pytest.approx(270.0, abs=3.0)
+    assert evidence == []
 
 
 def test_median_side_lanes_between_an_inner_exits_paint_tip_and_nose_are_inferred():

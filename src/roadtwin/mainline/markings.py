@@ -341,7 +341,10 @@ def _tracks_in_frame(
         )
         keep_g = _trim_ramp_lines(g, fit, cfg, None if frame is None else frame.rate(g))
         if d_edge is not None:
-            keep_g |= _mainline_ends_inside_edge(g, fit, keep_g, grid, d_edge, s_last, col)
+            inner = _next_line_inward(cand, k, float(g[0]), float(fit[0]))
+            keep_g |= _mainline_ends_inside_edge(
+                g, fit, keep_g, grid, d_edge, s_last, col, inner_d=inner
+            )
         if not keep_g[-1] or not keep_g[0]:
             # a ramp line: where it meets / leaves the corridor's marking is a gore
             if keep_g.any():
@@ -573,6 +576,18 @@ _NOSE_WINDOW_M = 15.0  # an edge step this close before or after a line's start 
 _NOSE_STEP_M = 1.5  # ... outward by more than this is an entry's nose (metres)
 
 
+def _next_line_inward(cand: list[_Track], k: int, s_m: float, d_m: float) -> float | None:
+    """Offset (metres) of the nearest other candidate track inward of ``d_m`` at station
+    ``s_m`` (more than half a metre inside), or None."""
+    inward = [
+        float(np.interp(s_m, tr.s, tr.d))
+        for j, tr in enumerate(cand)
+        if j != k and tr.lo <= s_m <= tr.hi
+    ]
+    inward = [v for v in inward if v < d_m - 0.5]
+    return max(inward) if inward else None
+
+
 def _mainline_ends_inside_edge(
     g: FloatArray,
     d: FloatArray,
@@ -581,6 +596,8 @@ def _mainline_ends_inside_edge(
     d_edge: FloatArray,
     s_last: float,
     column_m: float,
+    *,
+    inner_d: float | None = None,
 ) -> NDArray[np.bool_]:
     """The trimmed ends of a marking track (``~keep``, see :func:`_trim_ramp_lines`) that
     are the mainline's own lines after all: they stay inside the outer edge ``d_edge``
@@ -598,7 +615,9 @@ def _mainline_ends_inside_edge(
     ends in. Elsewhere a diverging line inside the edge may still be about to leave (the
     edge follows an exit's ramp up to the nose), and kept whole, the lines that shift a
     lane sideways where lanes are added on the median side gave lane sections whose
-    through lanes were not linked (melbourne-408-opp).
+    through lanes were not linked (melbourne-408-opp). Past a nose, the outer line of an
+    acceleration lane that closes by a taper is kept (:func:`_closes_with_edge`;
+    ``inner_d``: the next line inward where the line is first seen, metres).
     """
     back = np.zeros(g.size, dtype=bool)
     if keep.all():
@@ -613,12 +632,50 @@ def _mainline_ends_inside_edge(
     # an entry's line comes in past the nose, where the edge steps out by the ramp's width
     near = np.interp(g[0] + np.array([-_NOSE_WINDOW_M, 0.0, _NOSE_WINDOW_M]), grid, d_edge)
     at_nose = near[1:].max() - near[0] > _NOSE_STEP_M
-    if head.size and inside[head].all() and not at_nose:
+    closes = head.size > 0 and _closes_with_edge(g[head], d[head], edge[head], inner_d)
+    if head.size and inside[head].all() and (not at_nose or closes):
         back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
     if tail.size and g[-1] >= s_last - 2.0 * column_m and inside[tail].all():
         back[tail] = True
     return back
+
+
+_WITH_EDGE_SHARE = 0.5  # a line whose gap to the edge changes by less than this share ...
+_WITH_EDGE_MIN_M = 1.5  # ... of its own sideways move (at least this, metres) moves with it
+_TAPER_MAX_SLOPE = 0.06  # a lane closes by a taper no steeper than this (m/m): 3.5 m in 60 m
+_SHOULDER_MAX_M = 3.25  # narrower than a lane (2.75 m) and a ramp's shoulder (0.5 m)
+_ONE_LANE_MAX_M = 4.75  # the widest strip that is one lane
+
+
+def _closes_with_edge(
+    g: FloatArray, d: FloatArray, edge: FloatArray, inner_d: float | None
+) -> bool:
+    """Whether a converging line (``d`` at stations ``g``) is the outer line of an
+    acceleration lane that closes by a taper from the nose on (metres towards the outer
+    side; ``edge`` the outer edge, ``inner_d`` the next line inward at ``g[0]``).
+
+    Such a line closes one lane (the strip to the next line inward is a lane wide where it
+    is first seen), at a lane taper's rate (3.5 m in 60 m or slower), with the hard
+    shoulder beside it: its gap to the edge stays about a shoulder's width while it moves
+    in. Past the nose of a painted gore, the ramp's inner line has the ramp's lane and
+    shoulder beyond it (the gap is wider than a shoulder), its outer line the gore and the
+    ramp's lane inside it (more than a lane to the next line inward); the ramp's shoulder
+    line comes in as steeply as the ramp (0.1 m/m on krems-24746399-s11). Kept, the line
+    makes the acceleration lane that tapers (a9 chain 206615404, seed 41: it and the
+    shoulder had been one 5.9 m shoulder, lines 3.6 m off over 100 m)."""
+    if d.size < 2 or inner_d is None:
+        return False
+    moved = float(np.max(d) - np.min(d))
+    gap = edge - d
+    span = float(g[-1] - g[0])
+    return (
+        moved >= _WITH_EDGE_MIN_M
+        and moved <= _TAPER_MAX_SLOPE * span
+        and float(np.ptp(gap)) < _WITH_EDGE_SHARE * moved
+        and float(np.median(gap)) < _SHOULDER_MAX_M
+        and float(d[0]) - inner_d <= _ONE_LANE_MAX_M
+    )
 
 
 _DRIFT_PER_M = 0.04  # a hidden line may have moved sideways this much per metre of gap
@@ -805,7 +862,7 @@ _HIDDEN_SMOOTH_M = 40.0  # window of the moving median of the extreme markings (
 _MIN_UNSEEN_SHOULDER_M = 0.3  # narrowest shoulder left beside lanes inferred out of sight
 
 
-_SEEN_BEYOND_MIN_M = 10.0  # a wide outer strip a line seen beyond confirms holds lanes from this long
+_SEEN_BEYOND_MIN_M = 10.0  # a wide outer strip that a line seen beyond it confirms: lanes from 10 m
 _HANDOVER_M = 5.0  # an inferred line starting this close after an observed one ends ...
 _HANDOVER_D_M = 0.5  # ... this close to its offset continues it (metres)
 

@@ -1,0 +1,70 @@
+"""An entry whose acceleration lane closes by a taper from the nose on (a taper-type entry).
+
+Past the nose the acceleration lane's outer line converges onto the through lanes with the
+hard shoulder (and the road's edge) beside it. It is a line of the mainline, not a ramp's
+line crossing the corridor: cut off as one, the acceleration lane and the shoulder were
+built as one 5.9 m shoulder (a9 chain 206615404, seed 41: lane RMSE 0.145 m, lines 3.6 m
+off over 100 m). A painted gore's line past the nose (the ramp's inner line converging
+onto the through lanes while the acceleration lane runs on beyond it) and the ramp's own
+shoulder line coming in with the ramp's edge at the ramp's angle are still cut."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from roadtwin.mainline.markings import _mainline_ends_inside_edge
+
+GRID = np.arange(0.0, 400.0, 1.0)
+NOSE_M = 200.0
+
+
+def _edge(after_nose: np.ndarray) -> np.ndarray:
+    """The outer edge (metres from the reference edge): 10.5 m up to the nose, then
+    ``after_nose`` (evaluated on the grid stations past it)."""
+    return np.where(GRID < NOSE_M, 10.5, after_nose)
+
+
+def _converging(d0: float, d1: float, length_m: float) -> tuple[np.ndarray, np.ndarray]:
+    g = np.arange(NOSE_M, NOSE_M + length_m, 1.0)
+    return g, d0 + (d1 - d0) * (g - NOSE_M) / (length_m - 1.0)
+
+
+def _kept(g: np.ndarray, d: np.ndarray, d_edge: np.ndarray, inner_d: float = 8.1) -> np.ndarray:
+    """What of a line the ramp-line trim cut whole (it converges all along) is kept;
+    ``inner_d``: the next line inward (the through lanes' outer line)."""
+    cut = np.zeros(g.size, dtype=bool)
+    return _mainline_ends_inside_edge(
+        g, d, cut, GRID, d_edge, float(GRID[-1]), 5.0, inner_d=inner_d
+    )
+
+
+def test_a_taper_type_acceleration_lane_line_is_the_mainlines():
+    """The line closes from 11.7 to 8.1 m over 110 m, the edge 2.3 m beyond it all along."""
+    g, d = _converging(11.7, 8.1, 110.0)
+    edge = _edge(np.clip(14.0 - 3.5 * (GRID - NOSE_M) / 110.0, 10.5, 14.0))
+    assert _kept(g, d, edge).all()
+
+
+def test_a_painted_gore_line_past_the_nose_is_cut():
+    """The same line, but the edge stays a lane and a shoulder out: the acceleration lane
+    runs on beyond the line, which is the ramp's inner line closing the painted gore."""
+    g, d = _converging(11.7, 8.1, 110.0)
+    edge = _edge(np.full(GRID.size, 14.0 + 3.5))
+    assert not _kept(g, d, edge).any()
+
+
+def test_the_ramps_outer_line_past_a_painted_gore_is_cut():
+    """The ramp's outer line comes in with the edge, a shoulder inside it, but the gore
+    and the ramp's lane lie between it and the through lanes: more than one lane."""
+    g, d = _converging(15.2, 11.6, 110.0)
+    edge = _edge(np.clip(17.5 - 3.5 * (GRID - NOSE_M) / 110.0, 14.0, 17.5))
+    assert not _kept(g, d, edge).any()
+    assert _kept(g, d, edge, inner_d=11.6).all()  # were the gore's line the next inward
+
+
+def test_the_ramps_shoulder_line_coming_in_with_the_ramp_is_cut():
+    """Edge and line come in together, but at the ramp's angle (3.3 m in 35 m), as on
+    krems-24746399-s11: the ramp's own shoulder line, not a lane's taper."""
+    g, d = _converging(14.8, 11.5, 35.0)
+    edge = _edge(np.clip(16.6 - 2.4 * (GRID - NOSE_M) / 35.0, 14.2, 16.6))
+    assert not _kept(g, d, edge).any()
