@@ -355,7 +355,9 @@ def test_ramp_shift_and_elevation_against_truth(truth):
     assert res["ramp_centre"]["covered_fraction"] > 0.95
     # connectors 101 and 301 were shifted too (role "connector") but named roads not
     assert res["road_edge"]["max_m"] == pytest.approx(0.5, abs=1e-6)
-    assert res["road_edge"]["rmse_m"] == pytest.approx(0.5 * math.sqrt(80 / 1280), abs=1e-3)
+    # 2 x 80 connector points of 2 x 1280, less the 30 of connector 301's outer edge on
+    # the entry connector's pavement
+    assert res["road_edge"]["rmse_m"] == pytest.approx(0.5 * math.sqrt(130 / 2530), abs=1e-3)
     # the three named mainline roads are 0.2 m high, the through connectors are not
     assert res["elevation"]["rmse_m"] == pytest.approx(0.2 * math.sqrt(1200 / 1280), abs=1e-3)
 

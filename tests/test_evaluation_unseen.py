@@ -126,3 +126,15 @@ def test_on_pavement_needs_the_same_level():
     np.testing.assert_array_equal(
         on_pavement_of([road], pts, margin_m=0.3), [True, False, False, False]
     )
+
+
+def test_a_lane_border_on_the_road_edge_is_matched_as_either():
+    """Where a lane has closed to zero width its border is the road edge: a build whose
+    lane section ends a metre earlier has only the edge there (one point 3.5 m off, a
+    lane RMSE of 0.09 m on a 1.7 km soderleden run, if matched by kind alone)."""
+    from roadtwin.evaluation.metrics import _twins
+
+    s = np.array([0.0, 0.0, 0.0, 1.0, 1.0, 1.0])
+    t = np.array([0.0, -3.5, -3.55, 0.0, -3.5, -7.0])
+    kinds = np.array(["road_edge", "lane_boundary", "road_edge"] * 2)
+    np.testing.assert_array_equal(_twins(s, t, kinds), [False, True, True, False, False, False])

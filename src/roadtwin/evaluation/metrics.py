@@ -298,6 +298,26 @@ def _sample_boundaries(
     return s, t, kinds, lane_ids, _height(road, s, t)
 
 
+_TWIN_M = 0.1
+"""A true boundary within this distance (metres) of a true boundary of the other kind at the
+same station is both: a lane border where the lane beside it has closed to zero width
+is the road edge there, and is matched with the nearest built boundary of either kind."""
+
+
+def _twins(s: FloatArray, t: FloatArray, kinds: NDArray[np.str_]) -> NDArray[np.bool_]:
+    """Mask of boundary points (one road's, flat) that lie within ``_TWIN_M`` of a point of
+    the other kind at the same station."""
+    out = np.zeros(s.size, dtype=bool)
+    if s.size < 2:
+        return out
+    order = np.lexsort((t, s))
+    a, b = order[:-1], order[1:]
+    pair = (s[a] == s[b]) & (np.abs(t[a] - t[b]) < _TWIN_M) & (kinds[a] != kinds[b])
+    out[a[pair]] = True
+    out[b[pair]] = True
+    return out
+
+
 _ON_RAMP_MARGIN_M = 0.3
 """A true mainline boundary point this far inside a true ramp's road edges (metres) lies on
 the ramp's pavement and is left out of the mainline's truth."""
@@ -309,9 +329,10 @@ def _truth_mainline(
     true_roads = mainline_roads(truth)
     built = mainline_roads(network)
     offsets = np.concatenate([[0.0], np.cumsum([r.length for r in true_roads])])
-    xy_l, st_l, kind_l, z_l, id_l = [], [], [], [], []
+    xy_l, st_l, kind_l, z_l, id_l, twin_l = [], [], [], [], [], []
     for i, road in enumerate(true_roads):
         s, t, kinds, lane_ids, z = _sample_boundaries(road, cfg.truth_step_m, seen_only=True)
+        twin_l.append(_twins(s, t, np.asarray(kinds)))
         xy_l.append(road.to_xy(s, t).reshape(-1, 2))
         st_l.append(offsets[i] + s)
         kind_l += kinds
@@ -352,6 +373,7 @@ def _truth_mainline(
         "on_ramp_points": int(np.count_nonzero(on_ramp)),
         "covered_fraction": float(np.mean(proj.ok)) if proj.ok.size else 0.0,
     }
+    twin = np.concatenate(twin_l)
     for kind in (EDGE, LANE):
         mask = kinds_arr == kind
         sub = Projection(
@@ -361,7 +383,13 @@ def _truth_mainline(
             np.where(mask, proj.status, _NO_ROAD),
             station,  # plots along the TRUE mainline station
         )
-        pe = _lateral_errors(built, xy, sub, kind, f"truth/{kind}")
+        err, lane = _errors_full(built, sub, kind)
+        if np.any(mask & twin):
+            err_any, lane_any = _errors_full(built, sub, None)
+            err = np.where(twin, err_any, err)
+            lane = np.where(twin, lane_any, lane)
+        good = np.isfinite(err)
+        pe = PointErrors(f"truth/{kind}", xy[good, :2], station[good], err[good], lane[good])
         details[f"truth/{kind}"] = pe
         result[kind] = error_stats(pe.error_m)
     # elevation at every covered true boundary point
