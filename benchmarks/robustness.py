@@ -644,6 +644,20 @@ def _occlusion(side: str, length: float = 80.0):
     return f
 
 
+def _median_unseen_start(length: float):
+    """No median-side (left) edge point over the run's first ``length`` metres: the edge
+    out of the sensor's reach across a wide road, or hidden behind traffic."""
+
+    def f(rd, rng):
+        out = _copy(rd)
+        st, _ = edge_stations(rd)
+        gone = (out.edges["side"] == "left").to_numpy() & (st < length)
+        out.edges = out.edges[~gone].reset_index(drop=True)
+        return out
+
+    return f
+
+
 def _edge_range(limit: float):
     def f(rd, rng):
         out = _copy(rd)
@@ -905,6 +919,7 @@ VARIANTS: dict[str, Callable] = {
     "edge_density_half": _density(0.5),
     "occlusion_80m_left": _occlusion("left"),
     "occlusion_80m_right": _occlusion("right"),
+    "median_unseen_first_250m": _median_unseen_start(250.0),
     "edge_range_15m": _edge_range(15.0),
     "edge_range_9m": _edge_range(9.0),
     "lane_miss_20pct": v_lane_miss_20pct,

@@ -258,6 +258,27 @@ def test_run_ending_just_after_the_exit_gore(base):
     assert row["edge_rmse"] <= EDGE_RMSE_MAX_M, (row["edge_rmse"], row["spikes"])
 
 
+def test_median_edge_unseen_at_the_start(base):
+    """No median-side edge point over the first 250 m (out of reach across a wide road):
+    the road still starts where the run does, its reference holding the offset from the
+    trajectory it had where the edge was first seen, and the build says so. (The mainline
+    had begun where the edge was first seen: 250 m of the run were not in the map.)"""
+    from roadtwin.pipeline import build_map
+
+    rd = rb.VARIANTS["median_unseen_first_250m"](base["data"], np.random.default_rng(0))
+    run_dir = rb.write_run(rd, base["root"] / "median_unseen")
+    result = build_map(_load(run_dir), None)
+    main = [r for r in result.network.roads if r.name == "mainline"]
+    xy = base["run"].trajectory.xy
+    driven = float(np.sum(np.hypot(*np.diff(xy, axis=0).T)))
+    # the junction of the exit is not named mainline: 20-40 m
+    assert driven - 45.0 < sum(r.length for r in main) < driven + 5.0
+    assert any("median-side road edge was not seen" in w for w in result.warnings)
+    row = rb.build_and_evaluate(run_dir, run_dir / "out", roundtrip=False)
+    assert row["edge_rmse"] <= EDGE_RMSE_MAX_M, (row["edge_rmse"], row["spikes"])
+    assert row["lane_rmse"] <= LANE_RMSE_MAX_M, (row["lane_rmse"], row["spikes"])
+
+
 def test_left_hand_demo_edge_accuracy(tmp_path):
     """left_hand_2km's entry gore (1250 m) lies in a truck occlusion of the outer edge
     (1213-1283 m); the marking's solid/broken change and the hard-shoulder taper place it."""

@@ -28,7 +28,8 @@ class Stretch:
     Attributes
     ----------
     s0_m, s1_m : station range (metres along the mainline road).
-    kind : ``"reference edge"``, ``"outer edge"``, ``"lane markings"`` or ``"lane width"``.
+    kind : ``"reference edge"``, ``"outer edge"``, ``"lane markings"``, ``"lane width"`` or
+        ``"reference edge unseen"`` (no median-side edge point over 100 m or more).
     value_m : the worst bin's figure: median signed edge offset of the points from the
         built edge (edges), lateral offset t where unexplained lane samples line up
         (markings) or the widest lane (lane width), metres.
@@ -43,6 +44,12 @@ class Stretch:
 
     def message(self) -> str:
         where = f"mainline s={self.s0_m:.0f}..{self.s1_m:.0f} m"
+        if self.kind == "reference edge unseen":
+            return (
+                f"{where}: the median-side road edge was not seen (out of the sensor's "
+                "reach or hidden); the road's place there is bridged from where it was seen, "
+                "or at a run's end held at the offset from the trajectory it had there"
+            )
         if self.kind == "lane width":
             return f"{where}: a driving lane is {self.value_m:.1f} m wide (a lane missed?)"
         if self.kind == "lane markings":
@@ -55,6 +62,9 @@ class Stretch:
             f"{where}: the {self.kind} is poorly determined (the measured edge lies "
             f"{self.value_m:+.2f} m from it)"
         )
+
+
+_UNSEEN_M = 100.0  # a stretch this long without median-side edge points is reported
 
 
 def _bins(length: float, step: float) -> FloatArray:
@@ -101,6 +111,14 @@ def poorly_determined(
             med[j] = float(np.median(e))
             frac[j] = float(np.mean(np.abs(e) > cfg.quality_edge_bias_m))
         add(np.abs(np.nan_to_num(med)) > cfg.quality_edge_bias_m, med, frac, kind)
+        if row == 0:
+            # the reference line is the median-side edge: where none of it was seen over
+            # 100 m or more, nothing but the trajectory placed the road
+            unseen = np.bincount(idx, minlength=n_bins) == 0
+            long = np.zeros(n_bins, dtype=bool)
+            for a, b in true_runs(unseen):
+                long[a:b] = (b - a) * cfg.quality_bin_m >= _UNSEEN_M
+            add(long, np.full(n_bins, np.nan), np.ones(n_bins), "reference edge unseen")
     lane = res["lane_boundary"]
     if lane.s.size:
         conc, share = _unexplained_markings(lane, edges, cfg)

@@ -285,6 +285,9 @@ def _median_levels(
     return u, edges, edge_level_path(s, u, edges, config=cfg)
 
 
+_UNSEEN_END_M = 50.0  # a run end this long without median-side edge points is still road
+
+
 _EXCURSION_OUT_M = 0.5  # a median-side edge level this far outward of its base ...
 _EXCURSION_SLOPE = 0.02  # ... moving away from (towards) the road by this (m/m) at least ...
 _EXCURSION_MAX_M = 80.0  # ... over at most this many metres of station (an auxiliary
@@ -402,9 +405,14 @@ def fit_median_edge(
             raise InputError("mainline: the median-side road edge is not beside the trajectory")
         if it == 0:
             # edge points beyond an end of the trajectory (the car stopped recording inside
-            # an occlusion of the edge) still say the edge goes on to that end
+            # an occlusion of the edge) still say the edge goes on to that end; where the
+            # edge was not seen over a long stretch at an end (out of the sensor's reach
+            # across a wide road) the road still runs to that end, the reference keeping
+            # the offset it had where last seen
             lo = max(float(np.min(s_all)), 0.0)
             hi = min(float(np.max(s_all)), frame.length)
+            lo = 0.0 if lo > _UNSEEN_END_M else lo
+            hi = frame.length if frame.length - hi > _UNSEEN_END_M else hi
         else:
             # at least the extent of the first pass: an occlusion of the edge at the end of
             # the run is bridged by the fit, not cut off with the road
@@ -445,6 +453,10 @@ def fit_median_edge(
             mad_k=cfg.edge_outlier_mad,
             min_threshold_m=cfg.edge_outlier_min_m if it > 0 else 0.5,
         )
+        # beyond the points the offset is held, not extrapolated by the smoother
+        seen = (grid >= s.min()) & (grid <= s.max())
+        if np.any(seen):
+            off = np.interp(grid, grid[seen], off[seen])
         xy, tg = frame.at(np.clip(grid, 0.0, frame.length))
         # beyond the frame ends extrapolate along the end tangents
         xy = xy + (grid - np.clip(grid, 0.0, frame.length))[:, None] * tg
