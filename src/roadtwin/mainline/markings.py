@@ -934,7 +934,10 @@ def _add_hidden_lanes(
     observed marking on the median side, the rest as the inner shoulder (its edge line
     only where it is at least 0.3 m wide; a narrower rest widens the lanes; held in place
     where the number of lanes changes, :func:`_inner_shoulder_line`). Outer lanes
-    are inferred over ``lane_min_track_m`` or more (a shorter wide strip there is a gore),
+    are inferred over ``lane_min_track_m`` or more (a shorter wide strip there is a gore;
+    from 10 m where the outermost marking jumps outward at the strip's end or before its
+    start: a line seen beyond it, the outer line of a lane opening by a taper, lost
+    across the taper as it moved out with the edge),
     median-side ones over 30 m or more: between an inner exit's paint tip and its nose
     the exit's lines diverge and are cut as ramp lines, and the lanes run on to the nose
     (56 m on town06-auto-s3, where they had been one lane 8.1 m wide).

@@ -29,6 +29,44 @@ from .markings import _last_marking, _Track
 FloatArray = NDArray[np.float64]
 
 
+_EXCURSION_MAX_M = 60.0  # a step outward and back within this many metres ...
+_EXCURSION_AGREE_M = 0.6  # ... to within this of the level before is another road's edge
+
+
+def without_short_excursions(
+    centres: FloatArray, level: FloatArray, *, step_m: float
+) -> FloatArray:
+    """The outer edge's level path without its short outward excursions (NaN there).
+
+    A road's outer edge steps out by a lane at an entry's gore and in at an exit's, and
+    stays there. Where the path steps out by more than ``step_m`` (metres) and back to
+    within 0.6 m of its level before within 60 m, it followed another road's edge (a
+    ramp's, where the mainline's own edge was hidden or sparse near a nose) and came
+    back: those bins are left unseen and bridged like an occlusion. (kotka chain
+    37952515 with edge points every 0.6 m: the edge dipped 8 m out and back over 50 m.)
+
+    ``centres`` are the bins' stations and ``level`` the path's offsets (metres, outward
+    positive; NaN unseen), as :func:`~.edge_levels.edge_level_path` returns them.
+    """
+    out = level.copy()
+    idx = np.flatnonzero(np.isfinite(level))
+    if idx.size < 3:
+        return out
+    q = level[idx]
+    up = np.flatnonzero(np.diff(q) > step_m)  # idx[j] -> idx[j + 1] steps outward
+    down = np.flatnonzero(np.diff(q) < -step_m)
+    for j in up:
+        later = down[down > j]
+        if later.size == 0:
+            continue
+        k = int(later[0])
+        if centres[idx[k + 1]] - centres[idx[j]] > _EXCURSION_MAX_M:
+            continue
+        if abs(q[k + 1] - q[j]) <= _EXCURSION_AGREE_M:
+            out[idx[j + 1] : idx[k] + 1] = np.nan
+    return out
+
+
 def fit_outer_edge(
     s: FloatArray,
     d: FloatArray,
@@ -68,6 +106,7 @@ def fit_outer_edge(
     # the innermost continuous level of the points, not a quantile: ramp edges beside the
     # mainline's, guardrails and other roads seen through a gap must not pull it out
     q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg) if levels is None else levels
+    q_raw = without_short_excursions(cgrid, q_raw, step_m=cfg.edge_step_m)
     q = q_raw
     have = np.isfinite(q)
     if not np.any(have):

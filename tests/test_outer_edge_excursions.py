@@ -1,0 +1,47 @@
+"""The outer edge's level path does not follow another road's edge out and back.
+
+Near an entry's nose, with the mainline's own edge hidden or sparse, the level path can
+step out to the ramp's edge and back within a few tens of metres; the outer edge fitted
+through it dipped 8 m outward over 50 m (kotka chain 37952515 with edge points every
+0.6 m: edge RMSE 0.38 m, 0.03 m without the dip). A road's edge steps out at an entry's
+gore and stays out; short out-and-back excursions are left unseen and bridged."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from roadtwin.mainline.outer_edge import without_short_excursions
+
+CENTRES = np.arange(1.0, 400.0, 2.0)
+
+
+def _path(out_from: float, out_to: float, out_level: float = 18.0) -> np.ndarray:
+    level = np.full(CENTRES.size, 10.2)
+    level[(out_from <= CENTRES) & (out_to > CENTRES)] = out_level
+    return level
+
+
+def test_a_short_step_out_and_back_is_left_unseen():
+    level = _path(200.0, 230.0)
+    out = without_short_excursions(CENTRES, level, step_m=2.0)
+    inside = (CENTRES >= 200.0) & (CENTRES < 230.0)
+    assert np.isnan(out[inside]).all()
+    np.testing.assert_array_equal(out[~inside], level[~inside])
+
+
+def test_a_step_out_that_stays_is_the_roads_edge():
+    """An entry's gore: the edge steps out by a lane (3.5 m) and stays out."""
+    level = np.where(CENTRES < 200.0, 10.2, 13.7)
+    np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)
+
+
+def test_a_long_auxiliary_lane_and_an_inward_dip_are_kept():
+    for level in (_path(100.0, 250.0, 13.7), _path(200.0, 230.0, 6.7)):
+        np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)
+
+
+def test_unseen_bins_inside_the_excursion_do_not_hide_it():
+    level = _path(200.0, 240.0)
+    level[(CENTRES > 210.0) & (CENTRES < 220.0)] = np.nan
+    out = without_short_excursions(CENTRES, level, step_m=2.0)
+    assert np.isnan(out[(CENTRES >= 200.0) & (CENTRES < 240.0)]).all()
