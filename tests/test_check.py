@@ -106,6 +106,11 @@ def test_asam_checker_counts_issues_per_rule(tmp_path):
         asam.issues_per_rule["asam.net:xodr:1.4.0:road.lane.link.lanes_across_lane_sections"] >= 1
     )
     assert sum(asam.issues_per_rule.values()) >= asam.errors > 0
+    # an error says where it is, by the ids the user looks up (from the XML locations)
+    assert any(
+        "lanes_across_lane_sections" in m and m.endswith("(road 7 lane -1)") for m in asam.messages
+    ), asam.messages
+    assert any(m.endswith("(road 0 lane -3 -> road 0 lane -2)") for m in asam.messages)
     # our own checks find the road the file links one-sidedly, 66 m away
     gaps = [f for f in report.findings if f.code == "link_gap" and f.road == "7"]
     assert gaps

@@ -155,6 +155,50 @@ _QC_CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
 """
 
 
+class _IssuePlaces:
+    """Where in the map an ASAM issue is: its XML locations (``/OpenDRIVE/road[13]/lanes/
+    laneSection/left/lane[2]``, positions in document order) named by the ids of the road,
+    lane section and lane they point at, as a user looks them up."""
+
+    def __init__(self, path: Path) -> None:
+        self._path = path
+        self._tree = None
+
+    def _element(self, xpath: str):
+        from lxml import etree
+
+        if self._tree is None:
+            from ._xml import safe_parser
+
+            try:
+                self._tree = etree.parse(str(self._path), safe_parser())
+            except (OSError, etree.XMLSyntaxError):
+                self._tree = False
+        if not self._tree or not xpath.startswith("/OpenDRIVE"):
+            return None
+        try:
+            found = self._tree.xpath(xpath)
+        except etree.XPathError:
+            return None
+        return found[0] if found and isinstance(found[0], etree._Element) else None
+
+    def of(self, issue) -> str:
+        """`` (road 13 lane 2 -> road 4 lane 4)``: the roads and lanes of an issue's
+        XML locations, or ``""``."""
+        names = []
+        for loc in issue.locations:
+            for xml_loc in getattr(loc, "xml_location", None) or ():
+                el = self._element(getattr(xml_loc, "xpath", "") or "")
+                if el is None:
+                    continue
+                road = next((a for a in el.iterancestors("road")), el if el.tag == "road" else None)
+                text = f"road {road.get('id')}" if road is not None else el.tag
+                if el.tag == "lane":
+                    text += f" lane {el.get('id')}"
+                names.append(text)
+        return f" ({' -> '.join(names[:2])})" if names else ""
+
+
 def run_asam(path: Path, *, timeout_s: float = 600.0) -> ConsumerResult:
     """Run the ASAM quality checker's OpenDRIVE bundle and count its issues per rule."""
     from xml.sax.saxutils import quoteattr
@@ -197,6 +241,7 @@ def run_asam(path: Path, *, timeout_s: float = 600.0) -> ConsumerResult:
     messages: list[str] = []
     n_err = n_warn = 0
     skipped = []
+    where = _IssuePlaces(path)
     for bundle in result.get_checker_bundle_results():
         for checker in bundle.checkers:
             if checker.status == StatusType.SKIPPED:
@@ -211,7 +256,8 @@ def run_asam(path: Path, *, timeout_s: float = 600.0) -> ConsumerResult:
                 elif issue.level == IssueSeverity.WARNING:
                     n_warn += 1
                 rule = issue.rule_uid.split(":")[-1]
-                messages.append(f"{issue.level.name} {rule}: {issue.description}")
+                place = where.of(issue) if issue.level == IssueSeverity.ERROR else ""
+                messages.append(f"{issue.level.name} {rule}: {issue.description}{place}")
     if any("valid_schema" in c for c in skipped) or per_rule.get(
         "asam.net:xodr:1.0.0:xml.valid_schema"
     ):
