@@ -285,7 +285,7 @@ def _median_levels(
     return u, edges, edge_level_path(s, u, edges, config=cfg)
 
 
-_UNSEEN_END_M = 50.0  # a run end this long without median-side edge points is still road
+_UNSEEN_END_M = 150.0  # a run end this long without median-side edge points is still road
 
 
 _EXCURSION_OUT_M = 0.5  # a median-side edge level this far outward of its base ...
@@ -453,10 +453,12 @@ def fit_median_edge(
             mad_k=cfg.edge_outlier_mad,
             min_threshold_m=cfg.edge_outlier_min_m if it > 0 else 0.5,
         )
-        # beyond the points the offset is held, not extrapolated by the smoother
-        seen = (grid >= s.min()) & (grid <= s.max())
-        if np.any(seen):
-            off = np.interp(grid, grid[seen], off[seen])
+        # over a long unseen run end the offset is held, not extrapolated by the smoother
+        held = ((grid < s.min()) & (s.min() - grid[0] > _UNSEEN_END_M)) | (
+            (grid > s.max()) & (grid[-1] - s.max() > _UNSEEN_END_M)
+        )
+        if np.any(held) and not np.all(held):
+            off = np.where(held, np.interp(grid, grid[~held], off[~held]), off)
         xy, tg = frame.at(np.clip(grid, 0.0, frame.length))
         # beyond the frame ends extrapolate along the end tangents
         xy = xy + (grid - np.clip(grid, 0.0, frame.length))[:, None] * tg
