@@ -481,6 +481,14 @@ def summary(results: list[tuple[str, str, list[dict]]], method: str) -> str:
     )
 
 
+def run_all(fn, work: list, jobs: int) -> list:
+    """``fn`` over ``work`` in ``jobs`` worker processes (in this process for one job)."""
+    if jobs > 1 and len(work) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            return list(pool.map(fn, work))
+    return [fn(w) for w in work]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--workdir", type=Path, default=Path("/tmp/roadtwin-bench-real"))
@@ -525,11 +533,7 @@ def main(argv: list[str] | None = None) -> int:
         for s in specs
     ]  # fmt: skip
     t0 = time.perf_counter()
-    if args.jobs > 1 and len(work) > 1:
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            results = list(pool.map(one, work))
-    else:
-        results = [one(w) for w in work]
+    results = run_all(one, work, args.jobs)
     print(format_rows(results))
     print()
     for method in args.methods:

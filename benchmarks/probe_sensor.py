@@ -29,7 +29,6 @@ import json
 import os
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -37,15 +36,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_real
 
+_FROM_PROBES = (
+    "a9-206615404",
+    "kotka-37952515",
+    "melbourne-408",
+    "town06-auto",
+    "soderleden",
+    "e6mini",
+)
 ROUTES: tuple[tuple[str, str, str, int | None], ...] = (
-    ("a9-206615404", "osm", "north-bayreuth-a9.osm.gz", 206615404),
+    *(c for c in bench_real._PROBE_CHAINS if c[0] in _FROM_PROBES),
     ("oakland-11197879", "osm", "west-oakland-i880.osm.bz2", 11197879),
-    ("kotka-37952515", "osm", "kotka-e18.osm.pbf", 37952515),
     ("krems-46762523", "osm", "krems-s5-trunk.osm.gz", 46762523),
-    ("melbourne-408", "osm", "melbourne-lht.osm.pbf", 408),
-    ("town06-auto", "xodr", "Town06.xodr", None),
-    ("soderleden", "xodr", "soderleden.xodr", None),
-    ("e6mini", "xodr", "e6mini.xodr", None),
 )
 """``(name, source, file, chain)`` of the routes every variant drives."""
 
@@ -170,11 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     ]
     args.workdir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    if args.jobs > 1 and len(work) > 1:
-        with ProcessPoolExecutor(max_workers=args.jobs) as pool:
-            results = list(pool.map(one, work))
-    else:
-        results = [one(w) for w in work]
+    results = bench_real.run_all(one, work, args.jobs)
     print(bench_real.format_rows(results))
     print()
     for vname in args.variants:
