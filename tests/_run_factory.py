@@ -260,3 +260,24 @@ def write_run_on_osm(root: Path, osm_path: Path, **kwargs) -> RunTruth:
     return write_run(
         root, yaw0=heading, start_xy=(0.0, 0.0), osm=osm_path.name, origin=origin, **kwargs
     )
+
+
+def build_xodr_route(xodr: Path, out: Path, *, seed: int, route: list[str] | None = None):
+    """Simulate a run along an OpenDRIVE map's route into ``out``, build it with OSM and
+    evaluate it against the map: ``(truth_info, run_report)``."""
+    import json
+
+    from roadtwin.evaluation import evaluate
+    from roadtwin.io import load_run
+    from roadtwin.osm import load_osm
+    from roadtwin.pipeline import build_map
+    from roadtwin.simulate import simulate_xodr_run
+    from roadtwin.xodr import read_xodr
+
+    run_dir = simulate_xodr_run(xodr, out, route=route, seed=seed)
+    run = load_run(run_dir)
+    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
+    network = build_map(run, graph).network
+    info = json.loads((run_dir / "truth.json").read_text())
+    truth = read_xodr(run_dir / "truth.xodr")
+    return info, evaluate(network, run, truth=truth, truth_info=info).runs[0]

@@ -8,15 +8,13 @@ on the cropped Town06 route, 5.2 m off at 20-120 m from the exit's gore)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from roadtwin.io import load_run
+from _run_factory import build_xodr_route
 from roadtwin.mainline.reference import median_excursions
-from roadtwin.xodr import read_xodr
 
 TOWN06 = Path(__file__).parent / "data" / "xodr" / "town06-35-38.xodr.gz"
 
@@ -149,17 +147,9 @@ def test_a_long_departure_is_no_excursion():
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_the_mainline_does_not_bend_towards_an_inner_exit(tmp_path, seed):
-    from roadtwin.evaluation import evaluate
-    from roadtwin.osm import load_osm
-    from roadtwin.pipeline import build_map
-    from roadtwin.simulate import simulate_xodr_run
-
-    out = simulate_xodr_run(TOWN06, tmp_path / "run", route=["35", "36", "37", "38"], seed=seed)
-    run = load_run(out)
-    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
-    network = build_map(run, graph).network
-    info = json.loads((out / "truth.json").read_text())
-    rep = evaluate(network, run, truth=read_xodr(out / "truth.xodr"), truth_info=info).runs[0]
+    info, rep = build_xodr_route(
+        TOWN06, tmp_path / "run", route=["35", "36", "37", "38"], seed=seed
+    )
     edge = rep.details["truth/road_edge"]
     (exit_,) = [r for r in info["ramps"] if r["station_m"] < 100.0]
     assert exit_["side"] == "inner"

@@ -10,31 +10,19 @@ there (lane RMSE 1.11 m over s = 1480-1650 m)."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from roadtwin.io import load_run
-from roadtwin.xodr import read_xodr
+from _run_factory import build_xodr_route
 
 SHARED_TOWN06 = Path("/work/shared/data/xodr/Town06.xodr")
 
 
 @pytest.mark.skipif(not SHARED_TOWN06.is_file(), reason="full Town06.xodr not available")
 def test_the_opening_lane_is_built_where_it_opens(tmp_path):
-    from roadtwin.evaluation import evaluate
-    from roadtwin.osm import load_osm
-    from roadtwin.pipeline import build_map
-    from roadtwin.simulate import simulate_xodr_run
-
-    out = simulate_xodr_run(SHARED_TOWN06, tmp_path / "run", seed=46)
-    run = load_run(out)
-    graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
-    network = build_map(run, graph).network
-    info = json.loads((out / "truth.json").read_text())
-    rep = evaluate(network, run, truth=read_xodr(out / "truth.xodr"), truth_info=info).runs[0]
+    _, rep = build_xodr_route(SHARED_TOWN06, tmp_path / "run", seed=46)
     lane = rep.details["truth/lane_boundary"]
     gain = (lane.station_m > 1480.0) & (lane.station_m < 1650.0) & np.isfinite(lane.error_m)
     assert np.count_nonzero(gain) > 500

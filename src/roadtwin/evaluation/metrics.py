@@ -135,10 +135,21 @@ def _errors_full(
 
 
 def _lateral_errors(
-    roads: Sequence[Road], pts: FloatArray, proj: Projection, kind: str | None, name: str
+    roads: Sequence[Road],
+    pts: FloatArray,
+    proj: Projection,
+    kind: str | None,
+    name: str,
+    *,
+    either: NDArray[np.bool_] | None = None,
 ) -> PointErrors:
-    """Signed ``t - t_b`` of projected points against the nearest boundary of ``kind``."""
+    """Signed ``t - t_b`` of projected points against the nearest boundary of ``kind``;
+    the points of the mask ``either`` against the nearest boundary of any kind."""
     err, lane = _errors_full(roads, proj, kind)
+    if either is not None and kind is not None and np.any(either & proj.ok):
+        err_any, lane_any = _errors_full(roads, proj, None)
+        err = np.where(either, err_any, err)
+        lane = np.where(either, lane_any, lane)
     good = np.isfinite(err)
     return PointErrors(name, pts[good, :2], proj.station_m[good], err[good], lane[good])
 
@@ -383,13 +394,7 @@ def _truth_mainline(
             np.where(mask, proj.status, _NO_ROAD),
             station,  # plots along the TRUE mainline station
         )
-        err, lane = _errors_full(built, sub, kind)
-        if np.any(mask & twin):
-            err_any, lane_any = _errors_full(built, sub, None)
-            err = np.where(twin, err_any, err)
-            lane = np.where(twin, lane_any, lane)
-        good = np.isfinite(err)
-        pe = PointErrors(f"truth/{kind}", xy[good, :2], station[good], err[good], lane[good])
+        pe = _lateral_errors(built, xy, sub, kind, f"truth/{kind}", either=twin)
         details[f"truth/{kind}"] = pe
         result[kind] = error_stats(pe.error_m)
     # elevation at every covered true boundary point

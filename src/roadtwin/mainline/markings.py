@@ -341,7 +341,8 @@ def _tracks_in_frame(
         )
         keep_g = _trim_ramp_lines(g, fit, cfg, None if frame is None else frame.rate(g))
         if d_edge is not None:
-            inner = _next_line_inward(cand, k, float(g[0]), float(fit[0]))
+            # the line inward matters only for a cut end (a nose's taper line)
+            inner = None if keep_g.all() else _next_line_inward(cand, k, float(g[0]), float(fit[0]))
             keep_g |= _mainline_ends_inside_edge(
                 g, fit, keep_g, grid, d_edge, s_last, col, inner_d=inner
             )
@@ -632,8 +633,11 @@ def _mainline_ends_inside_edge(
     # an entry's line comes in past the nose, where the edge steps out by the ramp's width
     near = np.interp(g[0] + np.array([-_NOSE_WINDOW_M, 0.0, _NOSE_WINDOW_M]), grid, d_edge)
     at_nose = near[1:].max() - near[0] > _NOSE_STEP_M
-    closes = head.size > 0 and _closes_with_edge(g[head], d[head], edge[head], inner_d)
-    if head.size and inside[head].all() and (not at_nose or closes):
+    if (
+        head.size
+        and inside[head].all()
+        and (not at_nose or _closes_with_edge(g[head], d[head], edge[head], inner_d))
+    ):
         back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
     if tail.size and g[-1] >= s_last - 2.0 * column_m and inside[tail].all():
