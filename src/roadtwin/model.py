@@ -545,11 +545,39 @@ class Road:
         """Reference-line height z (metres) at stations ``s``."""
         return self.elevation.value(s)
 
+    def roll(self, s: ArrayLike) -> FloatArray:
+        """Superelevation (radians, positive = falling to the right) at stations ``s``;
+        zeros where the road has none."""
+        if self.superelevation is None or not self.superelevation.pieces:
+            return np.zeros(np.shape(np.asarray(s, dtype=float)))
+        return self.superelevation.value(s)
+
+    def _plan_scale(self, s: ArrayLike) -> FloatArray | float:
+        """Horizontal length of one metre of ``t`` at stations ``s``: ``cos(roll)``.
+
+        OpenDRIVE rotates the lateral axis about the reference line by the
+        superelevation, so a point at ``t`` lies ``t cos(roll)`` from the reference line
+        in plan and ``t sin(roll)`` above it (the ASAM checker places borders so)."""
+        if self.superelevation is None or not self.superelevation.pieces:
+            return 1.0
+        return np.cos(self.superelevation.value(s))
+
     def to_xy(self, s: ArrayLike, t: ArrayLike) -> FloatArray:
-        """Frenet ``(s, t)`` -> mapping-frame ``(N, 2)`` points (t left positive)."""
+        """Frenet ``(s, t)`` -> mapping-frame ``(N, 2)`` points (t left positive).
+
+        On a superelevated road ``t`` runs along the rolled surface: the point lies
+        ``t cos(roll)`` from the reference line in plan (see :meth:`surface_height`)."""
         x, y, h, _ = self.evaluate(s)
-        t_arr = np.asarray(t, dtype=float)
+        t_arr = np.asarray(t, dtype=float) * self._plan_scale(s)
         return np.stack([x - t_arr * np.sin(h), y + t_arr * np.cos(h)], axis=-1)
+
+    def surface_height(self, s: ArrayLike, t: ArrayLike) -> FloatArray:
+        """Height z (metres, mapping frame) of the road surface at Frenet ``(s, t)``:
+        elevation plus ``t sin(roll)``."""
+        z = self.elevation.value(s)
+        if self.superelevation is None or not self.superelevation.pieces:
+            return z + 0.0 * np.asarray(t, dtype=float)
+        return z + np.asarray(t, dtype=float) * np.sin(self.superelevation.value(s))
 
     # -- lanes --------------------------------------------------------------
 
@@ -625,7 +653,8 @@ class Road:
         -------
         s, t
             Station (clipped to ``[0, length]``) and signed lateral offset (left positive),
-            metres. Points beyond the ends get the offset at the end station.
+            metres, along the rolled surface of a superelevated road (the inverse of
+            :meth:`to_xy`). Points beyond the ends get the offset at the end station.
         """
         raw = np.asarray(points, dtype=float)
         pts = raw[:, :2]
@@ -659,7 +688,7 @@ class Road:
             s = np.clip(s + along / denom, 0.0, self.length)
         x, y, h, _ = self.evaluate(s)
         t = -(pts[:, 0] - x) * np.sin(h) + (pts[:, 1] - y) * np.cos(h)
-        return s, t
+        return s, t / self._plan_scale(s)
 
 
 @dataclass(frozen=True)

@@ -185,6 +185,7 @@ def hermite_road(
     widths_end: Sequence[float],
     traffic_side: TrafficSide = "right",
     heights: tuple[float, float] = (0.0, 0.0),
+    rolls: tuple[float, float] = (0.0, 0.0),
     junction: str = "-1",
     name: str = "connector",
     lane_type: str = "driving",
@@ -203,6 +204,10 @@ def hermite_road(
         right-hand traffic, left of it for left-hand traffic.
     heights
         Elevation (metres) at the two ends; linear in between.
+    rolls
+        Superelevation (radians) at the two ends, changing along a C1 cubic: a connector
+        meeting a superelevated road carries its roll there, so lane borders at equal t
+        meet in plan and height (OpenDRIVE rotates t by the roll).
     lane_type, lane_types
         One type for every lane, or one per lane (inner to outer). Road marks follow the
         DESIGN.md layout: a shoulder before the driving lanes carries the solid edge line,
@@ -240,12 +245,21 @@ def hermite_road(
         else LaneSection(0.0, left=tuple(lanes), center=center)
     )
     z0, z1 = heights
+    r0, r1 = (float(r) for r in rolls)
+    superelevation = (
+        None
+        if r0 == 0.0 and r1 == 0.0
+        else CubicProfile(
+            (CubicPiece(0.0, r0, 0.0, 3.0 * (r1 - r0) / length**2, -2.0 * (r1 - r0) / length**3),)
+        )
+    )
     return Road(
         id=road_id,
         geometry=(geometry,),
         lane_sections=(section,),
         name=name,
         elevation=CubicProfile((CubicPiece(0.0, float(z0), (float(z1) - float(z0)) / length),)),
+        superelevation=superelevation,
         junction=junction,
     )
 
@@ -400,12 +414,15 @@ def _pose(road: Road, s: float) -> tuple[float, float, float]:
     return float(x[0]), float(y[0]), float(h[0])
 
 
-def _border_pose(road: Road, s: float, lane_id: int) -> tuple[float, float, float]:
-    """Pose on the inner border of ``lane_id`` (metres, radians), road heading."""
+def _border_pose(road: Road, s: float, lane_id: int) -> tuple[tuple[float, float, float], float]:
+    """Pose on the inner border of ``lane_id`` (metres, radians), road heading, and the
+    road surface's height there (metres)."""
     inner_id = lane_id + (1 if lane_id < 0 else -1)
-    t = float(road.lane_border_t(np.array([s]), inner_id)[0])
-    xy = road.to_xy(np.array([s]), np.array([t]))[0]
-    return float(xy[0]), float(xy[1]), float(road.heading(np.array([s]))[0])
+    s_arr = np.array([s])
+    t = road.lane_border_t(s_arr, inner_id)
+    xy = road.to_xy(s_arr, t)[0]
+    pose = (float(xy[0]), float(xy[1]), float(road.heading(s_arr)[0]))
+    return pose, float(road.surface_height(s_arr, t)[0])
 
 
 def _ramp_lane_ids(road: Road, side: TrafficSide) -> list[int]:
@@ -1073,29 +1090,32 @@ def _ramp_connecting_road(
         cut_at = max(road.length - junction_length_m, 0.5 * road.length)
         road = cut_road(road, 0.0, cut_at, road_id=ramp_id)
         s_main, s_ramp = 0.0, road.length
-    main_pose = _border_pose(main, s_main, source_lane)
+    main_pose, main_z = _border_pose(main, s_main, source_lane)
+    main_roll = float(main.roll(np.array([s_main]))[0])
+    ramp_roll = float(road.roll(np.array([s_ramp]))[0])
     ramp_pose = _pose(road, s_ramp)
     main_widths = [
         _widths(main, s_main, [paired[i]])[0] if i in paired else 0.0 for i in ramp_lanes
     ]
     ramp_widths = _widths(road, s_ramp, ramp_lanes)
-    main_z = float(main.height(np.array([s_main]))[0])
     ramp_z = float(road.height([s_ramp])[0])
     main_link = RoadLink("road", main.id, "end" if exit_ else "start")
     ramp_link = RoadLink("road", ramp_id, "start" if exit_ else "end")
     to_main = {y: x for x, y in pairs}
     same = {i: i for i in ramp_lanes}
     if exit_:
-        poses, widths, heights = (
+        poses, widths, heights, rolls = (
             (main_pose, ramp_pose),
             (main_widths, ramp_widths),
             (main_z, ramp_z),
+            (main_roll, ramp_roll),
         )
     else:
-        poses, widths, heights = (
+        poses, widths, heights, rolls = (
             (ramp_pose, main_pose),
             (ramp_widths, main_widths),
             (ramp_z, main_z),
+            (ramp_roll, main_roll),
         )
     conn_road = hermite_road(
         poses[0],
@@ -1105,6 +1125,7 @@ def _ramp_connecting_road(
         widths_end=widths[1],
         traffic_side=traffic_side,
         heights=heights,
+        rolls=rolls,
         junction=jid,
         lane_types=lane_types,
     )

@@ -203,14 +203,6 @@ def driving_lane_count(road: Road, s: FloatArray, *, min_width_m: float) -> NDAr
     return out
 
 
-def _height(road: Road, s: FloatArray, t: FloatArray) -> FloatArray:
-    """Surface height z (metres) at Frenet ``(s, t)``: elevation plus superelevation."""
-    z = road.elevation.value(s)
-    if road.superelevation is not None:
-        z = z + t * np.tan(road.superelevation.value(s))
-    return z
-
-
 # ---------------------------------------------------------------------------
 # projection of points onto a set of roads
 # ---------------------------------------------------------------------------
@@ -291,7 +283,7 @@ def on_pavement_of(
         lo, hi = road_band(road, s)
         inside = (t > lo + margin_m) & (t < hi - margin_m)
         if raw.shape[1] > 2:
-            inside &= np.abs(_height(road, s, t) - raw[sel, 2]) <= SAME_LEVEL_M
+            inside &= np.abs(road.surface_height(s, t) - raw[sel, 2]) <= SAME_LEVEL_M
         out[sel] = inside
     return out
 
@@ -503,7 +495,7 @@ def project_points(
         if z_pts is None:
             level = np.ones(idx.size, dtype=bool)
         else:
-            level = np.abs(_height(road, s, t) - z_pts[idx]) <= SAME_LEVEL_M
+            level = np.abs(road.surface_height(s, t) - z_pts[idx]) <= SAME_LEVEL_M
         o_level = best_level[idx]
         better = level & ~o_level
         same = level == o_level

@@ -22,7 +22,6 @@ from .frenet import (
     LANE,
     FloatArray,
     Projection,
-    _height,
     _project_one,
     _section_centre_t,
     _stations,
@@ -225,7 +224,7 @@ def self_consistency_errors(
         on_main = proj.ok & ~use_r
         for r in np.unique(proj.road_index[on_main]):  # measured height - map surface
             sel = on_main & (proj.road_index == r)
-            dz_all.append(pts[sel, 2] - _height(main[int(r)], proj.s[sel], proj.t[sel]))
+            dz_all.append(pts[sel, 2] - main[int(r)].surface_height(proj.s[sel], proj.t[sel]))
     counts["height_rmse_m"] = _rmse(np.concatenate(dz_all)) if dz_all else math.nan
     return out[0], out[1], counts
 
@@ -306,7 +305,7 @@ def _sample_boundaries(
     s = np.concatenate(s_list) if s_list else np.zeros(0)
     t = np.concatenate(t_list) if t_list else np.zeros(0)
     lane_ids = np.concatenate(ids) if ids else np.zeros(0, dtype=np.int64)
-    return s, t, kinds, lane_ids, _height(road, s, t)
+    return s, t, kinds, lane_ids, road.surface_height(s, t)
 
 
 _TWIN_M = 0.1
@@ -403,7 +402,7 @@ def _truth_mainline(
     for r in np.unique(proj.road_index[ok]):
         sel = ok[proj.road_index[ok] == r]
         dz[np.searchsorted(ok, sel)] = (
-            _height(built[int(r)], proj.s[sel], proj.t[sel]) - z_true[sel]
+            built[int(r)].surface_height(proj.s[sel], proj.t[sel]) - z_true[sel]
         )
     details["truth/elevation"] = PointErrors(
         "truth/elevation", xy[ok], station[ok], dz, np.concatenate(id_l)[ok]
@@ -440,7 +439,7 @@ def _centre_points(
             t_c[sel] = _section_centre_t(road, s[sel], road.lane_sections[int(k)])
         stations.append(s)
         xy = road.to_xy(s, t_c).reshape(-1, 2)
-        centres.append(np.column_stack([xy, _height(road, s, t_c)]))
+        centres.append(np.column_stack([xy, road.surface_height(s, t_c)]))
     return stations, centres
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -76,17 +77,21 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     s_lane, t_lane = frame.project(run.lane_samples)
     s_car, t_car = frame.project(poses)
     order = np.argsort(s_car)
-    sections, events, tracks, used = fit_lanes(
-        s_lane,
-        -sign * t_lane,
-        s_out,
-        -sign * t_out,
-        length=length,
-        sign=sign,
-        config=cfg,
-        car=(s_car[order], -sign * t_car[order]),
-        median=median.steps,
-    )
+
+    def lanes(surface_scale: Callable[[FloatArray], FloatArray | float]):
+        return fit_lanes(
+            s_lane,
+            -sign * t_lane * surface_scale(s_lane),
+            s_out,
+            -sign * t_out * surface_scale(s_out),
+            length=length,
+            sign=sign,
+            config=cfg,
+            car=(s_car[order], -sign * t_car[order] * surface_scale(s_car[order])),
+            median=median.steps,
+        )
+
+    sections, events, tracks, used = lanes(lambda s: 1.0)
     timings["lanes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -94,6 +99,13 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         frame, np.vstack([ref_pts, outer_pts[used]]), poses=poses, config=cfg
     )
     timings["elevation"] = time.perf_counter() - t0
+    if superelevation is not None:
+        # OpenDRIVE measures t along the rolled surface (t cos(roll) in plan): the lanes
+        # are fitted again to the plan offsets divided by cos(roll), so that consumers
+        # place every border where it was seen
+        t0 = time.perf_counter()
+        sections, events, tracks, _ = lanes(lambda s: 1.0 / np.cos(superelevation.value(s)))
+        timings["lanes"] += time.perf_counter() - t0
     road = replace(
         base,
         elevation=elevation,

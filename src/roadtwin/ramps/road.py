@@ -338,13 +338,52 @@ def _build_ramp_road(
             ),
         ),
         name=ramp_type,
-        elevation=CubicProfile.constant(float(mainline_road.height(np.array([s_att]))[0])),
+        elevation=CubicProfile.constant(
+            float(mainline_road.surface_height(np.array([s_att]), np.array([t_att]))[0])
+        ),
+    )
+    road = replace(
+        road,
+        superelevation=_roll_from_attachment(
+            float(mainline_road.roll(np.array([s_att]))[0]),
+            road.length,
+            at_start=ramp_type == "exit",
+        ),
     )
     s_end = 0.0 if ramp_type == "exit" else road.length
     x, y, h, _ = road.evaluate(np.array([s_end]))
     gap = float(math.hypot(float(x[0]) - target[0], float(y[0]) - target[1]))
     dh = abs(float(_wrap(float(h[0]) - h_main)))
     return road, gap, math.degrees(dh), fit
+
+
+_ROLL_BLEND_M = 60.0
+"""Length (metres) over which a ramp leaves the mainline's superelevation for a flat
+cross section (at most half the ramp)."""
+
+
+def _roll_from_attachment(roll: float, length: float, *, at_start: bool) -> CubicProfile | None:
+    """Superelevation of a ramp road (radians): the mainline's ``roll`` at the attached
+    end, blended C1 to zero over ``_ROLL_BLEND_M``; None where the mainline is flat there.
+
+    OpenDRIVE rotates ``t`` by the roll, so only a ramp that carries the roll of the road
+    it joins has its lane borders meet that road's in plan and in height."""
+    if roll == 0.0:
+        return None
+    blend = min(_ROLL_BLEND_M, 0.5 * length)
+    if at_start:
+        return CubicProfile(
+            (
+                CubicPiece(0.0, roll, 0.0, -3.0 * roll / blend**2, 2.0 * roll / blend**3),
+                CubicPiece(blend, 0.0),
+            )
+        )
+    return CubicProfile(
+        (
+            CubicPiece(0.0, 0.0),
+            CubicPiece(length - blend, 0.0, 0.0, 3.0 * roll / blend**2, -2.0 * roll / blend**3),
+        )
+    )
 
 
 def _measured_near_ramp(

@@ -396,6 +396,18 @@ def fit_chain(
                     u[a : b + 1], sm.median[a : b + 1, 2], tolerance=cfg.width_tolerance_m
                 ).pieces
     elevation = CubicProfile(_merge_pieces(z_pieces, total))
+    if any(sm.roll is not None for sm in samples):
+        roll_pieces: list[CubicPiece] = []
+        for sm, u in zip(samples, sample_u, strict=True):
+            roll = np.zeros(sm.p.size) if sm.roll is None else sm.roll
+            for a, b in _intervals(sm):
+                if u[b] - u[a] > 1e-6:
+                    roll_pieces += fit_cubic_profile(
+                        u[a : b + 1], roll[a : b + 1], tolerance=1e-4
+                    ).pieces
+        # before the lane widths: t runs along the rolled surface (projection divides the
+        # plan offsets by cos(roll)), as in the source
+        ref = replace(ref, superelevation=CubicProfile(_merge_pieces(roll_pieces, total)))
 
     # lane sections: a new one wherever the keys change or a break is forced
     groups: list[list[int]] = []

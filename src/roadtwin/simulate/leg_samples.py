@@ -52,6 +52,9 @@ class LegSamples:
     breaks: tuple[int, ...] = ()
     """Indices of interior samples where a source profile or geometry piece starts (a
     curvature jump or kink of some border): fits must not smooth across them."""
+    roll: FloatArray | None = None
+    """(N,) superelevation (radians, positive = the left side up in the direction of
+    travel) of the first carried lane's source road; None where every source is flat."""
 
 
 def _travel_out(road: Road, s: FloatArray, direction: int, out_sign: int) -> FloatArray:
@@ -59,13 +62,6 @@ def _travel_out(road: Road, s: FloatArray, direction: int, out_sign: int) -> Flo
     h = road.heading(s) + (0.0 if direction > 0 else np.pi)
     left = np.column_stack([-np.sin(h), np.cos(h)])
     return out_sign * left
-
-
-def _height(road: Road, s: FloatArray, t: FloatArray) -> FloatArray:
-    z = road.elevation.value(s)
-    if road.superelevation is not None and road.superelevation.pieces:
-        z = z + t * np.tan(road.superelevation.value(s))
-    return z
 
 
 def _marks_on(road: Road, span: Span, borders: list[int | None]) -> list[tuple[float, RoadMark]]:
@@ -117,17 +113,21 @@ def sample_leg(
     marks: list[tuple[tuple[float, RoadMark], ...]] = [() for _ in range(K)]
     inner_marks: list[tuple[tuple[float, RoadMark], ...]] = [() for _ in range(K)]
     exact = [False] * K
+    roll: FloatArray | None = None
     for k, lane in enumerate(leg.lanes):
         if lane.source is None:
             continue
         road = network.road(lane.source[0])
         span = leg.span(lane.source[0])
         s = span.s_at(p)
+        if roll is None and road.superelevation is not None and road.superelevation.pieces:
+            # against the source's s the lateral axis is flipped, and the roll with it
+            roll = span.direction * road.roll(s)
         sign = traffic_lane_sign(span.direction, traffic_side)
         t_in, t_out, b_in, b_out = carried_borders(road, lane, span, s, sign)
         for arr, t in ((inner_xyz, t_in), (outer_xyz, t_out)):
             arr[k, :, :2] = road.to_xy(s, t)
-            arr[k, :, 2] = _height(road, s, t)
+            arr[k, :, 2] = road.surface_height(s, t)
         out_dir[k] = _travel_out(road, s, span.direction, out_sign)
         marks[k] = tuple(_marks_on(road, span, b_out))
         inner_marks[k] = tuple(_marks_on(road, span, b_in))
@@ -177,7 +177,7 @@ def sample_leg(
             marks[k] = _bridge_marks(lane, 1)
             inner_marks[k] = _bridge_marks(lane, 0)
     return LegSamples(
-        p, inner_xyz[0], outer_xyz, tuple(marks), inner_marks[0], tuple(exact), break_idx
+        p, inner_xyz[0], outer_xyz, tuple(marks), inner_marks[0], tuple(exact), break_idx, roll
     )
 
 

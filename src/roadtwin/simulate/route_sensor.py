@@ -211,7 +211,7 @@ def drive(
     xy = road.to_xy(u_pose, t_pose)
     heading = np.unwrap(np.arctan2(*np.gradient(path, axis=0)[:, ::-1].T))
     yaw = np.interp(s_pose, arc, heading)
-    z = road.elevation.value(u_pose)
+    z = road.surface_height(u_pose, t_pose)
     frame = np.arange(u_pose.size, dtype=np.int64)
     return Poses(frame, car.t0_s + frame / car.rate_hz, np.column_stack([xy, z]), yaw, u_pose)
 
@@ -320,7 +320,7 @@ def true_edges(
         left = np.column_stack([-np.sin(h), np.cos(h)])
         for t, out_dir in ((ref_t, -sign), (out_t, sign)):
             xy = road.to_xy(s, t)
-            pts.append(np.column_stack([xy, road.elevation.value(s)]))
+            pts.append(np.column_stack([xy, road.surface_height(s, t)]))
             normals.append(out_dir * left)
             stations.append(s if is_main else np.full(s.size, np.nan))
             owner.append(np.full(s.size, r_idx))
@@ -420,7 +420,7 @@ def painted_points(
                             continue
                         t = road.lane_border_t(s, border) + dt
                         xy = road.to_xy(s, t)
-                        pts.append(np.column_stack([xy, road.elevation.value(s)]))
+                        pts.append(np.column_stack([xy, road.surface_height(s, t)]))
                         stations.append(s if is_main else np.full(s.size, np.nan))
     if not pts:
         return np.zeros((0, 3)), np.zeros(0), {"painted_m": 0.0, "worn_m": 0.0}
@@ -469,12 +469,13 @@ def opposite_painted_points(
                             s = s[np.mod(s, pattern[0] + pattern[1]) < pattern[0]]
                         if s.size == 0:
                             continue
-                        xy = road.to_xy(s, road.lane_border_t(s, lane.id))
+                        t_border = road.lane_border_t(s, lane.id)
+                        xy = road.to_xy(s, t_border)
                         heading = road.heading(s) + (0.0 if side_travel[sign] > 0 else np.pi)
                         u, t = main.project(xy)
                         against = np.cos(heading - main.heading(u)) < -0.5
                         keep = against & (np.abs(t) <= lateral_m) & (u > 0.0) & (u < main.length)
                         if np.any(keep):
-                            z = road.elevation.value(s[keep])
+                            z = road.surface_height(s[keep], t_border[keep])
                             out.append(np.column_stack([xy[keep], z]))
     return np.vstack(out) if out else np.zeros((0, 3))
