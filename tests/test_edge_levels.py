@@ -124,3 +124,36 @@ def test_a_stray_level_before_an_unseen_stretch_does_not_double_the_step():
     assert steps.stations.size == 1
     assert abs(steps.stations[0] - 700.0) < 1.0
     np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -3.6], atol=0.05)
+
+
+def _gap_case(rng, outer_after: float):
+    """Median-side edge 13.7 m from the car until 620 m, unseen 620-720 m (a truck), then
+    2.4 m; the other edge 6.0 m before the gap and ``outer_after`` after it, seen on
+    both sides of the gap except 720-800 m (the same truck)."""
+    s0, d0 = _line(rng, 0.0, 620.0, lambda s: np.full(s.size, 13.7))
+    s1, d1 = _line(rng, 720.0, 1200.0, lambda s: np.full(s.size, 2.4))
+    o0, a0 = _line(rng, 0.0, 620.0, lambda s: np.full(s.size, 6.0))
+    o1, a1 = _line(rng, 800.0, 1200.0, lambda s: np.full(s.size, outer_after))
+    s, d = np.concatenate([s0, s1]), np.concatenate([d0, d1])
+    edges = np.arange(-1.0, 1201.0, 2.0)
+    across = (np.concatenate([o0, o1]), np.concatenate([a0, a1]))
+    return edge_steps(s, d, edges, edge_level_path(s, d, edges), across=across)
+
+
+def test_a_step_hidden_in_an_occlusion_is_told_by_the_carriageway_width():
+    # Three lanes leave on the median side (a left fork) while a truck hides the edge:
+    # the edge is 11.3 m nearer after the gap while the other edge moved 2.4 m away (the
+    # car moved a lane to the left meanwhile): the carriageway is 8.9 m narrower. Without
+    # the step the reference line swung 11 m across the lanes over the gap
+    # (oakland-28393854-lane1 with a noisier sensor: edge RMSE 1.5 m).
+    steps = _gap_case(np.random.default_rng(21), outer_after=8.4)
+    assert steps.stations.size == 1
+    assert abs(steps.stations[0] - 670.0) < 2.0  # the gap's middle
+    np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -11.3], atol=0.05)
+
+
+def test_a_level_change_across_an_occlusion_with_the_width_kept_is_no_step():
+    # The same gap, but the other edge moved out as far as this one moved in: the car
+    # changed lanes unseen, the road did not change.
+    steps = _gap_case(np.random.default_rng(22), outer_after=6.0 + 11.3)
+    assert steps.stations.size == 0

@@ -249,15 +249,20 @@ def edge_steps(
     level: FloatArray,
     *,
     config: MainlineConfig | None = None,
+    across: tuple[FloatArray, FloatArray] | None = None,
 ) -> EdgeSteps:
     """The steps of a level path (:func:`edge_level_path`) and each segment's offset.
 
     ``s``, ``u``: the edge points (stations, offsets, metres, larger ``u`` farther from the
     carriageway); ``level`` the path on the bins ``edges_s``. A step is a change of more
     than ``edge_step_m`` between neighbouring seen bins with points right before and after
-    it (an occlusion gap has none), its station where the level nearer the carriageway
-    starts or ends (:func:`refine_step`). Each segment's offset is the median ``u`` of its
-    points on the path, 10 m clear of its steps where it has enough of them.
+    it, its station where the level nearer the carriageway starts or ends
+    (:func:`refine_step`). Across an occlusion gap (no points right before or after the
+    change) the level also moves where the car changed lanes unseen; it is a step only
+    where ``across`` (the other edge's points: stations and offsets away from this edge,
+    metres, same frame) says the carriageway's width changed with it
+    (:func:`_step_across_gap`), at the gap's middle. Each segment's offset is the median
+    ``u`` of its points on the path, 10 m clear of its steps where it has enough of them.
     """
     cfg = config or MainlineConfig()
     centres = 0.5 * (edges_s[1:] + edges_s[:-1])
@@ -266,15 +271,22 @@ def edge_steps(
         return EdgeSteps(np.zeros(0), np.zeros(1))
     jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
     found: list[list[float]] = []  # [station, level before, level after] per step
+    across_bins: FloatArray | None = None
     for j_first, j in _jump_groups(jumps):
         before = float(np.median(level[seen[max(j_first - 4, 0) : j_first + 1]]))
         after = float(np.median(level[seen[j + 1 : j + 6]]))
         guess = 0.5 * (centres[seen[j_first]] + centres[seen[j_first + 1]])
         station = refine_step(s, u, guess, min(before, after), starts=after < before)
-        if np.count_nonzero((s >= station - 5.0) & (s < station)) < 3:
-            continue
-        if np.count_nonzero((s > station) & (s <= station + 5.0)) < 3:
-            continue
+        if (
+            np.count_nonzero((s >= station - 5.0) & (s < station)) < 3
+            or np.count_nonzero((s > station) & (s <= station + 5.0)) < 3
+        ):
+            gap = (centres[seen[j_first]], centres[seen[j_first + 1]])
+            if across is not None and across_bins is None:
+                across_bins = _bin_medians(across[0], across[1], edges_s)
+            station = _step_across_gap(gap, centres, level, across_bins, cfg)
+            if station is None:
+                continue
         if found and abs(station - found[-1][0]) < _STEP_MERGE_M:
             # a level held for a bin or two at a step (a stray point, a ramp edge
             # crossing) makes two jumps that refine to one station; counted twice, the
@@ -334,6 +346,60 @@ def edge_steps(
         anchor = _weighted_median(median[steady] - offsets[steady], lengths)
         return EdgeSteps(st, offsets + anchor)
     return EdgeSteps(st, offsets).from_base(float(edges_s[0]), float(edges_s[-1]))
+
+
+_GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...
+_GAP_REACH_M = 150.0  # ... told by the width where both edges are seen this near it ...
+_GAP_WIDTH_BINS = 5  # ... in this many bins either side
+
+
+def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArray:
+    """Median ``u`` per station bin (NaN where a bin has no point)."""
+    b = np.searchsorted(edges_s, s, side="right") - 1
+    ok = (b >= 0) & (b < edges_s.size - 1)
+    b, v = b[ok], u[ok]
+    order = np.lexsort((v, b))
+    b, v = b[order], v[order]
+    first = np.searchsorted(b, np.arange(edges_s.size - 1), side="left")
+    last = np.searchsorted(b, np.arange(edges_s.size - 1), side="right")
+    out = np.full(edges_s.size - 1, np.nan)
+    has = last > first
+    out[has] = v[(first[has] + last[has] - 1) // 2]
+    return out
+
+
+def _step_across_gap(
+    gap: tuple[float, float],
+    centres: FloatArray,
+    level: FloatArray,
+    across: FloatArray | None,
+    cfg: MainlineConfig,
+) -> float | None:
+    """Station (metres) of a step whose level change falls in the unseen stretch ``gap``
+    (the centres of the seen bins either side), or None where the change is the car's
+    own sideways move.
+
+    A lane change of the car moves both edges by the same amount in opposite directions,
+    so the carriageway's width (this edge's level plus ``across``, the other edge's
+    median offset per bin) stays; a step (lanes ending or beginning at full width on this
+    side, a gore hidden by a truck or out of reach) changes it. The width is taken where
+    both edges were seen nearest the gap on each side. The step lies at the gap's
+    middle: nothing seen tells where in it the gore is.
+    """
+    lo, hi = gap
+    if across is None or hi - lo < _GAP_MIN_M:
+        return None
+    width = level + across
+    ok = np.isfinite(width)
+    before = np.flatnonzero(ok & (centres <= lo) & (centres > lo - _GAP_REACH_M))[-_GAP_WIDTH_BINS:]
+    after = np.flatnonzero(ok & (centres >= hi) & (centres < hi + _GAP_REACH_M))[:_GAP_WIDTH_BINS]
+    if before.size < _GAP_WIDTH_BINS or after.size < _GAP_WIDTH_BINS:
+        return None
+    width_change = float(np.median(width[after]) - np.median(width[before]))
+    level_change = float(np.median(level[after]) - np.median(level[before]))
+    if abs(width_change) <= cfg.edge_step_m or width_change * level_change <= 0.0:
+        return None
+    return 0.5 * (lo + hi)
 
 
 def _jump_groups(jumps: NDArray[np.int64]) -> list[tuple[int, int]]:

@@ -60,7 +60,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     timings["frame"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    median = fit_median_edge(ref_pts, traj, config=cfg)
+    median = fit_median_edge(ref_pts, traj, config=cfg, outer_pts=outer_pts)
     geometry = fit_parampoly3_chain(median.xy, tolerance_m=cfg.fit_tolerance_m)
     timings["reference_line"] = time.perf_counter() - t0
 
@@ -390,7 +390,11 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
 
 
 def fit_median_edge(
-    ref_pts: FloatArray, traj: PolylineFrame, *, config: MainlineConfig | None = None
+    ref_pts: FloatArray,
+    traj: PolylineFrame,
+    *,
+    config: MainlineConfig | None = None,
+    outer_pts: FloatArray | None = None,
 ) -> MedianEdge:
     """The median-side road edge: a smooth reference line and the edge's steps.
 
@@ -404,6 +408,8 @@ def fit_median_edge(
     the reference line stays smooth and the steps become the centre lane's offset. Where
     a ramp's edge peels off (joins) on the median side and the edge goes on at its level
     beyond the gore (:func:`median_excursions`), the ramp's points are left out.
+    ``outer_pts`` (the other edge's points) tell a step hidden in an occlusion gap from
+    the car's own lane change there (:func:`~.edge_levels.edge_steps`).
     """
     cfg = config or MainlineConfig()
     step = cfg.grid_step_m
@@ -436,7 +442,9 @@ def fit_median_edge(
         u, edges, level = _median_levels(s, t, side, lo, hi, cfg)
         centres = 0.5 * (edges[1:] + edges[:-1])
         if it == 0 or has_steps:
-            steps = edge_steps(s, u, edges, level, config=cfg)
+            steps = edge_steps(
+                s, u, edges, level, config=cfg, across=_across(frame, outer_pts, side)
+            )
             has_steps = bool(steps.stations.size)
         # a ramp's edge peeling off on the median side is not the road's edge (in every
         # pass: the first one's bend would stay in the frames of the others)
@@ -486,8 +494,19 @@ def fit_median_edge(
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
     u, edges, level = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
-    steps = edge_steps(s_f[ok], u, edges, level, config=cfg)
+    steps = edge_steps(s_f[ok], u, edges, level, config=cfg, across=_across(frame, outer_pts, side))
     return MedianEdge(frame.xy, steps, frame.z)
+
+
+def _across(
+    frame: PolylineFrame, outer_pts: FloatArray | None, side: float
+) -> tuple[FloatArray, FloatArray] | None:
+    """The other edge's points in ``frame``: stations and offsets away from the median
+    (metres), or None without them."""
+    if outer_pts is None or outer_pts.shape[0] == 0:
+        return None
+    s, t = frame.project(outer_pts)
+    return s, -side * t
 
 
 def _bin_sums(
