@@ -126,14 +126,17 @@ def test_a_stray_level_before_an_unseen_stretch_does_not_double_the_step():
     np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -3.6], atol=0.05)
 
 
-def _gap_case(rng, outer_after: float):
+def _gap_case(rng, outer_after: float, after: float = 2.4, peel: bool = False):
     """Median-side edge 13.7 m from the car until 620 m, unseen 620-720 m (a truck), then
-    2.4 m; the other edge 6.0 m before the gap and ``outer_after`` after it, seen on
-    both sides of the gap except 720-800 m (the same truck)."""
+    ``after``; the other edge 6.0 m before the gap and ``outer_after`` after it, seen on
+    both sides of the gap except 720-800 m (the same truck). ``peel``: the exit's edge
+    is seen leaving the level over the last 8 m before the gap."""
     s0, d0 = _line(rng, 0.0, 620.0, lambda s: np.full(s.size, 13.7))
-    s1, d1 = _line(rng, 720.0, 1200.0, lambda s: np.full(s.size, 2.4))
+    s1, d1 = _line(rng, 720.0, 1200.0, lambda s: np.full(s.size, after))
     o0, a0 = _line(rng, 0.0, 620.0, lambda s: np.full(s.size, 6.0))
     o1, a1 = _line(rng, 800.0, 1200.0, lambda s: np.full(s.size, outer_after))
+    if peel:
+        d0 = np.where(s0 > 612.0, 13.7 + 0.04 * (s0 - 612.0) ** 2, d0)
     s, d = np.concatenate([s0, s1]), np.concatenate([d0, d1])
     edges = np.arange(-1.0, 1201.0, 2.0)
     across = (np.concatenate([o0, o1]), np.concatenate([a0, a1]))
@@ -156,4 +159,19 @@ def test_a_level_change_across_an_occlusion_with_the_width_kept_is_no_step():
     # The same gap, but the other edge moved out as far as this one moved in: the car
     # changed lanes unseen, the road did not change.
     steps = _gap_case(np.random.default_rng(22), outer_after=6.0 + 11.3)
+    assert steps.stations.size == 0
+
+
+def test_a_step_hidden_in_an_occlusion_lies_where_the_ramp_edge_peeled_off():
+    # The exit's edge was seen leaving the level right before the gap: the gore is there
+    steps = _gap_case(np.random.default_rng(23), outer_after=8.4, peel=True)
+    assert steps.stations.size == 1
+    assert abs(steps.stations[0] - 620.0) < 2.0
+
+
+def test_one_lane_ending_unseen_over_a_long_gap_is_bridged_as_a_taper():
+    # 3.6 m over a 100 m gap is slower than a lane taper (0.06 m/m): the fit bridges it
+    # and the lane structure around stays as seen (town06-auto-s2: a step there moved
+    # the reference line's anchor and esmini's car jumped at two junctions)
+    steps = _gap_case(np.random.default_rng(24), outer_after=6.0, after=13.7 - 3.6)
     assert steps.stations.size == 0

@@ -351,6 +351,7 @@ def edge_steps(
 _GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...
 _GAP_REACH_M = 150.0  # ... told by the width where both edges are seen this near it ...
 _GAP_WIDTH_BINS = 5  # ... in this many bins either side
+_GAP_TAPER_RATE = 0.06  # a change no faster than a taper (m/m) over the gap is bridged
 
 
 def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArray:
@@ -399,7 +400,36 @@ def _step_across_gap(
     level_change = float(np.median(level[after]) - np.median(level[before]))
     if abs(width_change) <= cfg.edge_step_m or width_change * level_change <= 0.0:
         return None
+    if abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
+        # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
+        # unseen is mapped as one that tapers over the gap, and the lane structure
+        # around stays as seen
+        return None
+    # a ramp's edge seen peeling off the higher level right at the gap (before it for an
+    # exit, after it for an entry) puts the gore at that end of the gap
+    if level_change < 0.0 and _peels_off(centres, level, lo, -1.0):
+        return lo
+    if level_change > 0.0 and _peels_off(centres, level, hi, 1.0):
+        return hi
     return 0.5 * (lo + hi)
+
+
+_PEEL_NEAR_M = 10.0  # the level this near a gap's end ...
+_PEEL_BASE_M = (12.0, 40.0)  # ... against its median this far from it ...
+_PEEL_OUT_M = 0.5  # ... lies this much farther out: a ramp's edge leaving it
+
+
+def _peels_off(centres: FloatArray, level: FloatArray, end: float, direction: float) -> bool:
+    """Whether the level path, going from the gap's ``end`` away from the gap
+    (``direction`` -1: backwards from its start, +1: onwards from its end), starts
+    more than ``_PEEL_OUT_M`` outward of the steady level beyond: the edge of a ramp that
+    leaves (joins) there."""
+    dist = direction * (centres - end)
+    near = np.isfinite(level) & (dist >= 0.0) & (dist <= _PEEL_NEAR_M)
+    base = np.isfinite(level) & (dist >= _PEEL_BASE_M[0]) & (dist <= _PEEL_BASE_M[1])
+    if not near.any() or np.count_nonzero(base) < 5:
+        return False
+    return float(np.max(level[near]) - np.median(level[base])) > _PEEL_OUT_M
 
 
 def _jump_groups(jumps: NDArray[np.int64]) -> list[tuple[int, int]]:
