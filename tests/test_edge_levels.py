@@ -175,3 +175,36 @@ def test_one_lane_ending_unseen_over_a_long_gap_is_bridged_as_a_taper():
     # the reference line's anchor and esmini's car jumped at two junctions)
     steps = _gap_case(np.random.default_rng(24), outer_after=6.0, after=13.7 - 3.6)
     assert steps.stations.size == 0
+
+
+def test_an_exit_step_lies_where_the_ramp_edge_leaves_not_at_the_nose():
+    # A left exit: the ramp's edge leaves the road's edge (12 m) at 600 m and bends away;
+    # the nose, where the new edge 3.6 m nearer the carriageway begins, is at 620 m. The
+    # leaving lane belongs to the ramp from 600 m (HD maps split there; CARLA Town06's
+    # inner exits 11-20 m before the nose), and the ramp's edge inside the gore area is
+    # not the road's.
+    rng = np.random.default_rng(31)
+    s0, d0 = _line(rng, 0.0, 620.0, lambda s: 12.0 + 0.01 * np.clip(s - 600.0, 0.0, None) ** 2)
+    s1, d1 = _line(rng, 620.0, 1200.0, lambda s: np.full(s.size, 8.4))
+    s2, d2 = _line(rng, 620.0, 660.0, lambda s: 12.0 + 0.01 * (s - 600.0) ** 2)
+    s, d = np.concatenate([s0, s1, s2]), np.concatenate([d0, d1, d2])
+    steps = _steps_of(s, d)
+    assert steps.stations.size == 1
+    assert 597.0 < steps.stations[0] < 603.0
+    np.testing.assert_allclose(steps.offsets - steps.offsets[0], [0.0, -3.6], atol=0.05)
+    (area,) = steps.areas
+    assert abs(area[1] - 620.0) < 2.0
+    ramp = steps.ramp_points(s, d)
+    assert np.all(ramp[(s > 605.0) & (s < 618.0) & (d > 12.5)])
+    assert not np.any(ramp[np.abs(d - 8.4) < 0.3])
+
+
+def test_an_entry_step_lies_where_the_ramp_edge_has_joined():
+    # Mirrored: the new edge ends at the nose (500 m) and the ramp's edge comes in from
+    # beyond (1.6 m out at the nose), reaching the road's new level (12 m) 20 m after it
+    rng = np.random.default_rng(32)
+    s0, d0 = _line(rng, 0.0, 500.0, lambda s: np.full(s.size, 8.4))
+    s1, d1 = _line(rng, 500.0, 1200.0, lambda s: 12.0 + 0.004 * np.clip(520.0 - s, 0.0, None) ** 2)
+    steps = _steps_of(np.concatenate([s0, s1]), np.concatenate([d0, d1]))
+    assert steps.stations.size == 1
+    assert 517.0 < steps.stations[0] < 523.0

@@ -26,7 +26,7 @@ Offsets ``d`` are metres from the reference edge towards the carriageway (positi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -225,6 +225,10 @@ class EdgeSteps:
 
     stations: FloatArray
     offsets: FloatArray
+    areas: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    """``(m, 3)``: per gore area (stations between a ramp's edge leaving the road's level
+    and the nose, metres), its start, its end and the level nearer the carriageway there
+    (metres, in the offsets' direction): points farther out inside it are the ramp's."""
 
     def at(self, s: FloatArray) -> FloatArray:
         """Offset (metres) of the segment each station lies in."""
@@ -239,7 +243,15 @@ class EdgeSteps:
         totals = {r: float(lengths[rounded == r].sum()) for r in np.unique(rounded)}
         base_key = max(totals, key=lambda r: (totals[r], -abs(r)))
         base = float(np.median(self.offsets[rounded == base_key]))
-        return EdgeSteps(self.stations, self.offsets - base)
+        return EdgeSteps(self.stations, self.offsets - base, self.areas)
+
+    def ramp_points(self, s: FloatArray, u: FloatArray) -> NDArray[np.bool_]:
+        """Mask of points (stations, offsets, metres) of a ramp's edge inside a gore area:
+        more than 0.8 m farther out than the level nearer the carriageway there."""
+        out = np.zeros(np.shape(s), dtype=bool)
+        for a, b, low in self.areas:
+            out |= (s > a) & (s < b) & (u > low + 0.8)
+        return out
 
 
 def edge_steps(
@@ -270,17 +282,27 @@ def edge_steps(
     if seen.size < 2:
         return EdgeSteps(np.zeros(0), np.zeros(1))
     jumps = np.flatnonzero(np.abs(np.diff(level[seen])) > cfg.edge_step_m)
-    found: list[list[float]] = []  # [station, level before, level after] per step
+    # [station, level before, level after, gore area or None] per step
+    found: list[list] = []
     across_bins: FloatArray | None = None
     for j_first, j in _jump_groups(jumps):
         before = float(np.median(level[seen[max(j_first - 4, 0) : j_first + 1]]))
         after = float(np.median(level[seen[j + 1 : j + 6]]))
         guess = 0.5 * (centres[seen[j_first]] + centres[seen[j_first + 1]])
         station = refine_step(s, u, guess, min(before, after), starts=after < before)
-        if (
-            np.count_nonzero((s >= station - 5.0) & (s < station)) < 3
-            or np.count_nonzero((s > station) & (s <= station + 5.0)) < 3
-        ):
+        seen_both_sides = (
+            np.count_nonzero((s >= station - 5.0) & (s < station)) >= 3
+            and np.count_nonzero((s > station) & (s <= station + 5.0)) >= 3
+        )
+        area = None
+        if seen_both_sides:
+            start = _gore_area_start(
+                centres, level, station, min(before, after), exit_=after < before
+            )
+            if start is not None:
+                area = (min(start, station), max(start, station), min(before, after))
+                station = start
+        else:
             gap = (centres[seen[j_first]], centres[seen[j_first + 1]])
             if across is not None and across_bins is None:
                 across_bins = _bin_medians(across[0], across[1], edges_s)
@@ -293,12 +315,13 @@ def edge_steps(
             # step's size doubles and every later segment moves (town06-auto-s7: 3.7 m)
             found[-1][2] = after
             continue
-        found.append([station, before, after])
+        found.append([station, before, after, area])
     found = [f for f in found if abs(f[2] - f[1]) > cfg.edge_step_m]
     stations = [f[0] for f in found]
     sizes = [f[2] - f[1] for f in found]
     if not stations:
         return EdgeSteps(np.zeros(0), np.zeros(1))
+    areas = np.array([f[3] for f in found if f[3] is not None], dtype=float).reshape(-1, 3)
     order = np.argsort(stations)
     st = np.asarray(stations)[order]
     # Offsets sum the step sizes. A step between two segments whose points lie on one
@@ -309,7 +332,9 @@ def edge_steps(
     # segment's ``u`` wanders (the car changed lanes, the edge diverges at a split) its
     # median means nothing, and the step is measured from the points 10-50 m either side.
     path = np.interp(s, centres[seen], level[seen])
-    on_level = np.abs(u - path) < 0.8
+    on_level = (np.abs(u - path) < 0.8) & ~EdgeSteps(st, np.zeros(st.size + 1), areas).ramp_points(
+        s, u
+    )
     bounds = np.concatenate([[float(edges_s[0])], st, [float(edges_s[-1])]])
     seg = np.searchsorted(st, s)
     median = np.full(st.size + 1, np.nan)
@@ -344,8 +369,48 @@ def edge_steps(
     if steady.any():
         lengths = np.diff(bounds)[steady]
         anchor = _weighted_median(median[steady] - offsets[steady], lengths)
-        return EdgeSteps(st, offsets + anchor)
-    return EdgeSteps(st, offsets).from_base(float(edges_s[0]), float(edges_s[-1]))
+        return EdgeSteps(st, offsets + anchor, areas)
+    return EdgeSteps(st, offsets, areas).from_base(float(edges_s[0]), float(edges_s[-1]))
+
+
+_AREA_MAX_M = 60.0  # a ramp's edge leaves the road's level at most this far from the nose
+_AREA_SLOPE_M = 0.04  # it moves out by this much per 2 m bin at least ...
+_AREA_RISE_M = 0.5  # ... and this much in all by the nose
+_AREA_NEAR_M = 10.0  # seen this near the nose (the last metres of a gore may be unseen)
+
+
+def _gore_area_start(
+    centres: FloatArray, level: FloatArray, nose: float, low: float, *, exit_: bool
+) -> float | None:
+    """Where a ramp's edge leaves (joins) the road's level before (after) a step's nose
+    (metres): the start of the gore area, or None where the level holds up to the nose.
+
+    At an exit the ramp's edge peels off the edge the road had before the gore and the
+    level path follows it outward up to the nose, where the new edge nearer the
+    carriageway begins (an entry mirrored). Between the two the lanes that leave already
+    belong to the ramp: the road's edge there is the new one (HD maps split the road
+    where the lanes' borders part; a map cut at the nose keeps the leaving lanes straight
+    on the road while the ramp's pavement bends away, 11 m at CARLA Town06's first inner
+    exit). Walking from the nose into the higher level's side, the gore area goes on
+    while the level keeps coming in by ``_AREA_SLOPE_M`` per bin or more; ``low`` is the
+    level nearer the carriageway (metres), whose bins next to the nose are not the ramp's.
+    """
+    direction = -1.0 if exit_ else 1.0  # from the nose into the higher level's side
+    dist = direction * (centres - nose)
+    high = np.isfinite(level) & (level > low + 1.0)
+    idx = np.flatnonzero((dist > -2.0) & (dist <= _AREA_MAX_M) & high)
+    if idx.size < 2:
+        return None
+    idx = idx[np.argsort(dist[idx])]  # nearest the nose first
+    if dist[idx[0]] > _AREA_NEAR_M:
+        return None  # the ramp's edge was not seen near the nose
+    gaps = np.diff(dist[idx]) > 2.5  # an unseen bin ends the walk
+    falls = -np.diff(level[idx]) >= _AREA_SLOPE_M
+    walk = falls & ~gaps
+    k = int(np.argmin(walk)) if not walk.all() else walk.size
+    if k == 0 or float(level[idx[0]] - level[idx[k]]) < _AREA_RISE_M:
+        return None
+    return nose + direction * (float(dist[idx[k]]) + 1.0)
 
 
 _GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...

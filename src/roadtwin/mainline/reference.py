@@ -283,7 +283,7 @@ def _smoothest_steps(
         # curve, a ramp edge converging at a merge) keeps the measured size
         if min(scores) < 0.5 * score(0.0):
             offsets[k + 1 :] += float(fine[int(np.argmin(scores))])
-    return EdgeSteps(steps.stations, offsets)
+    return EdgeSteps(steps.stations, offsets, steps.areas)
 
 
 def _median_levels(
@@ -457,7 +457,7 @@ def fit_median_edge(
         if has_steps:
             # points on the edge's own level, each segment moved onto the base level
             path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
-            near = np.abs(u - path) < 0.8
+            near = (np.abs(u - path) < 0.8) & ~steps.ramp_points(s, u)
             if it > 0:
                 steps = _smoothest_steps(frame, s[near], t[near], side, steps, cfg)
             shift = steps.from_base(lo, hi)
