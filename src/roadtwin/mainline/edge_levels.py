@@ -356,9 +356,14 @@ def edge_steps(
         if np.isfinite(median[k]) and np.isfinite(median[k + 1]):
             sized[k] = median[k + 1] - median[k]
             continue
-        lo, hi = max(bounds[k], station - 50.0), min(bounds[k + 2], station + 50.0)
-        before = on_level & (s >= lo) & (s < station - 10.0)
-        after = on_level & (s > station + 10.0) & (s <= hi)
+        # 10 m clear of the step and of its gore area (the new edge next to a nose may
+        # still be coming in)
+        near = areas[(areas[:, 0] <= station + 1e-6) & (areas[:, 1] >= station - 1e-6)]
+        a0, a1 = (float(near[0, 0]), float(near[0, 1])) if near.size else (station, station)
+        lo = max(bounds[k], a0 - 50.0)
+        hi = min(bounds[k + 2], a1 + 50.0)
+        before = on_level & (s >= lo) & (s < a0 - 10.0)
+        after = on_level & (s > a1 + 10.0) & (s <= hi)
         if np.count_nonzero(before) >= 10 and np.count_nonzero(after) >= 10:
             sized[k] = float(np.median(u[after]) - np.median(u[before]))
     offsets = np.concatenate([[0.0], np.cumsum(sized)])
