@@ -208,3 +208,13 @@ def test_an_entry_step_lies_where_the_ramp_edge_has_joined():
     steps = _steps_of(np.concatenate([s0, s1]), np.concatenate([d0, d1]))
     assert steps.stations.size == 1
     assert 517.0 < steps.stations[0] < 523.0
+
+
+def test_a_step_station_belongs_to_the_segment_it_begins():
+    # The lane section after a step starts at its station; evaluated there with the
+    # offset before the step, the inner shoulder of a noisier oakland run began 11.5 m
+    # wide and the seal left a 1 m bump that made esmini's car jump
+    from roadtwin.mainline.edge_levels import EdgeSteps
+
+    steps = EdgeSteps(np.array([1375.0]), np.array([0.0, -10.9]))
+    np.testing.assert_allclose(steps.at(np.array([1374.9, 1375.0, 1375.1])), [0.0, -10.9, -10.9])

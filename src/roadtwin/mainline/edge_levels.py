@@ -228,11 +228,13 @@ class EdgeSteps:
     areas: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     """``(m, 3)``: per gore area (stations between a ramp's edge leaving the road's level
     and the nose, metres), its start, its end and the level nearer the carriageway there
-    (metres, in the offsets' direction): points farther out inside it are the ramp's."""
+    (metres, in the offsets' direction): points farther out inside it are the ramp's. A
+    step hidden in an occlusion gap has the gap as its area (level ``inf``)."""
 
     def at(self, s: FloatArray) -> FloatArray:
-        """Offset (metres) of the segment each station lies in."""
-        return self.offsets[np.searchsorted(self.stations, np.asarray(s, dtype=float))]
+        """Offset (metres) of the segment each station lies in (a step's own station
+        lies in the segment it begins: the lane section starting there)."""
+        return self.offsets[np.searchsorted(self.stations, np.asarray(s, dtype=float), "right")]
 
     def from_base(self, start_m: float, end_m: float) -> EdgeSteps:
         """The same steps with offsets relative to the base level: the level the longest
@@ -309,6 +311,8 @@ def edge_steps(
             station = _step_across_gap(gap, centres, level, across_bins, cfg)
             if station is None:
                 continue
+            # sized from either side of the gap (nothing of the step was seen in it)
+            area = (float(gap[0]), float(gap[1]), np.inf)
         if found and abs(station - found[-1][0]) < _STEP_MERGE_M:
             # a level held for a bin or two at a step (a stray point, a ramp edge
             # crossing) makes two jumps that refine to one station; counted twice, the
