@@ -426,6 +426,9 @@ _GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...
 _GAP_REACH_M = 150.0  # ... told by the width where both edges are seen this near it ...
 _GAP_WIDTH_BINS = 5  # ... in this many bins either side
 _GAP_TAPER_RATE = 0.06  # a change no faster than a taper (m/m) over the gap is bridged
+_GAP_STEP_MIN_M = 5.0  # a smaller change may be the car's own lane change while the other
+# edge moved with lanes added or dropped there (oakland-28393854-opp, an outer entry
+# hidden in the same gap): bridged
 
 
 def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArray:
@@ -474,7 +477,7 @@ def _step_across_gap(
     level_change = float(np.median(level[after]) - np.median(level[before]))
     if abs(width_change) <= cfg.edge_step_m or width_change * level_change <= 0.0:
         return None
-    if abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
+    if abs(level_change) < _GAP_STEP_MIN_M or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
         # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
         # unseen is mapped as one that tapers over the gap, and the lane structure
         # around stays as seen
