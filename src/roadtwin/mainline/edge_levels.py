@@ -308,7 +308,7 @@ def edge_steps(
             gap = (centres[seen[j_first]], centres[seen[j_first + 1]])
             if across is not None and across_bins is None:
                 across_bins = _bin_medians(across[0], across[1], edges_s)
-            station = _step_across_gap(gap, centres, level, across_bins, cfg)
+            station = _step_across_gap(gap, after - before, centres, level, across_bins, cfg)
             if station is None:
                 continue
             # sized from either side of the gap (nothing of the step was seen in it)
@@ -426,6 +426,8 @@ _GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...
 _GAP_REACH_M = 150.0  # ... told by the width where both edges are seen this near it ...
 _GAP_WIDTH_BINS = 5  # ... in this many bins either side
 _GAP_TAPER_RATE = 0.06  # a change no faster than a taper (m/m) over the gap is bridged
+_GAP_HELD_M = 30.0  # both levels seen over this much next to the gap ...
+_GAP_HELD_BINS = 10  # ... in this many bins at least
 _GAP_STEP_MIN_M = 5.0  # a smaller change may be the car's own lane change while the other
 # edge moved with lanes added or dropped there (oakland-28393854-opp, an outer entry
 # hidden in the same gap): bridged
@@ -448,14 +450,15 @@ def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArra
 
 def _step_across_gap(
     gap: tuple[float, float],
+    level_change: float,
     centres: FloatArray,
     level: FloatArray,
     across: FloatArray | None,
     cfg: MainlineConfig,
 ) -> float | None:
-    """Station (metres) of a step whose level change falls in the unseen stretch ``gap``
-    (the centres of the seen bins either side), or None where the change is the car's
-    own sideways move.
+    """Station (metres) of a step whose level change (``level_change``, metres, between
+    the levels either side) falls in the unseen stretch ``gap`` (the centres of the seen
+    bins either side), or None where the change is the car's own sideways move.
 
     A lane change of the car moves both edges by the same amount in opposite directions,
     so the carriageway's width (this edge's level plus ``across``, the other edge's
@@ -467,6 +470,11 @@ def _step_across_gap(
     lo, hi = gap
     if across is None or hi - lo < _GAP_MIN_M:
         return None
+    seen = np.isfinite(level)
+    held_before = seen & (centres <= lo) & (centres > lo - _GAP_HELD_M)
+    held_after = seen & (centres >= hi) & (centres < hi + _GAP_HELD_M)
+    if min(np.count_nonzero(held_before), np.count_nonzero(held_after)) < _GAP_HELD_BINS:
+        return None  # a level seen only briefly next to the gap may be a bend's
     width = level + across
     ok = np.isfinite(width)
     before = np.flatnonzero(ok & (centres <= lo) & (centres > lo - _GAP_REACH_M))[-_GAP_WIDTH_BINS:]
@@ -474,7 +482,6 @@ def _step_across_gap(
     if before.size < _GAP_WIDTH_BINS or after.size < _GAP_WIDTH_BINS:
         return None
     width_change = float(np.median(width[after]) - np.median(width[before]))
-    level_change = float(np.median(level[after]) - np.median(level[before]))
     if abs(width_change) <= cfg.edge_step_m or width_change * level_change <= 0.0:
         return None
     if abs(level_change) < _GAP_STEP_MIN_M or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
