@@ -428,9 +428,11 @@ _GAP_WIDTH_BINS = 5  # ... in this many bins either side
 _GAP_TAPER_RATE = 0.06  # a change no faster than a taper (m/m) over the gap is bridged
 _GAP_HELD_M = 30.0  # both levels seen over this much next to the gap ...
 _GAP_HELD_BINS = 10  # ... in this many bins at least
-_GAP_STEP_MIN_M = 5.0  # a smaller change may be the car's own lane change while the other
-# edge moved with lanes added or dropped there (oakland-28393854-opp, an outer entry
-# hidden in the same gap): bridged
+_GAP_STEP_MIN_M = 7.5  # a smaller change (two lanes and a shoulder) is bridged: the car's
+# own lane change while the other edge moved in the same gap (oakland-28393854-opp, an
+# outer entry hidden in it), or two lanes fanning out on the median side over the gap
+# (melbourne-921-s2 and -408-opp, noisier: a step there put the edge 0.2-0.4 m off);
+# a fork of three or more lanes cannot be bridged (oakland-28393854-lane1: 1.5 m off)
 
 
 def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArray:
