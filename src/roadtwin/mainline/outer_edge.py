@@ -19,7 +19,7 @@ from ._common import (
     robust_offset_fit,
     true_runs,
 )
-from .edge_levels import _gore_area_start, edge_level_path, refine_step
+from .edge_levels import edge_level_path, refine_step
 from .gores import (
     ShoulderTaper,
 )
@@ -118,36 +118,16 @@ def fit_outer_edge(
     # or ends (step up, an entry gore) where the edge jumps (the high level goes on as
     # the ramp's edge, so only the low level tells)
     sv, dv = s[ok], d[ok]
-    lows = np.zeros(breaks.size)
     for n, j in enumerate(jumps):
         q0, q1 = q[qi[j]], q[qi[j + 1]]
-        lows[n] = min(q0, q1)
-        breaks[n] = refine_step(sv, dv, float(breaks[n]), lows[n], starts=q1 < q0)
+        breaks[n] = refine_step(sv, dv, float(breaks[n]), min(q0, q1), starts=q1 < q0)
     # a real step has edge points right before and after it; an occlusion gap has none
-    real = np.array(
-        [
-            np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
-            and np.count_nonzero((sv > b) & (sv <= b + 5.0)) >= 3
-            for b in breaks
-        ],
-        dtype=bool,
-    )
-    # a step lies where the ramp's edge leaves (joins) the road's, not at the nose; the
-    # ramp's edge in the gore area between is not the road's
-    areas = []
-    for n in np.flatnonzero(real):
-        q0, q1 = q[qi[jumps[n]]], q[qi[jumps[n] + 1]]
-        start = _gore_area_start(cgrid, q, float(breaks[n]), lows[n], exit_=q1 < q0)
-        if start is not None:
-            areas.append((min(start, breaks[n]), max(start, breaks[n]), lows[n]))
-            breaks[n] = start
-    breaks = breaks[real] if breaks.size else breaks
-    in_area = np.zeros(cgrid.size, dtype=bool)
-    ramp = np.zeros(s.size, dtype=bool)
-    for a0, a1, low in areas:
-        in_area |= (cgrid >= a0) & (cgrid < a1)
-        ramp |= (s >= a0) & (s < a1) & (d > low + 0.8)
-    q_raw = np.where(in_area, np.nan, q_raw)
+    real = [
+        np.count_nonzero((sv >= b - 5.0) & (sv < b)) >= 3
+        and np.count_nonzero((sv > b) & (sv <= b + 5.0)) >= 3
+        for b in breaks
+    ]
+    breaks = breaks[np.asarray(real, dtype=bool)] if breaks.size else breaks
     if hidden_steps is not None and len(hidden_steps):
         breaks = np.sort(np.concatenate([breaks, np.asarray(hidden_steps, dtype=float)]))
     # kept off the grid: a lane section starts exactly at a step (the first grid station of
@@ -163,13 +143,10 @@ def fit_outer_edge(
             qf[sel_b] = moving_median(q_raw[sel_b], window=5)
     qf = _fill_nan(cgrid, qf)
     ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
-    used = ok & (np.abs(d - ref) < 0.8) & ~ramp
+    used = ok & (np.abs(d - ref) < 0.8)
     out = np.full(grid.size, np.nan)
-    grid_in_area = np.zeros(grid.size, dtype=bool)
-    for a0, a1, _ in areas:
-        grid_in_area |= (grid >= a0) & (grid < a1)
     for a, b in itertools.pairwise(bounds):
-        gsel = (grid >= a) & (grid < b) & ~grid_in_area
+        gsel = (grid >= a) & (grid < b)
         psel = used & (s >= a) & (s < b)
         if np.count_nonzero(gsel) < 4 or np.count_nonzero(psel) < 10:
             continue
@@ -190,15 +167,6 @@ def fit_outer_edge(
         covered = near < 3.0
     else:
         covered = np.zeros(grid.size, dtype=bool)
-    for a0, a1, _ in areas:
-        # the road's edge in a gore area is the level nearer the carriageway (nothing of it
-        # is seen there): held from the area's end on the road's side
-        inside = (grid >= a0) & (grid < a1)
-        exit_side = bool(np.any(np.isclose(breaks, a0)))
-        hold = grid >= a1 if exit_side else grid < a0
-        if inside.any() and hold.any():
-            k = int(np.argmax(hold)) if exit_side else int(np.flatnonzero(hold)[-1])
-            out[inside] = out[k]
     if np.all(np.isnan(out)):
         out = _fill_nan(grid, np.interp(grid, cgrid, qf))
     else:
