@@ -1653,3 +1653,20 @@ def test_markings_beside_a_median_edge_below_the_reference_line_are_measured():
     assert len(driving) == 4
     innermost = min(driving, key=lambda ln: abs(ln.id))
     assert float(innermost.width.value(np.array([100.0]))[0]) == pytest.approx(4.0, abs=0.05)
+
+
+def test_extreme_markings_are_held_over_the_half_window_at_the_run_ends():
+    """The innermost marking's moving median at a run's start, where the inner lines are
+    seen only from 19 m on (the outer line alone before), flips between lines over the
+    cut-short windows; held at the first full window's value it does not (town06-auto-s2:
+    inferred inner lanes 1.7 m aside over the first 10 m, a step esmini's car met)."""
+    from roadtwin.fitting import moving_median
+    from roadtwin.mainline.markings import _held_at_ends
+
+    raw = np.concatenate([np.full(8, np.nan), np.full(10, 18.62), [11.62], np.full(200, 8.11)])
+    window = 41
+    smooth = np.where(np.isfinite(raw), moving_median(raw, window=window), np.nan)
+    assert np.nanmax(np.abs(smooth[8:30] - 8.11)) > 1.0  # the flip
+    held = _held_at_ends(smooth, window)
+    np.testing.assert_allclose(held[8:], 8.11, atol=1e-9)
+    assert np.all(np.isnan(held[:8]))

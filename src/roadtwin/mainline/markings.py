@@ -917,6 +917,23 @@ def _wide_lane_lines(
     return out
 
 
+def _held_at_ends(values: FloatArray, window: int) -> FloatArray:
+    """``values`` (a moving median over ``window`` columns) held at the first (last) full
+    window's value over the half window at each end of the run: there the window is cut
+    short, and where the inner markings are seen only a few metres after the run starts
+    the median of the few columns there flips between two lines (town06-auto-s2: the
+    inferred inner lanes 1.7 m aside over the first 10 m, a step a car drove into)."""
+    out = values.copy()
+    idx = np.flatnonzero(np.isfinite(values))
+    if idx.size <= window:
+        return out
+    half = window // 2
+    first, last = idx[0] + half, idx[-1] - half
+    out[idx[0] : first] = values[first]
+    out[last + 1 : idx[-1] + 1] = values[last]
+    return out
+
+
 def _add_hidden_lanes(
     tracks: list[_Track],
     grid: FloatArray,
@@ -966,8 +983,8 @@ def _add_hidden_lanes(
     # starts a few metres late (at the run's start) or stops early, the extreme marking
     # jumps by lanes for those metres, and lanes inferred from it would jump with it
     window = max(3, round(_HIDDEN_SMOOTH_M / cfg.grid_step_m) | 1)
-    d_last = np.where(has, moving_median(d_last, window=window), np.nan)
-    d_first = np.where(has, moving_median(d_first, window=window), np.nan)
+    d_last = _held_at_ends(np.where(has, moving_median(d_last, window=window), np.nan), window)
+    d_first = _held_at_ends(np.where(has, moving_median(d_first, window=window), np.nan), window)
     min_run = math.ceil(cfg.lane_min_track_m / cfg.grid_step_m)
     min_run_seen = math.ceil(_SEEN_BEYOND_MIN_M / cfg.grid_step_m)
     out = list(tracks)
