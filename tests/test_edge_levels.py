@@ -140,7 +140,7 @@ def _gap_case(rng, outer_after: float, after: float = 2.4, peel: bool = False):
     s, d = np.concatenate([s0, s1]), np.concatenate([d0, d1])
     edges = np.arange(-1.0, 1201.0, 2.0)
     across = (np.concatenate([o0, o1]), np.concatenate([a0, a1]))
-    return edge_steps(s, d, edges, edge_level_path(s, d, edges), across=across)
+    return edge_steps(s, d, edges, edge_level_path(s, d, edges), across=lambda: across)
 
 
 def test_a_step_hidden_in_an_occlusion_is_told_by_the_carriageway_width():

@@ -559,8 +559,8 @@ class Road:
         superelevation, so a point at ``t`` lies ``t cos(roll)`` from the reference line
         in plan and ``t sin(roll)`` above it (the ASAM checker places borders so)."""
         if self.superelevation is None or not self.superelevation.pieces:
-            return 1.0
-        return np.cos(self.superelevation.value(s))
+            return 1.0  # the common flat road: no array to build
+        return np.cos(self.roll(s))
 
     def to_xy(self, s: ArrayLike, t: ArrayLike) -> FloatArray:
         """Frenet ``(s, t)`` -> mapping-frame ``(N, 2)`` points (t left positive).
@@ -574,10 +574,7 @@ class Road:
     def surface_height(self, s: ArrayLike, t: ArrayLike) -> FloatArray:
         """Height z (metres, mapping frame) of the road surface at Frenet ``(s, t)``:
         elevation plus ``t sin(roll)``."""
-        z = self.elevation.value(s)
-        if self.superelevation is None or not self.superelevation.pieces:
-            return z + 0.0 * np.asarray(t, dtype=float)
-        return z + np.asarray(t, dtype=float) * np.sin(self.superelevation.value(s))
+        return self.elevation.value(s) + np.asarray(t, dtype=float) * np.sin(self.roll(s))
 
     # -- lanes --------------------------------------------------------------
 

@@ -53,7 +53,7 @@ from .model import (
     chain_geometry,
     continue_width,
 )
-from .ramps import Ramp, hermite_piece
+from .ramps import Ramp, hermite_piece, width_transition
 from .ramps.records import FloatArray
 
 log = logging.getLogger(__name__)
@@ -222,10 +222,7 @@ def hermite_road(
     driving_k = [k for k, t in enumerate(types[:n], start=1) if t != "shoulder"]
     last_driving = driving_k[-1] if driving_k else n
     for k, (wa, wb) in enumerate(zip(widths_start, widths_end, strict=False), start=1):
-        dw = float(wb) - float(wa)
-        width = CubicProfile(
-            (CubicPiece(0.0, float(wa), 0.0, 3.0 * dw / length**2, -2.0 * dw / length**3),)
-        )
+        width = CubicProfile(width_transition(float(wa), float(wb), length)[:1])
         if types[k - 1] == "shoulder":
             mark = "solid" if k < last_driving else "none"
         else:
@@ -247,11 +244,7 @@ def hermite_road(
     z0, z1 = heights
     r0, r1 = (float(r) for r in rolls)
     superelevation = (
-        None
-        if r0 == 0.0 and r1 == 0.0
-        else CubicProfile(
-            (CubicPiece(0.0, r0, 0.0, 3.0 * (r1 - r0) / length**2, -2.0 * (r1 - r0) / length**3),)
-        )
+        None if r0 == 0.0 and r1 == 0.0 else CubicProfile(width_transition(r0, r1, length)[:1])
     )
     return Road(
         id=road_id,

@@ -26,6 +26,7 @@ Offsets ``d`` are metres from the reference edge towards the carriageway (positi
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -248,12 +249,19 @@ class EdgeSteps:
         return EdgeSteps(self.stations, self.offsets - base, self.areas)
 
     def ramp_points(self, s: FloatArray, u: FloatArray) -> NDArray[np.bool_]:
-        """Mask of points (stations, offsets, metres) of a ramp's edge inside a gore area:
-        more than 0.8 m farther out than the level nearer the carriageway there."""
-        out = np.zeros(np.shape(s), dtype=bool)
-        for a, b, low in self.areas:
-            out |= (s > a) & (s < b) & (u > low + 0.8)
-        return out
+        """Mask of points (stations, offsets, metres) of a ramp's edge inside a gore area
+        (:func:`_ramp_points`)."""
+        return _ramp_points(self.areas, s, u)
+
+
+def _ramp_points(areas: FloatArray, s: FloatArray, u: FloatArray) -> NDArray[np.bool_]:
+    """Mask of points (stations, offsets, metres) of a ramp's edge inside a gore area
+    (rows of :attr:`EdgeSteps.areas`): more than 0.8 m farther out than the level nearer
+    the carriageway there."""
+    out = np.zeros(np.shape(s), dtype=bool)
+    for a, b, low in areas:
+        out |= (s > a) & (s < b) & (u > low + 0.8)
+    return out
 
 
 def edge_steps(
@@ -263,7 +271,7 @@ def edge_steps(
     level: FloatArray,
     *,
     config: MainlineConfig | None = None,
-    across: tuple[FloatArray, FloatArray] | None = None,
+    across: Callable[[], tuple[FloatArray, FloatArray] | None] | None = None,
 ) -> EdgeSteps:
     """The steps of a level path (:func:`edge_level_path`) and each segment's offset.
 
@@ -273,8 +281,8 @@ def edge_steps(
     it, its station where the level nearer the carriageway starts or ends
     (:func:`refine_step`). Across an occlusion gap (no points right before or after the
     change) the level also moves where the car changed lanes unseen; it is a step only
-    where ``across`` (the other edge's points: stations and offsets away from this edge,
-    metres, same frame) says the carriageway's width changed with it
+    where ``across`` (called only then: the other edge's points, stations and offsets away
+    from this edge, metres, same frame) says the carriageway's width changed with it
     (:func:`_step_across_gap`), at the gap's middle. Each segment's offset is the median
     ``u`` of its points on the path, 10 m clear of its steps where it has enough of them.
     """
@@ -307,7 +315,9 @@ def edge_steps(
         else:
             gap = (centres[seen[j_first]], centres[seen[j_first + 1]])
             if across is not None and across_bins is None:
-                across_bins = _bin_medians(across[0], across[1], edges_s)
+                other = across()
+                if other is not None:
+                    across_bins = _bin_medians(other[0], other[1], edges_s)
             station = _step_across_gap(gap, after - before, centres, level, across_bins, cfg)
             if station is None:
                 continue
@@ -320,14 +330,13 @@ def edge_steps(
             found[-1][2] = after
             continue
         found.append([station, before, after, area])
-    found = [f for f in found if abs(f[2] - f[1]) > cfg.edge_step_m]
-    stations = [f[0] for f in found]
-    sizes = [f[2] - f[1] for f in found]
-    if not stations:
+    found = sorted((f for f in found if abs(f[2] - f[1]) > cfg.edge_step_m), key=lambda f: f[0])
+    if not found:
         return EdgeSteps(np.zeros(0), np.zeros(1))
+    st = np.array([f[0] for f in found])
     areas = np.array([f[3] for f in found if f[3] is not None], dtype=float).reshape(-1, 3)
-    order = np.argsort(stations)
-    st = np.asarray(stations)[order]
+    # per step the stretch its size is measured clear of: its gore area, or its station
+    clear = np.array([(f[0], f[0]) if f[3] is None else f[3][:2] for f in found], dtype=float)
     # Offsets sum the step sizes. A step between two segments whose points lie on one
     # level each (``u`` steady: the line it is measured from runs parallel to the edge)
     # is the difference of their medians, 10 m clear of the steps; the level bins next
@@ -336,9 +345,7 @@ def edge_steps(
     # segment's ``u`` wanders (the car changed lanes, the edge diverges at a split) its
     # median means nothing, and the step is measured from the points 10-50 m either side.
     path = np.interp(s, centres[seen], level[seen])
-    on_level = (np.abs(u - path) < 0.8) & ~EdgeSteps(st, np.zeros(st.size + 1), areas).ramp_points(
-        s, u
-    )
+    on_level = (np.abs(u - path) < 0.8) & ~_ramp_points(areas, s, u)
     bounds = np.concatenate([[float(edges_s[0])], st, [float(edges_s[-1])]])
     seg = np.searchsorted(st, s)
     median = np.full(st.size + 1, np.nan)
@@ -355,15 +362,14 @@ def edge_steps(
             q_med = [np.median(u_pick[quarter == q]) for q in range(4) if np.any(quarter == q)]
             if np.ptp(q_med) < _STEADY_SPREAD_M:
                 median[k] = float(np.median(u_pick))
-    sized = np.asarray(sizes, dtype=float)[order]
-    for k, station in enumerate(st):
+    sized = np.array([f[2] - f[1] for f in found])
+    for k in range(st.size):
         if np.isfinite(median[k]) and np.isfinite(median[k + 1]):
             sized[k] = median[k + 1] - median[k]
             continue
         # 10 m clear of the step and of its gore area (the new edge next to a nose may
         # still be coming in)
-        near = areas[(areas[:, 0] <= station + 1e-6) & (areas[:, 1] >= station - 1e-6)]
-        a0, a1 = (float(near[0, 0]), float(near[0, 1])) if near.size else (station, station)
+        a0, a1 = clear[k]
         lo = max(bounds[k], a0 - 50.0)
         hi = min(bounds[k + 2], a1 + 50.0)
         before = on_level & (s >= lo) & (s < a0 - 10.0)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from collections.abc import Callable
@@ -443,7 +444,12 @@ def fit_median_edge(
         centres = 0.5 * (edges[1:] + edges[:-1])
         if it == 0 or has_steps:
             steps = edge_steps(
-                s, u, edges, level, config=cfg, across=_across(frame, outer_pts, side)
+                s,
+                u,
+                edges,
+                level,
+                config=cfg,
+                across=functools.partial(_across, frame, outer_pts, side),
             )
             has_steps = bool(steps.stations.size)
         # a ramp's edge peeling off on the median side is not the road's edge (in every
@@ -494,7 +500,14 @@ def fit_median_edge(
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
     u, edges, level = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
-    steps = edge_steps(s_f[ok], u, edges, level, config=cfg, across=_across(frame, outer_pts, side))
+    steps = edge_steps(
+        s_f[ok],
+        u,
+        edges,
+        level,
+        config=cfg,
+        across=functools.partial(_across, frame, outer_pts, side),
+    )
     return MedianEdge(frame.xy, steps, frame.z)
 
 

@@ -372,17 +372,9 @@ def _roll_from_attachment(roll: float, length: float, *, at_start: bool) -> Cubi
         return None
     blend = min(_ROLL_BLEND_M, 0.5 * length)
     if at_start:
-        return CubicProfile(
-            (
-                CubicPiece(0.0, roll, 0.0, -3.0 * roll / blend**2, 2.0 * roll / blend**3),
-                CubicPiece(blend, 0.0),
-            )
-        )
+        return CubicProfile(width_transition(roll, 0.0, blend))
     return CubicProfile(
-        (
-            CubicPiece(0.0, 0.0),
-            CubicPiece(length - blend, 0.0, 0.0, 3.0 * roll / blend**2, -2.0 * roll / blend**3),
-        )
+        (CubicPiece(0.0, 0.0), width_transition(0.0, roll, blend, s0=length - blend)[0])
     )
 
 
