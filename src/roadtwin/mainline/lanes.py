@@ -18,6 +18,7 @@ from ._common import (
     BoundaryTrack,
     LaneEvent,
     _grid,
+    true_runs,
 )
 from .edge_levels import EdgeSteps
 from .edge_lines import split_edge_lines_at_steps
@@ -42,6 +43,22 @@ def _car_offset(car: tuple[FloatArray, FloatArray] | None, grid: FloatArray) -> 
     if car is None or car[0].size < 2:
         return None
     return np.interp(grid, car[0], car[1])
+
+
+def _edge_bound(d_edge: FloatArray, covered: NDArray[np.bool_]) -> FloatArray:
+    """The outer edge as a bound for the lane markings: the edge where it was seen, and in
+    an occlusion gap the widest of the edge at the gap's ends and the fit across it.
+
+    The smoother bridging a gap carries a taper's slope on past the last point (a hard
+    shoulder narrowing into the gap of a9-10959882-s1 with a noisier sensor: 1.6 m inside
+    the outermost line, whose 107 m of samples were cut off as beyond the edge and its lane
+    ended); the markings that were seen there decide where the lanes are.
+    """
+    bound = d_edge.copy()
+    for a, b in true_runs(~covered):
+        ends = d_edge[[max(a - 1, 0), min(b, d_edge.size - 1)]]
+        bound[a:b] = max(float(np.max(ends)), float(np.max(d_edge[a:b])))
+    return bound
 
 
 def fit_lanes(
@@ -91,7 +108,7 @@ def fit_lanes(
     keep = (s_lane >= 0) & (s_lane <= length)
     keep &= d_lane > np.interp(s_lane, grid, d_median) - 0.5
     if np.all(np.isfinite(d_edge)):
-        keep &= d_lane < np.interp(s_lane, grid, d_edge) + 0.3
+        keep &= d_lane < np.interp(s_lane, grid, _edge_bound(d_edge, covered)) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
     # on a segment between median-side gores the median edge lies below the reference
     # line, and so do its lanes' markings (Town06's inner shoulder line, 2.4 m below: never

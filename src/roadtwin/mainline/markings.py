@@ -106,6 +106,22 @@ def _find_track_peaks(
     return centres, peaks
 
 
+_SETTLE_GAP_M = 25.0  # a line may go on at its last offset across at most this gap ...
+_SETTLE_SLOPE = 0.04  # ... if it was moving no faster than a lane taper (m/m, 3.5 m in 90 m)
+_SETTLE_LINK_M = 0.25  # ... and is seen again this close to its last offset (metres)
+
+
+def _settled_offset(track: _RawTrack, col: int, column_m: float) -> float:
+    """The offset (metres) at which ``track`` may go on in column ``col`` (to within
+    ``_SETTLE_LINK_M``) if its trend does not explain any peak there: its last offset,
+    when it missed one column or more, but no more than ``_SETTLE_GAP_M``, while moving no
+    faster than a taper; else inf."""
+    gap = col - track.cols[-1]
+    if gap < 2 or gap * column_m > _SETTLE_GAP_M or abs(track.slope) > _SETTLE_SLOPE * column_m:
+        return np.inf
+    return track.d[-1]
+
+
 def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack]:
     """Greedy nearest-neighbour linking of column peaks into tracks."""
     max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
@@ -117,9 +133,15 @@ def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack
         if active and pk.size:
             used_t: set[int] = set()
             pred = np.array([tracks[i].predict(c) for i in active])
-            cost = np.abs(pk[:, None] - pred[None, :])
-            n_ok = int(np.count_nonzero(cost <= cfg.lane_link_m))
-            if n_ok:
+            # across missed columns a taper's slope overshoots where the line flattens out
+            # at its new offset (worn paint over a lane gain's last 25 m, oakland-28393854
+            # with a noisier sensor): a line left without a peak may also go on at its last
+            # offset, once every line that its own trend explains has taken its peak (a
+            # converging line must not take over the line it met)
+            last = np.array([_settled_offset(tracks[i], c, cfg.lane_column_m) for i in active])
+            for guess, tol in ((pred, cfg.lane_link_m), (last, _SETTLE_LINK_M)):
+                cost = np.abs(pk[:, None] - guess[None, :])
+                n_ok = int(np.count_nonzero(cost <= tol))
                 order = np.argsort(cost, axis=None, kind="stable")[:n_ok]
                 for flat in order.tolist():
                     pi, ti = divmod(flat, len(active))

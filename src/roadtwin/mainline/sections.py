@@ -329,6 +329,34 @@ def _lane_types(
     return types
 
 
+def _steps_beside(
+    tracks: list[_Track],
+    k: int,
+    station: float,
+    outer_steps: FloatArray,
+    median_steps: FloatArray,
+) -> FloatArray:
+    """The edge steps that may end or start track ``k`` at ``station`` (metres): the outer
+    edge's where no other track lies farther out there, the median-side edge's where none
+    lies farther in. A step of one edge opens or closes the lanes beside that edge; a line
+    with lines on both sides starts or ends for another reason (town06-auto-lane2-s22 with
+    a noisier sensor: a line between two lanes first seen 33 m into the run, where the
+    outer edge stepped, left the two lanes one 6.9 m lane there, and no lane led on).
+    """
+    d_k = float(np.interp(station, tracks[k].s, tracks[k].d))
+    others = [
+        float(np.interp(station, tr.s, tr.d))
+        for j, tr in enumerate(tracks)
+        if j != k and tr.lo - 5.0 <= station <= tr.hi + 5.0
+    ]
+    parts = []
+    if not any(d > d_k + 0.5 for d in others):
+        parts.append(outer_steps)
+    if not any(d < d_k - 0.5 for d in others):
+        parts.append(median_steps)
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
 def _sections_from_tracks(
     tracks: list[_Track],
     grid: FloatArray,
@@ -356,9 +384,12 @@ def _sections_from_tracks(
     dmat = np.full((len(tracks), n_g), np.nan)
     for k, tr in enumerate(tracks):
         # a track that stops short of the run's start/end was cut by it (the car saw no
-        # more of it), unless an edge step (a gore) lies in between: there it really ends
-        cut_start = not np.any((breaks >= grid[0]) & (breaks <= tr.lo + 5.0))
-        cut_end = not np.any((breaks >= tr.hi - 5.0) & (breaks <= length))
+        # more of it), unless an edge step (a gore) on its side lies in between: there it
+        # really ends
+        near_start = _steps_beside(tracks, k, tr.lo, outer_steps, median_steps)
+        near_end = _steps_beside(tracks, k, tr.hi, outer_steps, median_steps)
+        cut_start = not np.any((near_start >= grid[0]) & (near_start <= tr.lo + 5.0))
+        cut_end = not np.any((near_end >= tr.hi - 5.0) & (near_end <= length))
         lo = grid[0] if tr.lo - grid[0] < cfg.lane_max_gap_m and cut_start else tr.lo
         hi = length if length - tr.hi < cfg.lane_max_gap_m and cut_end else tr.hi
         sel = (grid >= lo) & (grid <= hi)
@@ -702,14 +733,13 @@ def _link_sections(
             )
             _link_first_free(i, open_prev & meets, mapping, used)
         # ... or whose outer border does, beside a linked lane inside it that took the
-        # difference (their common line fitted anew; town06-auto-s3, noisier sensor)
+        # difference (their common line fitted anew; town06-auto-s3, noisier sensor) or
+        # beside shoulders only (the innermost driving lane, whose inner shoulder took it:
+        # town06-auto-lane2-s22 with a noisier sensor, an inner shoulder 0 m wide before
+        # the border and 0.97 m after it, and the inner lane led nowhere)
         for i in range(1, len(cur_lanes)):
-            if (
-                i in mapping
-                or i - 1 not in mapping
-                or cur_lanes[i].type != "driving"
-                or w_cur[i] < 0.3
-            ):
+            inside_taken = i - 1 in mapping or all(ln.type != "driving" for ln in cur_lanes[:i])
+            if i in mapping or not inside_taken or cur_lanes[i].type != "driving" or w_cur[i] < 0.3:
                 continue
             meets = (np.abs(b_cur[i + 1] - b_prev[1:]) <= _LINK_TOLERANCE_M) & (
                 np.abs(w_cur[i] - w_prev) <= _WIDTH_JUMP_M
