@@ -460,6 +460,32 @@ def test_points_of_another_level_give_no_superelevation():
     assert float(np.max(np.abs(dz))) < 0.05
 
 
+def test_points_beyond_the_median_edge_at_another_level_give_no_superelevation():
+    """melbourne-408-opp-s4: median-side edge points 2.5 m beyond the road's edge lay
+    0.8-2 m lower (an inner ramp falling away beside the road), close enough to the car's
+    level to pass the height gate; fitted as road surface they made a 0.1 rad cross slope
+    out of a flat road. Only points on the fitted median edge give the road's heights."""
+    road = truth_road(aux_lane=False)
+    run = sample_run(road)
+    s, t = road.project(run.edges)
+    median = run.edge_side == 1  # right-hand traffic: the median side is left (t > 0)
+    take = median & (s > 500.0) & (s < 800.0)
+    extra = run.edges[take].copy()
+    beyond = road.xy(s[take]) + 2.5 * np.column_stack(
+        [-np.sin(road.heading(s[take])), np.cos(road.heading(s[take]))]
+    )
+    extra[:, :2] = beyond
+    extra[:, 2] -= 0.8 + 1.2 * (s[take] - 500.0) / 300.0
+    edges = np.vstack([run.edges, extra])
+    sides = np.concatenate([run.edge_side, run.edge_side[take]])
+    built = build_mainline(replace(run, edges=edges, edge_side=sides))
+    assert built.road.superelevation is None
+    s_chk = np.arange(50.0, built.road.length - 50.0, 5.0)
+    s_true, _ = road.project(built.road.xy(s_chk))
+    dz = built.road.height(s_chk) - road.height(s_true)
+    assert float(np.max(np.abs(dz))) < 0.05
+
+
 def test_cut_at_a_lane_offset_step_leaves_no_sliver_of_the_old_offset(right_case):
     # a median-side step of 3.5 m a hair (0.1 micrometre) after the cut, as at an inner
     # gore where the junction starts: the road after the cut starts on the new offset

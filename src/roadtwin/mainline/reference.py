@@ -97,8 +97,9 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
 
     t0 = time.perf_counter()
     elevation, superelevation = fit_elevation(
-        frame, np.vstack([ref_pts, outer_pts[used]]), poses=poses, config=cfg
-    )
+        frame, np.vstack([_on_median_edge(frame, ref_pts, median.steps, sign), outer_pts[used]]),
+        poses=poses, config=cfg,
+    )  # fmt: skip
     timings["elevation"] = time.perf_counter() - t0
     if superelevation is not None:
         # OpenDRIVE measures t along the rolled surface (t cos(roll) in plan): the lanes
@@ -117,6 +118,24 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     road = _join_lanes_across_offset_steps(road, median.steps.stations)
     road = nonnegative_widths(seal_lane_borders(road))
     return _Partial(road, events, "default", tracks)
+
+
+_ON_EDGE_M = 0.8  # a median-side edge point this close to the fitted edge is the road's
+
+
+def _on_median_edge(
+    frame: PolylineFrame, points: FloatArray, steps: EdgeSteps, sign: float
+) -> FloatArray:
+    """The median-side edge points (mapping frame, ``(N, 3)``) that lie on the fitted
+    median-side edge (within ``_ON_EDGE_M`` of it sideways, the reference line moved by
+    the edge's offset between its steps): the road's own edge, whose heights are the
+    road's. Points beyond it (a ramp's or the other carriageway's edge, a median barrier)
+    may lie metres higher or lower: their heights made a 0.1 rad cross slope out of a
+    flat road (melbourne-408-opp-s4: the median-side points 2.5 m beyond the edge lay
+    0.8-2 m lower, where an inner ramp fell away beside it). ``sign``: +1 right-hand
+    traffic (the median on the left, t > 0), -1 left-hand traffic."""
+    s, t = frame.project(points)
+    return points[np.abs(sign * t - steps.at(s)) < _ON_EDGE_M]
 
 
 @dataclass(frozen=True)
