@@ -37,11 +37,14 @@ def _driving_lanes_at(sections, station):
     return sum(ln.type == "driving" for ln in sections[k].right)
 
 
-def test_the_edge_bound_in_a_gap_is_the_widest_of_its_ends_and_the_fit():
+def test_the_edge_bound_in_a_gap_is_the_fit_but_not_inside_both_ends():
     d_edge = np.array([10.0, 9.0, 7.3, 7.2, 7.5, 8.1, 8.1])
     covered = np.array([True, True, False, False, False, True, True])
     bound = _edge_bound(d_edge, covered)
-    np.testing.assert_allclose(bound, [10.0, 9.0, 9.0, 9.0, 9.0, 8.1, 8.1])
+    np.testing.assert_allclose(bound, [10.0, 9.0, 8.1, 8.1, 8.1, 8.1, 8.1])
+    # an entry's gap (the edge steps out by two lanes): the fit, not the wider end
+    d_edge = np.array([10.8, 10.8, 11.5, 14.0, 17.0, 18.0, 18.0])
+    np.testing.assert_allclose(_edge_bound(d_edge, covered), d_edge)
 
 
 def test_a_shoulder_narrowing_into_an_occlusion_gap_keeps_the_outer_lane():

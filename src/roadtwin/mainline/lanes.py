@@ -47,17 +47,20 @@ def _car_offset(car: tuple[FloatArray, FloatArray] | None, grid: FloatArray) -> 
 
 def _edge_bound(d_edge: FloatArray, covered: NDArray[np.bool_]) -> FloatArray:
     """The outer edge as a bound for the lane markings: the edge where it was seen, and in
-    an occlusion gap the widest of the edge at the gap's ends and the fit across it.
+    an occlusion gap the fit bridging it, but no farther in than the nearer of the edge's
+    levels at the gap's ends.
 
     The smoother bridging a gap carries a taper's slope on past the last point (a hard
     shoulder narrowing into the gap of a9-10959882-s1 with a noisier sensor: 1.6 m inside
     the outermost line, whose 107 m of samples were cut off as beyond the edge and its lane
-    ended); the markings that were seen there decide where the lanes are.
+    ended). The road is no narrower inside a gap than at both its ends; bounded by the
+    wider end instead, the lines of a two-lane entry converging in a gap were taken for
+    the mainline's own lanes 40 m before the nose (krems-30799129-s11, noisier).
     """
     bound = d_edge.copy()
     for a, b in true_runs(~covered):
         ends = d_edge[[max(a - 1, 0), min(b, d_edge.size - 1)]]
-        bound[a:b] = max(float(np.max(ends)), float(np.max(d_edge[a:b])))
+        bound[a:b] = np.maximum(d_edge[a:b], float(np.min(ends)))
     return bound
 
 
