@@ -467,7 +467,7 @@ def test_points_beyond_the_median_edge_at_another_level_give_no_superelevation()
     out of a flat road. Only points on the fitted median edge give the road's heights."""
     road = truth_road(aux_lane=False)
     run = sample_run(road)
-    s, t = road.project(run.edges)
+    s, _ = road.project(run.edges)
     median = run.edge_side == 1  # right-hand traffic: the median side is left (t > 0)
     take = median & (s > 500.0) & (s < 800.0)
     extra = run.edges[take].copy()
