@@ -37,14 +37,11 @@ def _driving_lanes_at(sections, station):
     return sum(ln.type == "driving" for ln in sections[k].right)
 
 
-def test_the_edge_bound_in_a_gap_is_the_fit_but_not_inside_both_ends():
+def test_the_edge_bound_in_a_gap_is_the_widest_of_its_ends_and_the_fit():
     d_edge = np.array([10.0, 9.0, 7.3, 7.2, 7.5, 8.1, 8.1])
     covered = np.array([True, True, False, False, False, True, True])
     bound = _edge_bound(d_edge, covered)
-    np.testing.assert_allclose(bound, [10.0, 9.0, 8.1, 8.1, 8.1, 8.1, 8.1])
-    # an entry's gap (the edge steps out by two lanes): the fit, not the wider end
-    d_edge = np.array([10.8, 10.8, 11.5, 14.0, 17.0, 18.0, 18.0])
-    np.testing.assert_allclose(_edge_bound(d_edge, covered), d_edge)
+    np.testing.assert_allclose(bound, [10.0, 9.0, 9.0, 9.0, 9.0, 8.1, 8.1])
 
 
 def test_a_shoulder_narrowing_into_an_occlusion_gap_keeps_the_outer_lane():
@@ -179,3 +176,23 @@ def test_the_innermost_driving_lane_goes_on_where_its_inner_shoulder_widens_at_a
     assert linked[1].right[2].predecessor == -2
     assert linked[0].right[1].successor == -3
     assert linked[1].right[3].predecessor == -3
+
+
+def test_a_placed_gore_moves_the_lines_a_ramp_line_estimate_cut():
+    """krems-30799129-s11 with a noisier sensor: a two-lane entry converging in an
+    occlusion gap; its middle line ran parallel 43 m before the nose and was cut there
+    (a gore estimated from the ramp line), the edge's shoulder taper placed the gore at
+    317.9 m. The placed gore replaces the estimate, and the line begins at it."""
+    from roadtwin.mainline.lanes import _replace_line_gores
+
+    grid = np.arange(0.0, 1001.0, 1.0)
+    middle = _track(0, grid[grid <= 569.0], 275.0, 11.5)
+    through = _track(1, grid, 5.0, 8.0)
+    tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [317.9], 1.0)
+    assert kept == []
+    assert tracks[0].lo == 318.0
+    assert tracks[1].lo == 5.0
+    # a placed gore farther than 60 m away is another gore: the estimate stays
+    tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [400.0], 1.0)
+    assert kept == [275.0]
+    assert tracks[0].lo == 275.0

@@ -7,6 +7,8 @@ lane sections and events (:mod:`.sections`).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -28,7 +30,7 @@ from .hidden_gores import (
     _snap_to_hidden_gores,
     _visible_taper_length,
 )
-from .markings import _add_hidden_lanes, _merge_collinear, _tracks_from_samples
+from .markings import _add_hidden_lanes, _merge_collinear, _Track, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
@@ -47,21 +49,51 @@ def _car_offset(car: tuple[FloatArray, FloatArray] | None, grid: FloatArray) -> 
 
 def _edge_bound(d_edge: FloatArray, covered: NDArray[np.bool_]) -> FloatArray:
     """The outer edge as a bound for the lane markings: the edge where it was seen, and in
-    an occlusion gap the fit bridging it, but no farther in than the nearer of the edge's
-    levels at the gap's ends.
+    an occlusion gap the widest of the edge at the gap's ends and the fit across it.
 
     The smoother bridging a gap carries a taper's slope on past the last point (a hard
     shoulder narrowing into the gap of a9-10959882-s1 with a noisier sensor: 1.6 m inside
     the outermost line, whose 107 m of samples were cut off as beyond the edge and its lane
-    ended). The road is no narrower inside a gap than at both its ends; bounded by the
-    wider end instead, the lines of a two-lane entry converging in a gap were taken for
-    the mainline's own lanes 40 m before the nose (krems-30799129-s11, noisier).
+    ended); the markings that were seen in a gap decide where the lanes are, and a ramp's
+    lines there are the evidence of its gore (:func:`_snap_to_hidden_gores`).
     """
     bound = d_edge.copy()
     for a, b in true_runs(~covered):
         ends = d_edge[[max(a - 1, 0), min(b, d_edge.size - 1)]]
-        bound[a:b] = np.maximum(d_edge[a:b], float(np.min(ends)))
+        bound[a:b] = np.maximum(d_edge[a:b], float(np.max(ends)))
     return bound
+
+
+_SAME_GORE_M = 60.0  # a ramp-line gore estimate this close to a placed gore is that gore
+
+
+def _replace_line_gores(
+    tracks: list[_Track], gores: FloatArray, placed: list[float], step_m: float
+) -> tuple[list[_Track], list[float]]:
+    """The ramp-line gore estimates (:func:`_snap_to_hidden_gores`) that a gore placed by
+    the edge's shoulder taper (:func:`_place_hidden_gores`) replaces, and the tracks they
+    cut moved to the placed one: a line that began (ended) at the estimate begins (ends)
+    at the placed gore where that lies after (before) it. A two-lane entry's middle line
+    converging in a gap runs parallel 40 m before the nose, where its estimate cut it:
+    its lane began there (krems-30799129-s11 with a noisier sensor, edge 0.17 -> 0.54 m
+    when the markings in the gap were bounded by the wider end of the gap).
+    Returns the tracks and the estimates kept (metres)."""
+    kept: list[float] = []
+    out = list(tracks)
+    for g in np.asarray(gores, dtype=float).tolist():
+        near = [p for p in placed if abs(g - p) <= _SAME_GORE_M]
+        if not near:
+            kept.append(g)
+            continue
+        p = min(near, key=lambda v: abs(v - g))
+        for k, tr in enumerate(out):
+            if abs(tr.lo - g) <= step_m and p > g and tr.hi > p + _SAME_GORE_M:
+                sel = tr.s >= p
+                out[k] = replace(tr, lo=float(tr.s[sel][0]), s=tr.s[sel], d=tr.d[sel])
+            elif abs(tr.hi - g) <= step_m and p < g and tr.lo < p - _SAME_GORE_M:
+                sel = tr.s <= p
+                out[k] = replace(tr, hi=float(tr.s[sel][-1]), s=tr.s[sel], d=tr.d[sel])
+    return out, kept
 
 
 def fit_lanes(
@@ -145,7 +177,8 @@ def fit_lanes(
             _seen_steps(breaks, d_edge, grid),
         )
         # a placed gore replaces the ramp-line estimate of the same gore
-        hidden = [g for g in gores if all(abs(g - p) > 40.0 for p in placed)] + placed
+        tracks, gores = _replace_line_gores(tracks, gores, placed, float(grid[1] - grid[0]))
+        hidden = [*gores, *placed]
         if hidden:
             d_edge, breaks, used, covered = fit_outer_edge(
                 s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden), levels=levels
