@@ -92,6 +92,25 @@ def test_a_taper_line_goes_on_at_its_last_offset_across_worn_paint():
     assert outer[0].cols[-1] == 79
 
 
+def test_only_a_taper_line_goes_on_at_its_last_offset():
+    """A ramp's line crossing lanes out of a narrow sensor's reach (Town06): seen in 11 of
+    20 columns, rising 9.5 -> 10.4 m and falling to 7.9 m, then missed for two columns
+    where a line runs at 8.1 m. It is no taper settling: it does not go on there (it went
+    on flat and made one lane 18.5 m wide)."""
+    cfg = MainlineConfig()
+    cols = [0, 1, 4, 5, 7, 8, 11, 12, 15, 18, 19]
+    d = [9.54, 9.84, 10.38, 10.28, 10.02, 9.92, 9.23, 9.07, 8.38, 7.97, 7.92]
+    peaks = [np.zeros(0) for _ in range(40)]
+    for c, v in zip(cols, d, strict=True):
+        peaks[c] = np.array([v])
+    for c in range(22, 40):
+        peaks[c] = np.array([8.07])
+    raw = _link_tracks(peaks, cfg)
+    crossing = [tr for tr in raw if tr.cols[0] == 0]
+    assert len(crossing) == 1
+    assert crossing[0].cols[-1] == 19
+
+
 def test_a_line_that_met_another_does_not_take_it_over():
     """An acceleration lane's outer line converges at 0.15 m per 5 m column onto a
     through line at 8.0 m and ends there. The through line keeps every peak after it: the

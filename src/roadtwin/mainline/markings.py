@@ -109,15 +109,24 @@ def _find_track_peaks(
 _SETTLE_GAP_M = 25.0  # a line may go on at its last offset across at most this gap ...
 _SETTLE_SLOPE = 0.04  # ... if it was moving no faster than a lane taper (m/m, 3.5 m in 90 m)
 _SETTLE_LINK_M = 0.25  # ... and is seen again this close to its last offset (metres)
+_SETTLE_WOBBLE_M = 0.1  # a line moving one way may step back this much (peak noise, metres)
 
 
 def _settled_offset(track: _RawTrack, col: int, column_m: float) -> float:
     """The offset (metres) at which ``track`` may go on in column ``col`` (to within
     ``_SETTLE_LINK_M``) if its trend does not explain any peak there: its last offset,
     when it missed one column or more, but no more than ``_SETTLE_GAP_M``, while moving no
-    faster than a taper; else inf."""
+    faster than a taper; else inf. Only a taper's line qualifies: seen in every column up
+    to the gap and moving one way all along (a sparse line that rose and fell again, a
+    ramp's line crossing Town06's inner lanes out of a narrow sensor's reach, went on flat
+    where it met another line and made one lane 18.5 m wide)."""
     gap = col - track.cols[-1]
     if gap < 2 or gap * column_m > _SETTLE_GAP_M or abs(track.slope) > _SETTLE_SLOPE * column_m:
+        return np.inf
+    if track.cols[-1] - track.cols[0] + 1 != len(track.cols):
+        return np.inf
+    steps = np.diff(track.d)
+    if not (np.all(steps >= -_SETTLE_WOBBLE_M) or np.all(steps <= _SETTLE_WOBBLE_M)):
         return np.inf
     return track.d[-1]
 
