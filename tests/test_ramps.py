@@ -801,3 +801,39 @@ def test_a_ramp_fit_that_turns_back_against_its_osm_line_is_not_used():
     loop = np.c_[40.0 * np.sin(phi), 40.0 - 40.0 * np.cos(phi)]
     fitted = np.c_[39.0 * np.sin(phi), 40.0 - 39.0 * np.cos(phi)]
     assert not _turns_back(fitted, loop)
+
+
+def _loop_back_graph(leave_x: float) -> tuple[nx.MultiDiGraph, np.ndarray]:
+    """A straight 1 km carriageway (x east, nodes at 0, 300, ``leave_x``, 1000 m) and a
+    link that leaves it at ``leave_x``, swings out 80 m to the right and back west, and
+    joins it at 300 m with the driven heading."""
+    graph = nx.MultiDiGraph(crs="local")
+    traj = np.stack([np.linspace(0.0, 1000.0, 1001), np.zeros(1001)], axis=1)
+    xs = (0.0, 300.0, leave_x, 1000.0)
+    for i, x in enumerate(xs):
+        graph.add_node(i, x=x, y=0.0)
+    for a in range(3):
+        graph.add_edge(a, a + 1, highway="trunk", osmid=1,
+                       geometry=LineString([(xs[a], 0.0), (xs[a + 1], 0.0)]))  # fmt: skip
+    path = [(leave_x, 0.0), (leave_x + 10.0, -30.0), (leave_x - 80.0, -80.0), (200.0, -80.0),
+            (200.0, -40.0), (250.0, -8.0), (300.0, 0.0)]  # fmt: skip
+    graph.add_edge(2, 1, highway="trunk", osmid=5, geometry=LineString(path))
+    return graph, traj
+
+
+def test_a_branch_leaving_at_the_runs_end_is_an_entry_where_it_joins():
+    """krems chain 30799129: a two-lane trunk joins the driven one at 337 m and left it
+    9 m before the run's end (the route loops). Both its ends lie on the driven
+    carriageway, so it was rejected as a bypass and the entry was missing from every
+    build. An end at the run's start or end is where the map ends: the branch is a ramp
+    at its other end. One leaving in the middle of the run is still a bypass."""
+    graph, traj = _loop_back_graph(975.0)
+    chains, rejected = extract_ramp_chains(graph, traj)
+    assert [c.type for c in chains] == ["entry"]
+    assert chains[0].attach_node == 1
+    assert chains[0].osm_way_ids == (5,)
+    assert not any("both ends" in why for _, why in rejected)
+    graph, traj = _loop_back_graph(700.0)
+    chains, rejected = extract_ramp_chains(graph, traj)
+    assert chains == ()
+    assert any("both ends" in why for _, why in rejected)

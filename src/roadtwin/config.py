@@ -285,6 +285,10 @@ class RampConfig:
     """d_r of the paper's Algorithm 1: link edges within this of the trajectory (metres)."""
     max_ramp_length_m: float = 600.0
     """Ramp chains are followed along OSM link edges at most this far (metres)."""
+    run_end_margin_m: float = 50.0
+    """A branch with both ends on the driven carriageway is a bypass and no ramp, unless
+    one end lies within this of the run's start or end (metres): there the map ends, and
+    the branch is a ramp at its other end."""
     resample_step_m: float = 0.5
     """OSM polyline resampling step (metres), as in the paper."""
     savgol_window_m: float = 25.0

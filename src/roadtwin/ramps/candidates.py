@@ -485,6 +485,13 @@ def _shared_branches(
     return out
 
 
+def _near_run_end(track: _Track, xy: FloatArray, margin_m: float) -> bool:
+    """Whether the point (mapping frame, metres) projects within ``margin_m`` of the
+    trajectory's start or end (or beyond them)."""
+    s, _ = track.project(np.asarray(xy, dtype=float).reshape(1, 2))
+    return bool(s[0] < margin_m or s[0] > track.length - margin_m)
+
+
 def extract_ramp_chains(
     osm_graph: nx.MultiDiGraph,
     trajectory_xy: FloatArray,
@@ -528,6 +535,17 @@ def extract_ramp_chains(
     for cand in candidates:
         e = (cand.u, cand.v, cand.key)
         u_on, v_on = cand.u in on_carriageway, cand.v in on_carriageway
+        if u_on and v_on:
+            # an end at the run's start or end lies where the map ends: the branch is a
+            # ramp at its other end (krems chain 30799129: a two-lane trunk merging at
+            # 337 m left the carriageway 9 m before the run's end; rejected as a bypass,
+            # the entry was missing from every build of the run)
+            u_end, v_end = (
+                _near_run_end(track, _node_xy(osm_graph, n), cfg.run_end_margin_m)
+                for n in (cand.u, cand.v)
+            )
+            if u_end != v_end:
+                u_on, v_on = not u_end, not v_end
         if u_on and v_on:
             rejected.append((f"way {cand.osm_way_id}", "both ends on the driven carriageway"))
             covered.add(e)
