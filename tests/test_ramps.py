@@ -803,7 +803,7 @@ def test_a_ramp_fit_that_turns_back_against_its_osm_line_is_not_used():
     assert not _turns_back(fitted, loop)
 
 
-def _loop_back_graph(leave_x: float) -> tuple[nx.MultiDiGraph, np.ndarray]:
+def _loop_back_graph(leave_x: float, way: int = 5) -> tuple[nx.MultiDiGraph, np.ndarray]:
     """A straight 1 km carriageway (x east, nodes at 0, 300, ``leave_x``, 1000 m) and a
     link that leaves it at ``leave_x``, swings out 80 m to the right and back west, and
     joins it at 300 m with the driven heading."""
@@ -817,7 +817,7 @@ def _loop_back_graph(leave_x: float) -> tuple[nx.MultiDiGraph, np.ndarray]:
                        geometry=LineString([(xs[a], 0.0), (xs[a + 1], 0.0)]))  # fmt: skip
     path = [(leave_x, 0.0), (leave_x + 10.0, -30.0), (leave_x - 80.0, -80.0), (200.0, -80.0),
             (200.0, -40.0), (250.0, -8.0), (300.0, 0.0)]  # fmt: skip
-    graph.add_edge(2, 1, highway="trunk", osmid=5, geometry=LineString(path))
+    graph.add_edge(2, 1, highway="trunk", osmid=way, geometry=LineString(path))
     return graph, traj
 
 
@@ -837,3 +837,7 @@ def test_a_branch_leaving_at_the_runs_end_is_an_entry_where_it_joins():
     chains, rejected = extract_ramp_chains(graph, traj)
     assert chains == ()
     assert any("both ends" in why for _, why in rejected)
+    # a piece of the driven way itself (oakland chain 28393854 driven in its inner lane)
+    graph, traj = _loop_back_graph(975.0, way=1)
+    chains, rejected = extract_ramp_chains(graph, traj)
+    assert chains == ()

@@ -544,7 +544,13 @@ def extract_ramp_chains(
                 _near_run_end(track, _node_xy(osm_graph, n), cfg.run_end_margin_m)
                 for n in (cand.u, cand.v)
             )
-            if u_end != v_end:
+            # (not a piece of a driven way: oakland chain 28393854, driven in its inner
+            # lane, had one between a node at the run's start and one 440 m on)
+            driven = {
+                _first_value(osm_graph.edges[on_carriageway[n]].get("osmid"))
+                for n in (cand.u, cand.v)
+            }
+            if u_end != v_end and cand.osm_way_id not in driven:
                 u_on, v_on = not u_end, not v_end
         if u_on and v_on:
             rejected.append((f"way {cand.osm_way_id}", "both ends on the driven carriageway"))
