@@ -202,16 +202,16 @@ def test_a_placed_gore_moves_the_lines_a_ramp_line_estimate_cut():
     occlusion gap; its middle line ran parallel 43 m before the nose and was cut there
     (a gore estimated from the ramp line), the edge's shoulder taper placed the gore at
     317.9 m. The placed gore replaces the estimate, and the line begins at it."""
-    from roadtwin.mainline.lanes import _replace_line_gores
+    from roadtwin.mainline.hidden_gores import _replace_line_gores
 
     grid = np.arange(0.0, 1001.0, 1.0)
     middle = _track(0, grid[grid <= 569.0], 275.0, 11.5)
     through = _track(1, grid, 5.0, 8.0)
-    tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [317.9], 1.0)
+    tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [317.9], grid)
     assert kept == []
     assert tracks[0].lo == 318.0
     assert tracks[1].lo == 5.0
     # a placed gore farther than 60 m away is another gore: the estimate stays
-    tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [400.0], 1.0)
+    tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [400.0], grid)
     assert kept == [275.0]
     assert tracks[0].lo == 275.0

@@ -241,6 +241,37 @@ def _visible_taper_length(
     return float(np.median(lengths)) if lengths else None
 
 
+_SAME_GORE_M = 60.0  # a ramp-line gore estimate this close to a placed gore is that gore
+
+
+def _replace_line_gores(
+    tracks: list[_Track], gores: FloatArray, placed: list[float], grid: FloatArray
+) -> tuple[list[_Track], list[float]]:
+    """The ramp-line gore estimates (:func:`_snap_to_hidden_gores`) that a gore placed by
+    the edge's shoulder taper (:func:`_place_hidden_gores`) replaces, and the tracks they
+    cut moved to the placed one: a line that began (ended) at the estimate begins (ends)
+    at the first (last) grid station after (before) the placed gore where that lies after
+    (before) it. A two-lane entry's middle line converging in a gap runs parallel 40 m
+    before the nose, where its estimate cut it: its lane began there (krems-30799129-s11
+    with a noisier sensor, edge 0.17 -> 0.54 m when the markings in the gap were bounded
+    by the wider end of the gap). Returns the tracks and the estimates kept (metres)."""
+    step_m = float(grid[1] - grid[0])
+    kept: list[float] = []
+    out = list(tracks)
+    for g in np.asarray(gores, dtype=float).tolist():
+        near = [p for p in placed if abs(g - p) <= _SAME_GORE_M]
+        if not near:
+            kept.append(g)
+            continue
+        p = min(near, key=lambda v: abs(v - g))
+        for k, tr in enumerate(out):
+            if abs(tr.lo - g) <= step_m and p > g and tr.hi > p + _SAME_GORE_M:
+                out[k] = _move_track_end(tr, float(tr.s[tr.s >= p][0]), grid, start=True)
+            elif abs(tr.hi - g) <= step_m and p < g and tr.lo < p - _SAME_GORE_M:
+                out[k] = _move_track_end(tr, float(tr.s[tr.s <= p][-1]), grid, start=False)
+    return out, kept
+
+
 def _move_track_end(tr: _Track, s_new: float, grid: FloatArray, *, start: bool) -> _Track:
     """``tr`` cut or extended (at its end offset) so that it starts/ends at ``s_new``."""
     if start:

@@ -7,8 +7,6 @@ lane sections and events (:mod:`.sections`).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -26,11 +24,12 @@ from .edge_levels import EdgeSteps
 from .edge_lines import split_edge_lines_at_steps
 from .hidden_gores import (
     _place_hidden_gores,
+    _replace_line_gores,
     _seen_steps,
     _snap_to_hidden_gores,
     _visible_taper_length,
 )
-from .markings import _add_hidden_lanes, _merge_collinear, _Track, _tracks_from_samples
+from .markings import _add_hidden_lanes, _merge_collinear, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
@@ -62,38 +61,6 @@ def _edge_bound(d_edge: FloatArray, covered: NDArray[np.bool_]) -> FloatArray:
         ends = d_edge[[max(a - 1, 0), min(b, d_edge.size - 1)]]
         bound[a:b] = np.maximum(d_edge[a:b], float(np.max(ends)))
     return bound
-
-
-_SAME_GORE_M = 60.0  # a ramp-line gore estimate this close to a placed gore is that gore
-
-
-def _replace_line_gores(
-    tracks: list[_Track], gores: FloatArray, placed: list[float], step_m: float
-) -> tuple[list[_Track], list[float]]:
-    """The ramp-line gore estimates (:func:`_snap_to_hidden_gores`) that a gore placed by
-    the edge's shoulder taper (:func:`_place_hidden_gores`) replaces, and the tracks they
-    cut moved to the placed one: a line that began (ended) at the estimate begins (ends)
-    at the placed gore where that lies after (before) it. A two-lane entry's middle line
-    converging in a gap runs parallel 40 m before the nose, where its estimate cut it:
-    its lane began there (krems-30799129-s11 with a noisier sensor, edge 0.17 -> 0.54 m
-    when the markings in the gap were bounded by the wider end of the gap).
-    Returns the tracks and the estimates kept (metres)."""
-    kept: list[float] = []
-    out = list(tracks)
-    for g in np.asarray(gores, dtype=float).tolist():
-        near = [p for p in placed if abs(g - p) <= _SAME_GORE_M]
-        if not near:
-            kept.append(g)
-            continue
-        p = min(near, key=lambda v: abs(v - g))
-        for k, tr in enumerate(out):
-            if abs(tr.lo - g) <= step_m and p > g and tr.hi > p + _SAME_GORE_M:
-                sel = tr.s >= p
-                out[k] = replace(tr, lo=float(tr.s[sel][0]), s=tr.s[sel], d=tr.d[sel])
-            elif abs(tr.hi - g) <= step_m and p < g and tr.lo < p - _SAME_GORE_M:
-                sel = tr.s <= p
-                out[k] = replace(tr, hi=float(tr.s[sel][-1]), s=tr.s[sel], d=tr.d[sel])
-    return out, kept
 
 
 def fit_lanes(
@@ -177,7 +144,7 @@ def fit_lanes(
             _seen_steps(breaks, d_edge, grid),
         )
         # a placed gore replaces the ramp-line estimate of the same gore
-        tracks, gores = _replace_line_gores(tracks, gores, placed, float(grid[1] - grid[0]))
+        tracks, gores = _replace_line_gores(tracks, gores, placed, grid)
         hidden = [*gores, *placed]
         if hidden:
             d_edge, breaks, used, covered = fit_outer_edge(

@@ -96,10 +96,8 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     timings["lanes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    elevation, superelevation = fit_elevation(
-        frame, np.vstack([_on_median_edge(frame, ref_pts, median.steps, sign), outer_pts[used]]),
-        poses=poses, config=cfg,
-    )  # fmt: skip
+    surface_pts = np.vstack([_on_median_edge(frame, ref_pts, median.steps, sign), outer_pts[used]])
+    elevation, superelevation = fit_elevation(frame, surface_pts, poses=poses, config=cfg)
     timings["elevation"] = time.perf_counter() - t0
     if superelevation is not None:
         # OpenDRIVE measures t along the rolled surface (t cos(roll) in plan): the lanes
