@@ -1563,6 +1563,28 @@ def test_a_marking_ending_where_the_edge_is_not_seen_again_before_the_run_ends_i
     assert gores(600.0) == []  # the gap runs to the run's end: no evidence
 
 
+def test_a_hidden_gore_cuts_only_the_markings_beside_it():
+    """A ramp line meeting the outermost marking in an occlusion gap places a gore there,
+    and the outer markings that begin just before it are cut back to it (they are the
+    ramp's lines upstream). A through line nearer the median that happens to begin within
+    60 m of it is not: on melbourne-921-s2 the inner shoulder's line, beginning after an
+    inner exit, was cut back 51 m to an outer lane drop's gore, and the shoulder became
+    part of a driving lane 3.9 m wide."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 1000.5, cfg.grid_step_m)
+    inner = _const_track(0, grid, 0.7, 596.0, 1000.0)  # begins after an inner exit
+    through = _const_track(1, grid, 15.2, 0.0, 1000.0)
+    outer = _const_track(2, grid, 18.7, 610.0, 1000.0)  # the ramp's line upstream of the gore
+    covered = (grid < 630.0) | (grid > 660.0)
+    out, gores = _snap_to_hidden_gores([inner, through, outer], [(647.0, 15.2)], covered, grid, cfg)
+    assert [round(float(g)) for g in gores] == [647]
+    assert out[0].lo == pytest.approx(596.0)  # the inner line keeps its start
+    assert out[1].lo == pytest.approx(0.0)
+    assert out[2].lo == pytest.approx(647.0, abs=cfg.grid_step_m)  # cut back to the gore
+
+
 def test_the_second_join_pass_only_joins_inferred_lines_to_observed_ones():
     """After the hidden lanes are inferred, an inferred line is joined to the observed one
     it continues; two observed tracks still apart then were split at a gore on purpose

@@ -27,6 +27,11 @@ log = logging.getLogger(__name__)
 FloatArray = NDArray[np.float64]
 
 
+_BESIDE_GORE_M = 1.0
+"""A marking more than this (metres) inside the mainline marking a ramp line meets at a
+hidden gore is a through line: the gore does not cut it."""
+
+
 def _snap_to_hidden_gores(
     tracks: list[_Track],
     evidence: list[tuple[float, float]],
@@ -96,6 +101,12 @@ def _snap_to_hidden_gores(
             continue
         gores.append(s_gore)
         for k, tr in enumerate(out):
+            # only the lines beside the gore: a through line nearer the median that
+            # happens to begin within 60 m (after an inner exit) has nothing to do with it
+            # (melbourne-921-s2: the inner shoulder's line was cut back 51 m to an outer
+            # lane drop's gore, the shoulder became part of a lane 3.9 m wide)
+            if float(np.interp(s_gore, tr.s, tr.d)) < d_g - _BESIDE_GORE_M:
+                continue
             if abs(tr.lo - s_gore) < 60.0 and tr.lo < s_gore - step and tr.hi > s_gore + 60.0:
                 sel = tr.s >= s_gore
                 out[k] = replace(tr, lo=s_gore, s=tr.s[sel], d=tr.d[sel])
