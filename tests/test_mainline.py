@@ -624,6 +624,40 @@ def test_inferred_median_side_lanes_end_where_the_innermost_marking_does():
         assert float(np.max(tr.d)) < 4.8 - 2.5
 
 
+def test_a_lane_opening_on_the_median_side_as_the_lanes_shift_keeps_the_shoulder():
+    """The whole marking pattern shifts 3.4 m outwards over 290-340 m while a lane opens
+    on the median side; the inner shoulder's solid line at 1.0 m is out of the sensor's
+    reach from there, and the innermost marking seen is the line that moves away from it.
+    The shoulder's line is inferred at 1.0 m from where the marking starts to move, and
+    the lane beside it opens from zero width there (melbourne-1226-s11: the shoulder grew
+    with the marking and was split into shoulder and lane only 45 m later, where the
+    strip had become a lane wide: lines 0.3-0.6 m off, lane count wrong over 17 m)."""
+    from roadtwin.mainline.markings import _add_hidden_lanes
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+
+    def shift(s):
+        x = np.clip((s - 290.0) / 50.0, 0.0, 1.0)
+        return 3.4 * x * x * (3.0 - 2.0 * x)
+
+    tracks = [
+        _const_track(k, grid, lambda s, d=d: d + shift(s), 0.0, 600.0)
+        for k, d in enumerate((1.0, 4.4, 7.8, 11.2))
+    ]
+    d_edge = 13.8 + shift(grid)
+    out = _add_hidden_lanes(tracks, grid, d_edge, np.zeros(grid.size), cfg)
+    added = [tr for tr in out if tr.n == 0]
+    assert len(added) == 1
+    (line,) = added
+    assert line.lo == pytest.approx(290.0, abs=5.0)
+    at = np.interp([300.0, 315.0, 330.0, 345.0, 400.0], line.s, line.d)
+    assert np.max(np.abs(at - 1.0)) < 0.05
+    # the lane between it and the moving marking opens from zero width
+    lane_at_start = float(np.interp(line.lo, tracks[0].s, tracks[0].d)) - float(line.d[0])
+    assert lane_at_start < 0.3
+
+
 def test_an_inferred_line_continues_the_observed_one_it_takes_over_from():
     """The inner edge line is seen for 300 m, then the car moves out and only the markings
     near it are seen: the line inferred on from there is the same line, not a new one (a

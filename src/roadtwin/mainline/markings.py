@@ -1105,15 +1105,17 @@ def _add_hidden_lanes(
     # lanes beside it begin or end there at full width; and where the innermost marking
     # is another one, also when the smoothing spread the jump over two grid steps
     median_steps = np.abs(np.diff(d_median)) >= 0.5 * lane_m
-    for a, b, on in _runs_of(
-        (n_in > 0).astype(np.int64),
-        _extreme_jumps(d_first, lane_m) | _two_step_jumps(d_first, lane_m) | median_steps,
-    ):
+    splits = _extreme_jumps(d_first, lane_m) | _two_step_jumps(d_first, lane_m) | median_steps
+    for a, b, on in _runs_of((n_in > 0).astype(np.int64), splits):
         if not on or b - a < min_run_in:
             continue
-        first, median, n = d_first[a:b], d_median[a:b], n_in[a:b]
+        a, b, held = _shift_onto_shoulder(inner_gap, n_in == 0, a, b, splits, cfg.grid_step_m)
+        first, median, n = d_first[a:b], d_median[a:b], n_in[a:b].copy()
+        n[: held[0]] = 0
+        n[n.size - held[1] :] = 0
         if float(np.median(first - median - n * lane_m)) >= 0.3:
             shoulder_line = _inner_shoulder_line(first - n * lane_m, n, cfg.grid_step_m)
+            shoulder_line = _hold_shoulder(shoulder_line, median, inner_gap[a:b], held, cfg)
             for k in range(1, int(n.max())):
                 line = first - k * lane_m
                 # a lane line exists where the lane between it and the shoulder is open
@@ -1208,6 +1210,75 @@ def _outer_hidden_lines(
         for a, b, on in _runs_of((j <= n_open + 1).astype(np.int64)):
             if on and b - a >= min_run:
                 out.append((a, b, line[a:b], "solid" if np.all(j > n_open[a:b]) else "broken"))
+    return out
+
+
+_SHIFT_RATE_MIN = 0.01  # the innermost marking moves sideways at least this fast ...
+_SHIFT_RATE_MAX = 0.15  # ... and no faster (m/m) where the lanes shift onto the shoulder
+
+
+def _shift_onto_shoulder(
+    gap: FloatArray,
+    no_lane: NDArray[np.bool_],
+    a: int,
+    b: int,
+    splits: NDArray[np.bool_],
+    step_m: float,
+) -> tuple[int, int, tuple[int, int]]:
+    """A median-side run of hidden lanes ``[a, b)`` (grid indices) widened over the
+    stretches before and after it where the innermost marking still moves towards the
+    median-side edge (``gap``: its offset from that edge, metres): a lane opening (closing)
+    there as the lanes shift sideways off (onto) the shoulder. The shoulder's line stays
+    where the marking left it; the lane opens from zero width (melbourne-1226-s11: the
+    shoulder widened with the shifting marking and became a lane 50 m late, all its lines
+    0.3-0.6 m off where it did).
+
+    Only stations without a hidden lane (``no_lane``) are added. Returns the new ``a, b``
+    and how many grid stations were added at each end.
+    """
+    rate = np.diff(gap) / step_m
+    finite = np.isfinite(rate)
+    # diff index i joins stations i and i + 1: going back it adds i, going on i + 1
+    opening = finite & ~splits & no_lane[:-1] & (rate >= _SHIFT_RATE_MIN)
+    opening &= rate <= _SHIFT_RATE_MAX
+    closing = finite & ~splits & no_lane[1:] & (-rate >= _SHIFT_RATE_MIN)
+    closing &= -rate <= _SHIFT_RATE_MAX
+    stop = np.flatnonzero(~opening[: max(a, 0)])
+    a_new = int(stop[-1]) + 1 if stop.size else 0
+    stop = np.flatnonzero(~closing[b - 1 :])
+    b_new = b - 1 + int(stop[0]) + 1 if stop.size else gap.size
+    if a_new < a and not np.isfinite(gap[a_new]):
+        a_new = a
+    if b_new > b and not np.isfinite(gap[b_new - 1]):
+        b_new = b
+    return a_new, b_new, (a - a_new, b_new - b)
+
+
+def _hold_shoulder(
+    line: FloatArray,
+    median: FloatArray,
+    gap: FloatArray,
+    held: tuple[int, int],
+    cfg: MainlineConfig,
+) -> FloatArray:
+    """The inner shoulder's line (metres, on a run's grid) held at the marking's offset
+    from the median edge where the lanes began to shift (``held``: stations added before
+    and after the run by :func:`_shift_onto_shoulder`), over the added stretch and on
+    until the lane beside it has its typical width (the line inferred a lane-width inside
+    the marking lies inside the held one)."""
+    out = line.copy()
+    window = max(1, round(_SHOULDER_HOLD_M / cfg.grid_step_m))
+    before, after = held
+    if before:
+        at = median + gap[0]
+        out[:before] = at[:before]
+        reach = slice(before, min(before + window, out.size))
+        out[reach] = np.maximum(out[reach], at[reach])
+    if after:
+        at = median + gap[-1]
+        out[out.size - after :] = at[out.size - after :]
+        reach = slice(max(out.size - after - window, 0), out.size - after)
+        out[reach] = np.maximum(out[reach], at[reach])
     return out
 
 
