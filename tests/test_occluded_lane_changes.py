@@ -14,6 +14,7 @@ full width 110 m late (edge RMSE 0.40 m, lanes 0.29 m).
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline import fit_lanes
@@ -215,3 +216,29 @@ def test_a_placed_gore_moves_the_lines_a_ramp_line_estimate_cut():
     tracks, kept = _replace_line_gores([middle, through], np.array([275.0]), [400.0], grid)
     assert kept == [275.0]
     assert tracks[0].lo == 275.0
+
+
+def test_an_entry_line_converging_in_an_occlusion_gap_places_the_gore_where_it_meets():
+    """Soderleden-like, with a noisier sensor: the outer edge (7 m) is hidden from 148 to
+    268 m and seen again 3.5 m farther out (an acceleration lane). The ramp's line converges
+    from 10.5 m onto the line at 7 m, which begins at 174 m, and meets it at 228 m; its trend
+    carried it on across the gap onto the through line at 3.5 m 60 m later, which was
+    taken as the meeting, and the lane began at the start of the line at 7 m (65 m early,
+    the ramp unmatched). The gore is where the ramp line meets the line it joins."""
+    rng = np.random.default_rng(5)
+    parts = [_line(rng, 0, 500, 3.5), _line(rng, 174, 500, 7.0)]
+    ramp_s = np.arange(182.0, 228.0, 0.5)
+    parts.append((ramp_s, 10.5 - 3.5 * (ramp_s - 182.0) / 46.0 + rng.normal(0, 0.02, ramp_s.size)))
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    s_out, d_out = _line(rng, 0, 500, lambda s: np.where(s < 200.0, 7.0, 10.5), 0.2)
+    seen = (s_out < 148.0) | (s_out > 268.0)
+    sections, _, _, _ = fit_lanes(
+        s_lane, d_lane, s_out[seen], d_out[seen], length=500.0, sign=1.0,
+        config=MainlineConfig(),
+    )  # fmt: skip
+    births = [sc.s0 for sc in sections[1:]]
+    assert len(births) == 1
+    assert births[0] == pytest.approx(228.0, abs=8.0)
+    assert _driving_lanes_at(sections, 200.0) == 2
+    assert _driving_lanes_at(sections, 260.0) == 3

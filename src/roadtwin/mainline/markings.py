@@ -323,16 +323,20 @@ def _tracks_in_frame(
         return not (cut and hi - lo >= cfg.lane_min_cut_track_m)
 
     cand: list[_Track] = []
+    evidence: list[tuple[float, float]] = []
     for tr in raw:
         lo = centres[tr.cols[0]] - 0.5 * col
         hi = centres[tr.cols[-1]] + 0.5 * col
         if too_short(lo, hi):
+            meeting = _short_ramp_line_meeting(tr, raw, centres, cfg)
+            if meeting is not None:
+                evidence.append(meeting)
             continue
         cand.append(
             _Track(len(cand), lo, hi, centres[tr.cols], np.asarray(tr.d), "solid", 0, s[:0])
         )
     if not cand:
-        return [], []
+        return [], evidence
     # each sample belongs to the nearest candidate track (the first one on ties); the
     # samples are sorted by station so that a track only looks at its own window
     order = np.argsort(s, kind="stable")
@@ -349,7 +353,6 @@ def _tracks_in_frame(
         best[i0:i1][better] = dk[better]
         owner[i0:i1][better] = k
     final: list[_Track] = []
-    evidence: list[tuple[float, float]] = []
     for k, (i0, i1) in enumerate(windows):
         sel = i0 + np.flatnonzero((owner[i0:i1] == k) & (best[i0:i1] < cfg.lane_assign_m))
         if sel.size < 10:
@@ -383,7 +386,7 @@ def _tracks_in_frame(
                 i_in = np.flatnonzero(keep_g)
                 i_g = i_in[0] - 1 if not keep_g[0] else i_in[-1] + 1
             else:
-                i_g = g.size - 1 if fit[-1] < fit[0] else 0
+                i_g = _ramp_line_meeting(g, fit, [c for j, c in enumerate(cand) if j != k])
             evidence.append((float(g[i_g]), float(fit[i_g])))
         if not keep_g.any():
             continue
@@ -400,6 +403,55 @@ def _tracks_in_frame(
     return _merge_collinear(final, cfg, grid, d_edge), evidence
 
 
+_SHORT_RAMP_LINE_M = 20.0  # a line too short for a track still shows a gore if this long ...
+_SHORT_RAMP_MOVE_M = 1.5  # ... and crossing this far sideways (metres) ...
+_SHORT_RAMP_STEADY = 0.8  # ... moving one way on this share of its column steps
+_SHORT_RAMP_REACH_M = 20.0  # its slope carries it on at most this far onto a line (metres)
+
+
+def _short_ramp_line_meeting(
+    tr: _RawTrack, raw: list[_RawTrack], centres: FloatArray, cfg: MainlineConfig
+) -> tuple[float, float] | None:
+    """Where a line too short to be a marking track meets (converging inward) or leaves
+    (diverging outward) the corridor's markings, if it crosses the corridor steadily over
+    ``_SHORT_RAMP_LINE_M`` or more: a ramp line, the evidence of a gore. Its peaks merge
+    with the line it joins for the last metre or so; the meeting is where its slope
+    carries it onto the nearest other line (``raw``, column peaks at ``centres``) within
+    ``_SHORT_RAMP_REACH_M``, else its last (first) column. A ramp line converging through
+    an occlusion gap of the outer edge is cut by the edge's bound there and may be left too
+    short for a track (soderleden-s2, noisier sensor: then nothing placed the gore, and
+    the acceleration lane began where the line beside it did, 54 m early)."""
+    s_cols, d_cols = centres[tr.cols], np.asarray(tr.d)
+    if s_cols.size < 4 or s_cols[-1] - s_cols[0] < _SHORT_RAMP_LINE_M:
+        return None
+    rate = np.diff(d_cols) / np.diff(s_cols)
+    if d_cols[0] - d_cols[-1] >= _SHORT_RAMP_MOVE_M:
+        if np.mean(rate < -cfg.ramp_line_slope) < _SHORT_RAMP_STEADY:
+            return None
+        end, col, toward = -1, tr.cols[-1], 1
+    elif d_cols[-1] - d_cols[0] >= _SHORT_RAMP_MOVE_M:
+        if np.mean(rate > cfg.ramp_line_slope) < _SHORT_RAMP_STEADY:
+            return None
+        end, col, toward = 0, tr.cols[0], -1
+    else:
+        return None
+    s_end, d_end = float(s_cols[end]), float(d_cols[end])
+    slope = abs(float(np.median(rate[-3:] if end == -1 else rate[:3])))
+    # the other lines inward of its end, in the columns it would cross next
+    reach = round(_SHORT_RAMP_REACH_M / float(centres[1] - centres[0])) if centres.size > 1 else 0
+    inward = [
+        v
+        for other in raw
+        if other is not tr
+        for c, v in zip(other.cols, other.d, strict=True)
+        if 0 <= (c - col) * toward <= reach and d_end - _SHORT_RAMP_REACH_M * slope <= v < d_end
+    ]
+    if not inward:
+        return s_end, d_end
+    d_meet = max(inward)
+    return s_end + toward * (d_end - d_meet) / max(slope, 1e-6), d_meet
+
+
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
 _EDGE_TAPER_MAX_M = 60.0  # the outer edge closes a lane over at most this (metres)
 # another line this close to a continued line's offset along the continuation takes its
@@ -407,6 +459,24 @@ _EDGE_TAPER_MAX_M = 60.0  # the outer edge closes a lane over at most this (metr
 # the continuation would cut the lane beyond into a sliver (town06-auto-s2: 0.51 m)
 _OCCUPIED_M = 1.0
 _MEET_LANE_SHARE = 0.25  # ... or settles this share of a lane beside it
+
+
+def _ramp_line_meeting(g: FloatArray, fit: FloatArray, others: list[_Track]) -> int:
+    """Index (on ``g``) where a ramp line that crosses the corridor all along meets the
+    marking it joins (converging: the first station within ``_MEET_M`` of another track)
+    or leaves it (diverging: the last such station); its far end if it meets none. Its
+    trend may carry it past the line it met, across an occlusion gap, onto the next one
+    (soderleden-s2, noisier sensor: the entry's line "met" the through line 60 m late and
+    3.5 m inward, and the acceleration lane began 65 m early)."""
+    converging = fit[-1] < fit[0]
+    near = np.zeros(g.size, dtype=bool)
+    for tr in others:
+        on = (g >= tr.lo) & (g <= tr.hi)
+        near[on] |= np.abs(fit[on] - np.interp(g[on], tr.s, tr.d)) < _MEET_M
+    hits = np.flatnonzero(near)
+    if hits.size == 0:
+        return g.size - 1 if converging else 0
+    return int(hits[0]) if converging else int(hits[-1])
 
 
 def _meeting_station(
