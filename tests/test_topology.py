@@ -463,6 +463,26 @@ def test_gores_from_lane_events_match_section_scan(mainline, side):
     assert [g.station_m for g in got] == [500.0, 800.0]
 
 
+def test_a_lane_ending_and_one_beginning_at_one_station_is_no_pair_of_gores(mainline, side):
+    """Lanes that end at full width where lanes begin at full width at the same station,
+    on the same side, are a carriageway whose lane links broke, not an exit and an entry
+    at one point (melbourne-1019-lane1-s21 with a noisier sensor: such a pair drew the
+    entry 90 m past its gore). The other gores stay."""
+    from roadtwin.mainline import LaneEvent
+    from roadtwin.ramps import gores_from_lane_events
+
+    k = -5 if side == "right" else 5
+    events = [
+        LaneEvent(400.0, "end", side, k, "outer", 0.0, W),
+        LaneEvent(400.0, "birth", side, k, "outer", 0.0, W),
+        LaneEvent(500.0, "end", side, k, "outer", 0.0, W),
+    ]
+    paired = gores_from_lane_events(events, mainline, traffic_side=side)
+    assert [(g.station_m, g.kind) for g in paired] == [(500.0, "exit")]
+    alone = gores_from_lane_events(events[1:], mainline, traffic_side=side)
+    assert [(g.station_m, g.kind) for g in alone] == [(400.0, "entry"), (500.0, "exit")]
+
+
 def test_unlink_width_jumps_drops_only_jumping_links():
     """A lane whose width jumps at a section boundary is unlinked on both sides; a lane
     that continues smoothly keeps its links."""

@@ -88,7 +88,7 @@ def gore_events(road: Road, *, traffic_side: TrafficSide = "right") -> tuple[Gor
                         GoreEvent(s_b, "entry", tuple(x.id for x in starting), through, side)
                     )
                     break
-    return tuple(out)
+    return _without_broken_links(out)
 
 
 def gores_from_lane_events(
@@ -125,7 +125,28 @@ def gores_from_lane_events(
             continue
         side, through = found
         out.append(GoreEvent(s, kind, tuple(ids), through, side))  # type: ignore[arg-type]
-    return tuple(out)
+    return _without_broken_links(out)
+
+
+_SAME_STATION_M = 1.0
+
+
+def _without_broken_links(events: list[GoreEvent]) -> tuple[GoreEvent, ...]:
+    """The gores less the exit-entry pairs at one station (within ``_SAME_STATION_M``) on
+    one side: lanes that end there at full width and lanes that begin there at full width
+    are one carriageway whose lane links broke (a lane structure the mainline stage could
+    not resolve, e.g. both edges hidden at a fork), not a ramp leaving and another joining
+    at the same point (melbourne-1019-lane1-s21, noisier sensor: such a pair took the
+    entry 90 m past its gore)."""
+    drop = {
+        i
+        for i, a in enumerate(events)
+        for b in events
+        if a.kind != b.kind
+        and a.side == b.side
+        and abs(a.station_m - b.station_m) <= _SAME_STATION_M
+    }
+    return tuple(ev for i, ev in enumerate(events) if i not in drop)
 
 
 def edge_driving_lane(
