@@ -242,3 +242,22 @@ def test_an_entry_line_converging_in_an_occlusion_gap_places_the_gore_where_it_m
     assert births[0] == pytest.approx(228.0, abs=8.0)
     assert _driving_lanes_at(sections, 200.0) == 2
     assert _driving_lanes_at(sections, 260.0) == 3
+
+
+def test_a_gore_placed_in_an_occlusion_gap_is_where_the_bridged_edge_steps():
+    """The outer edge is hidden from 200 to 346 m; a ramp line placed the entry's gore at
+    330 m, and the acceleration lane's outer line is first seen at 350 m, past the gap. The
+    edge keeps the shoulder width up to the gore and steps there; it had widened linearly
+    across the whole gap (krems-30799129-s11, noisier sensor: 2.9 m off at its end)."""
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 500.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 11.8), _track(1, grid, 350.0, 15.2)]
+    d_edge = np.where(grid < 330.0, 14.5, 17.9)
+    covered = (grid < 200.0) | (grid > 346.0)
+    linear = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    stepped = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, np.array([330.0]))
+    at = np.array([250.0, 320.0, 335.0, 345.0])
+    assert np.allclose(np.interp(at, grid, stepped), [14.5, 14.5, 17.9, 17.9], atol=0.05)
+    assert float(np.interp(320.0, grid, linear)) > 16.0  # what it was

@@ -193,11 +193,18 @@ def _bridge_edge_gaps(
     tracks: list[_Track],
     grid: FloatArray,
     tapers: list[ShoulderTaper] | None = None,
+    hidden_steps: FloatArray | None = None,
 ) -> FloatArray:
     """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
     outermost marking) linear between the gap ends instead of the edge offset itself, so
     the edge follows markings that were seen (tapers, gores inside the gap). A shoulder
-    taper fitted at a gore in the gap (``tapers``) gives the width on its side."""
+    taper fitted at a gore in the gap (``tapers``) gives the width on its side. A gore
+    placed in the gap (``hidden_steps``, stations in metres: a ramp line met the marking
+    there) is where the width changes when the outermost marking shows no jump inside the
+    gap (krems-30799129-s11, noisier sensor: the acceleration lane's outer line was first
+    seen 4 m past the gap, and the edge widened linearly over the 146 m gap, 2.9 m off at
+    its end)."""
+    steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
     d_last = _last_marking(tracks, grid)
     out = d_edge.copy()
     for a, b in true_runs(~covered):
@@ -215,6 +222,9 @@ def _bridge_edge_gaps(
         # unless the shoulder was seen narrowing towards the gore (entry) / widening from
         # it (exit): then it tapers linearly from / to zero width at the gore
         jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
+        inside = steps[(steps > grid[a]) & (steps < grid[b - 1])]
+        if jump.size != 1 and inside.size == 1:
+            jump = np.searchsorted(grid[a:b], inside)  # the same index as a jump's
         if jump.size == 1:
             j = int(jump[0])  # grid[a + j] is the first station after the gore
             k = np.arange(b - a)
