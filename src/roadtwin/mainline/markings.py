@@ -1179,7 +1179,10 @@ def _add_hidden_lanes(
     for a, b, on in _runs_of((n_in > 0).astype(np.int64), splits):
         if not on or b - a < min_run_in:
             continue
-        a, b, held = _shift_onto_shoulder(inner_gap, n_in == 0, a, b, splits, cfg.grid_step_m)
+        shoulder_m = float(np.median(d_first[a:b] - d_median[a:b] - n_in[a:b] * lane_m))
+        a, b, held = _shift_onto_shoulder(
+            inner_gap, n_in == 0, a, b, splits, cfg.grid_step_m, shoulder_m
+        )
         first, median, n = d_first[a:b], d_median[a:b], n_in[a:b].copy()
         n[: held[0]] = 0
         n[n.size - held[1] :] = 0
@@ -1285,6 +1288,8 @@ def _outer_hidden_lines(
 
 _SHIFT_RATE_MIN = 0.01  # the innermost marking moves sideways at least this fast ...
 _SHIFT_RATE_MAX = 0.15  # ... and no faster (m/m) where the lanes shift onto the shoulder
+_SHIFT_RATE_WINDOW_M = 10.0  # ... measured over this (metres)
+_HELD_SHOULDER_M = 0.5  # the held line lies this close to the run's inner shoulder (metres)
 
 
 def _shift_onto_shoulder(
@@ -1294,6 +1299,7 @@ def _shift_onto_shoulder(
     b: int,
     splits: NDArray[np.bool_],
     step_m: float,
+    shoulder_m: float,
 ) -> tuple[int, int, tuple[int, int]]:
     """A median-side run of hidden lanes ``[a, b)`` (grid indices) widened over the
     stretches before and after it where the innermost marking still moves towards the
@@ -1303,11 +1309,25 @@ def _shift_onto_shoulder(
     shoulder widened with the shifting marking and became a lane 50 m late, all its lines
     0.3-0.6 m off where it did).
 
-    Only stations without a hidden lane (``no_lane``) are added. Returns the new ``a, b``
-    and how many grid stations were added at each end.
+    Only stations without a hidden lane (``no_lane``) are added, and only where the
+    marking left (reaches) the run's inner shoulder width ``shoulder_m`` (metres, to within
+    ``_HELD_SHOULDER_M``): else the marking where the shift ends is a lane's line, not the
+    shoulder's (Town06's wide inner shoulders, whose lane lines were out of reach, with a
+    noisier sensor: a lane's line held as the shoulder's, lanes 0.39 -> 0.69 m). Returns
+    the new ``a, b`` and how many grid stations were added at each end.
     """
-    rate = np.diff(gap) / step_m
-    finite = np.isfinite(rate)
+    from scipy.ndimage import uniform_filter1d
+
+    # the rate over _SHIFT_RATE_WINDOW_M: a flat step of the moving median is no end of
+    # the shift (melbourne-408-opp-s4: the shoulder held 0.7 m out, mid-way up)
+    window = max(1, round(_SHIFT_RATE_WINDOW_M / step_m))
+    known = np.isfinite(gap)
+    if not known.any():
+        return a, b, (0, 0)
+    idx = np.arange(gap.size)
+    filled = np.interp(idx, idx[known], gap[known])  # a running mean spreads a NaN on
+    rate = np.diff(uniform_filter1d(filled, window, mode="nearest")) / step_m
+    finite = known[:-1] & known[1:]
     # diff index i joins stations i and i + 1: going back it adds i, going on i + 1
     opening = finite & ~splits & no_lane[:-1] & (rate >= _SHIFT_RATE_MIN)
     opening &= rate <= _SHIFT_RATE_MAX
@@ -1317,9 +1337,9 @@ def _shift_onto_shoulder(
     a_new = int(stop[-1]) + 1 if stop.size else 0
     stop = np.flatnonzero(~closing[b - 1 :])
     b_new = b - 1 + int(stop[0]) + 1 if stop.size else gap.size
-    if a_new < a and not np.isfinite(gap[a_new]):
+    if a_new < a and not abs(gap[a_new] - shoulder_m) <= _HELD_SHOULDER_M:
         a_new = a
-    if b_new > b and not np.isfinite(gap[b_new - 1]):
+    if b_new > b and not abs(gap[b_new - 1] - shoulder_m) <= _HELD_SHOULDER_M:
         b_new = b
     return a_new, b_new, (a - a_new, b_new - b)
 
