@@ -658,6 +658,36 @@ def test_a_lane_opening_on_the_median_side_as_the_lanes_shift_keeps_the_shoulder
     assert lane_at_start < 0.3
 
 
+def test_no_shoulder_is_held_where_a_line_is_first_seen_as_the_lanes_shift():
+    """As above, but a line is first seen (seen again) where the pattern shifts: the
+    lanes there are what the sensor saw, and no shoulder line is held from where the shift
+    began; the hidden lane is inferred where the strip is a lane wide, as before
+    (melbourne-408-opp-s4: two lanes opening one after the other, first seen as they
+    opened, were cut into tapers by a held shoulder and jumped by a metre at a section
+    border)."""
+    from roadtwin.mainline.markings import _add_hidden_lanes
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+
+    def shift(s):
+        x = np.clip((s - 290.0) / 50.0, 0.0, 1.0)
+        return 3.4 * x * x * (3.0 - 2.0 * x)
+
+    tracks = [
+        _const_track(k, grid, lambda s, d=d: d + shift(s), 0.0, 600.0)
+        for k, d in enumerate((1.0, 4.4, 11.2))
+    ]
+    # the line between the second and the third lane: seen up to 295 m, then from 315 m
+    tracks.append(_const_track(3, grid, lambda s: 7.8 + shift(s), 0.0, 295.0))
+    tracks.append(_const_track(4, grid, lambda s: 7.8 + shift(s), 315.0, 600.0))
+    d_edge = 13.8 + shift(grid)
+    out = _add_hidden_lanes(tracks, grid, d_edge, np.zeros(grid.size), cfg)
+    added = [tr for tr in out if tr.n == 0]
+    assert added
+    assert all(tr.lo > 325.0 for tr in added)
+
+
 def test_an_inferred_line_continues_the_observed_one_it_takes_over_from():
     """The inner edge line is seen for 300 m, then the car moves out and only the markings
     near it are seen: the line inferred on from there is the same line, not a new one (a

@@ -1180,9 +1180,18 @@ def _add_hidden_lanes(
         if not on or b - a < min_run_in:
             continue
         shoulder_m = float(np.median(d_first[a:b] - d_median[a:b] - n_in[a:b] * lane_m))
+        a0, b0 = a, b
         a, b, held = _shift_onto_shoulder(
             inner_gap, n_in == 0, a, b, splits, cfg.grid_step_m, shoulder_m
         )
+        # a line first (last) seen where the lanes shift is the opening (closing) lane's
+        # own: the sensor saw the lanes there, nothing is hidden (melbourne-408-opp-s4: two
+        # lanes opening one after the other, a shoulder held beside them cut them into
+        # tapers that jumped by a metre at a section border)
+        if held[0] and _ends_within(tracks, grid[a], grid[a0], start=True):
+            a, held = a0, (0, held[1])
+        if held[1] and _ends_within(tracks, grid[b0 - 1], grid[b - 1], start=False):
+            b, held = b0, (held[0], 0)
         first, median, n = d_first[a:b], d_median[a:b], n_in[a:b].copy()
         n[: held[0]] = 0
         n[n.size - held[1] :] = 0
@@ -1342,6 +1351,15 @@ def _shift_onto_shoulder(
     if b_new > b and not abs(gap[b_new - 1] - shoulder_m) <= _HELD_SHOULDER_M:
         b_new = b
     return a_new, b_new, (a - a_new, b_new - b)
+
+
+def _ends_within(tracks: list[_Track], lo: float, hi: float, *, start: bool) -> bool:
+    """Whether an observed track starts (``start``) or ends within ``[lo, hi]`` (metres,
+    widened by ``_HANDOVER_M`` each way)."""
+    return any(
+        tr.n > 0 and lo - _HANDOVER_M <= (tr.lo if start else tr.hi) <= hi + _HANDOVER_M
+        for tr in tracks
+    )
 
 
 def _hold_shoulder(
