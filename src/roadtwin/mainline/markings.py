@@ -324,11 +324,16 @@ def _tracks_in_frame(
 
     cand: list[_Track] = []
     evidence: list[tuple[float, float]] = []
-    for tr in raw:
+    # every column peak once (column, offset, track), for the short ramp lines below
+    peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw])
+    peak_d = np.concatenate([np.asarray(tr.d, dtype=float) for tr in raw])
+    peak_tr = np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw])
+    for i_raw, tr in enumerate(raw):
         lo = centres[tr.cols[0]] - 0.5 * col
         hi = centres[tr.cols[-1]] + 0.5 * col
         if too_short(lo, hi):
-            meeting = _short_ramp_line_meeting(tr, raw, centres, cfg)
+            others = peak_tr != i_raw
+            meeting = _short_ramp_line_meeting(tr, (peak_col[others], peak_d[others]), centres, cfg)
             if meeting is not None:
                 evidence.append(meeting)
             continue
@@ -410,14 +415,18 @@ _SHORT_RAMP_REACH_M = 20.0  # its slope carries it on at most this far onto a li
 
 
 def _short_ramp_line_meeting(
-    tr: _RawTrack, raw: list[_RawTrack], centres: FloatArray, cfg: MainlineConfig
+    tr: _RawTrack,
+    other_peaks: tuple[NDArray[np.int64], FloatArray],
+    centres: FloatArray,
+    cfg: MainlineConfig,
 ) -> tuple[float, float] | None:
     """Where a line too short to be a marking track meets (converging inward) or leaves
     (diverging outward) the corridor's markings, if it crosses the corridor steadily over
     ``_SHORT_RAMP_LINE_M`` or more: a ramp line, the evidence of a gore. Its peaks merge
     with the line it joins for the last metre or so; the meeting is where its slope
-    carries it onto the nearest other line (``raw``, column peaks at ``centres``) within
-    ``_SHORT_RAMP_REACH_M``, else its last (first) column. A ramp line converging through
+    carries it onto the nearest other line (``other_peaks``: the other tracks' column
+    indices and offsets, columns centred at ``centres``) within ``_SHORT_RAMP_REACH_M``,
+    else its last (first) column. A ramp line converging through
     an occlusion gap of the outer edge is cut by the edge's bound there and may be left too
     short for a track (soderleden-s2, noisier sensor: then nothing placed the gore, and
     the acceleration lane began where the line beside it did, 54 m early)."""
@@ -439,16 +448,17 @@ def _short_ramp_line_meeting(
     slope = abs(float(np.median(rate[-3:] if end == -1 else rate[:3])))
     # the other lines inward of its end, in the columns it would cross next
     reach = round(_SHORT_RAMP_REACH_M / float(centres[1] - centres[0])) if centres.size > 1 else 0
-    inward = [
-        v
-        for other in raw
-        if other is not tr
-        for c, v in zip(other.cols, other.d, strict=True)
-        if 0 <= (c - col) * toward <= reach and d_end - _SHORT_RAMP_REACH_M * slope <= v < d_end
+    cols, offsets = other_peaks
+    ahead = (cols - col) * toward
+    inward = offsets[
+        (ahead >= 0)
+        & (ahead <= reach)
+        & (offsets >= d_end - _SHORT_RAMP_REACH_M * slope)
+        & (offsets < d_end)
     ]
-    if not inward:
+    if inward.size == 0:
         return s_end, d_end
-    d_meet = max(inward)
+    d_meet = float(np.max(inward))
     return s_end + toward * (d_end - d_meet) / max(slope, 1e-6), d_meet
 
 

@@ -128,7 +128,7 @@ def gores_from_lane_events(
     return _without_broken_links(out)
 
 
-_SAME_STATION_M = 1.0
+_SAME_STATION_M = 1.0  # an exit and an entry this close (metres) are at one station
 
 
 def _without_broken_links(events: list[GoreEvent]) -> tuple[GoreEvent, ...]:
