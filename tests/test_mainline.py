@@ -624,6 +624,24 @@ def test_inferred_median_side_lanes_end_where_the_innermost_marking_does():
         assert float(np.max(tr.d)) < 4.8 - 2.5
 
 
+def _shifting_pattern(offsets, seen=None):
+    """Lines at ``offsets`` (metres) over 0-600 m that shift 3.4 m outwards over 290-340 m
+    (a lane opening on the median side), the outer edge beside them, the grid and config;
+    ``seen`` maps an offset to the stretches ``(lo, hi)`` where that line was seen."""
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
+
+    def shift(s):
+        x = np.clip((s - 290.0) / 50.0, 0.0, 1.0)
+        return 3.4 * x * x * (3.0 - 2.0 * x)
+
+    tracks = []
+    for d in offsets:
+        for lo, hi in (seen or {}).get(d, [(0.0, 600.0)]):
+            tracks.append(_const_track(len(tracks), grid, lambda s, d=d: d + shift(s), lo, hi))
+    return tracks, 13.8 + shift(grid), grid, cfg
+
+
 def test_a_lane_opening_on_the_median_side_as_the_lanes_shift_keeps_the_shoulder():
     """The whole marking pattern shifts 3.4 m outwards over 290-340 m while a lane opens
     on the median side; the inner shoulder's solid line at 1.0 m is out of the sensor's
@@ -634,18 +652,7 @@ def test_a_lane_opening_on_the_median_side_as_the_lanes_shift_keeps_the_shoulder
     strip had become a lane wide: lines 0.3-0.6 m off, lane count wrong over 17 m)."""
     from roadtwin.mainline.markings import _add_hidden_lanes
 
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
-
-    def shift(s):
-        x = np.clip((s - 290.0) / 50.0, 0.0, 1.0)
-        return 3.4 * x * x * (3.0 - 2.0 * x)
-
-    tracks = [
-        _const_track(k, grid, lambda s, d=d: d + shift(s), 0.0, 600.0)
-        for k, d in enumerate((1.0, 4.4, 7.8, 11.2))
-    ]
-    d_edge = 13.8 + shift(grid)
+    tracks, d_edge, grid, cfg = _shifting_pattern((1.0, 4.4, 7.8, 11.2))
     out = _add_hidden_lanes(tracks, grid, d_edge, np.zeros(grid.size), cfg)
     added = [tr for tr in out if tr.n == 0]
     assert len(added) == 1
@@ -667,21 +674,10 @@ def test_no_shoulder_is_held_where_a_line_is_first_seen_as_the_lanes_shift():
     border)."""
     from roadtwin.mainline.markings import _add_hidden_lanes
 
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 600.5, cfg.grid_step_m)
-
-    def shift(s):
-        x = np.clip((s - 290.0) / 50.0, 0.0, 1.0)
-        return 3.4 * x * x * (3.0 - 2.0 * x)
-
-    tracks = [
-        _const_track(k, grid, lambda s, d=d: d + shift(s), 0.0, 600.0)
-        for k, d in enumerate((1.0, 4.4, 11.2))
-    ]
     # the line between the second and the third lane: seen up to 295 m, then from 315 m
-    tracks.append(_const_track(3, grid, lambda s: 7.8 + shift(s), 0.0, 295.0))
-    tracks.append(_const_track(4, grid, lambda s: 7.8 + shift(s), 315.0, 600.0))
-    d_edge = 13.8 + shift(grid)
+    tracks, d_edge, grid, cfg = _shifting_pattern(
+        (1.0, 4.4, 7.8, 11.2), seen={7.8: [(0.0, 295.0), (315.0, 600.0)]}
+    )
     out = _add_hidden_lanes(tracks, grid, d_edge, np.zeros(grid.size), cfg)
     added = [tr for tr in out if tr.n == 0]
     assert added
