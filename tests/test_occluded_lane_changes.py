@@ -261,3 +261,29 @@ def test_a_gore_placed_in_an_occlusion_gap_is_where_the_bridged_edge_steps():
     at = np.array([250.0, 320.0, 335.0, 345.0])
     assert np.allclose(np.interp(at, grid, stepped), [14.5, 14.5, 17.9, 17.9], atol=0.05)
     assert float(np.interp(320.0, grid, linear)) > 16.0  # what it was
+
+
+def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_moved():
+    """melbourne-1019-lane1-s21 with a noisier sensor: at a section border the outer
+    driving lane is 2.67 m wide before and 4.08 m after, the hard shoulder beside it 2.34 m
+    and 0.93 m: the line between them moved by 1.4 m, their inner border and the edge did
+    not. The same lanes fitted anew: the driving lane goes on (it ended at full width where
+    the same lane began, a dead end); where the edge moved too they are not the same lanes."""
+    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+
+    def lane(lid, w, kind="driving"):
+        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+
+    def section(s0, outer, shoulder):
+        inner = (lane(-1, 0.6, "shoulder"), lane(-2, 3.5))
+        return LaneSection(s0, right=(*inner, lane(-3, outer), lane(-4, shoulder, "shoulder")))
+
+    first = section(0.0, 2.67, 2.34)
+    linked = _link_sections([first, section(100.0, 4.08, 0.93)], [[], []], at_step=[False] * 2)
+    assert linked[1].right[2].predecessor == -3
+    assert linked[0].right[2].successor == -3
+    # it goes on with the width it had
+    assert float(linked[1].right[2].width.value(0.0)) == pytest.approx(2.67, abs=0.01)
+    apart = _link_sections([first, section(100.0, 4.08, 2.0)], [[], []], at_step=[False] * 2)
+    assert apart[1].right[2].predecessor is None

@@ -672,6 +672,45 @@ def _link_first_free(
             return
 
 
+def _link_refitted_outer_lanes(
+    prev_lanes: tuple[Lane, ...],
+    cur_lanes: tuple[Lane, ...],
+    b_prev: FloatArray,
+    b_cur: FloatArray,
+    mapping: dict[int, int],
+    used: set[int],
+) -> None:
+    """Link the driving lanes of the outermost unlinked lanes on both sides of a border
+    pairwise when they are the same lanes fitted anew: as many of them, of the same types,
+    between an inner border and an outer edge that meet (``_LINK_TOLERANCE_M``; borders
+    in metres from the median-side edge). A line between them that the two fits place
+    more than ``_WIDTH_JUMP_M`` apart left a driving lane ending at full width where the
+    same lane began at full width, a dead end (melbourne-1019-lane1-s21 with a noisier
+    sensor: 2.67 m before the border, 4.08 m after it, the edge in place); linked, it
+    continues with the width it had (:func:`_link_sections`)."""
+    free_prev = [j for j in range(len(prev_lanes)) if j not in used]
+    free_cur = [i for i in range(len(cur_lanes)) if i not in mapping]
+    if not free_prev or not free_cur:
+        return
+    j0, i0 = free_prev[0], free_cur[0]
+    if free_prev != list(range(j0, len(prev_lanes))) or free_cur != list(range(i0, len(cur_lanes))):
+        return
+    if len(free_prev) != len(free_cur):
+        return
+    if abs(b_prev[j0] - b_cur[i0]) > _LINK_TOLERANCE_M or abs(b_prev[-1] - b_cur[-1]) > (
+        _LINK_TOLERANCE_M
+    ):
+        return
+    if any(
+        prev_lanes[j].type != cur_lanes[i].type for j, i in zip(free_prev, free_cur, strict=True)
+    ):
+        return
+    for j, i in zip(free_prev, free_cur, strict=True):
+        if cur_lanes[i].type == "driving":
+            mapping[i] = j
+            used.add(j)
+
+
 def _link_sections(
     sections: list[LaneSection],
     bounds_per: list[list[tuple[object, object]]],
@@ -762,6 +801,7 @@ def _link_sections(
                 np.abs(b_cur[i + 1] - b_prev[1:]) <= _LINK_TOLERANCE_M
             )
             _link_first_free(i, open_prev & meets, mapping, used)
+        _link_refitted_outer_lanes(prev_lanes, cur_lanes, b_prev, b_cur, mapping, used)
         for i, j in mapping.items():
             hard_shoulder = (prev_lanes[j].type == "shoulder" and j == len(prev_lanes) - 1) or (
                 cur_lanes[i].type == "shoulder" and i == len(cur_lanes) - 1
