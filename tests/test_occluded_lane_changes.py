@@ -20,6 +20,7 @@ from roadtwin.config import MainlineConfig
 from roadtwin.mainline import fit_lanes
 from roadtwin.mainline.lanes import _edge_bound
 from roadtwin.mainline.markings import _link_tracks
+from roadtwin.model import constant_lane
 
 
 def _smoothstep(s, s0, length):
@@ -31,6 +32,11 @@ def _line(rng, s0, s1, d, step=0.5, noise=0.02):
     s = np.arange(s0, s1, step)
     dd = d(s) if callable(d) else np.full(s.size, float(d))
     return s, dd + rng.normal(0.0, noise, s.size)
+
+
+def _lane(lane_id, width_m, lane_type="driving"):
+    """A lane of constant width (metres)."""
+    return constant_lane(lane_id, width_m, lane_type=lane_type)
 
 
 def _driving_lanes_at(sections, station):
@@ -176,20 +182,22 @@ def test_the_innermost_driving_lane_goes_on_where_its_inner_shoulder_widens_at_a
     after, their outer borders where they were. Nothing inside the lane is a driving lane
     to take the difference, so the lane is that lane fitted anew: linked (it led nowhere)."""
     from roadtwin.mainline.sections import _link_sections
-    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
-
-    def lane(lid, w, kind="driving"):
-        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+    from roadtwin.model import LaneSection
 
     first = LaneSection(
         0.0,
-        right=(lane(-1, 0.0, "shoulder"), lane(-2, 3.49), lane(-3, 3.5), lane(-4, 1.0, "shoulder")),
+        right=(
+            _lane(-1, 0.0, "shoulder"),
+            _lane(-2, 3.49),
+            _lane(-3, 3.5),
+            _lane(-4, 1.0, "shoulder"),
+        ),
     )
     second = LaneSection(
         100.0,
         right=(
-            lane(-1, 0.69, "shoulder"), lane(-2, 0.0, "shoulder"), lane(-3, 2.8), lane(-4, 3.5),
-            lane(-5, 1.0, "shoulder"),
+            _lane(-1, 0.69, "shoulder"), _lane(-2, 0.0, "shoulder"), _lane(-3, 2.8), _lane(-4, 3.5),
+            _lane(-5, 1.0, "shoulder"),
         ),
     )  # fmt: skip
     linked = _link_sections([first, second], [[], []], at_step=[False, False])
@@ -270,14 +278,11 @@ def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_move
     not. The same lanes fitted anew: the driving lane goes on (it ended at full width where
     the same lane began, a dead end); where the edge moved too they are not the same lanes."""
     from roadtwin.mainline.sections import _link_sections
-    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
-
-    def lane(lid, w, kind="driving"):
-        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+    from roadtwin.model import LaneSection
 
     def section(s0, outer, shoulder):
-        inner = (lane(-1, 0.6, "shoulder"), lane(-2, 3.5))
-        return LaneSection(s0, right=(*inner, lane(-3, outer), lane(-4, shoulder, "shoulder")))
+        inner = (_lane(-1, 0.6, "shoulder"), _lane(-2, 3.5))
+        return LaneSection(s0, right=(*inner, _lane(-3, outer), _lane(-4, shoulder, "shoulder")))
 
     first = section(0.0, 2.67, 2.34)
     linked = _link_sections([first, section(100.0, 4.08, 0.93)], [[], []], at_step=[False] * 2)

@@ -332,8 +332,8 @@ def _tracks_in_frame(
         lo = centres[tr.cols[0]] - 0.5 * col
         hi = centres[tr.cols[-1]] + 0.5 * col
         if too_short(lo, hi):
-            others = peak_tr != i_raw
-            meeting = _short_ramp_line_meeting(tr, (peak_col[others], peak_d[others]), centres, cfg)
+            peaks = (peak_col, peak_d, peak_tr != i_raw)
+            meeting = _short_ramp_line_meeting(tr, peaks, centres, cfg)
             if meeting is not None:
                 evidence.append(meeting)
             continue
@@ -416,7 +416,7 @@ _SHORT_RAMP_REACH_M = 20.0  # its slope carries it on at most this far onto a li
 
 def _short_ramp_line_meeting(
     tr: _RawTrack,
-    other_peaks: tuple[NDArray[np.int64], FloatArray],
+    peaks: tuple[NDArray[np.int64], FloatArray, NDArray[np.bool_]],
     centres: FloatArray,
     cfg: MainlineConfig,
 ) -> tuple[float, float] | None:
@@ -424,12 +424,13 @@ def _short_ramp_line_meeting(
     (diverging outward) the corridor's markings, if it crosses the corridor steadily over
     ``_SHORT_RAMP_LINE_M`` or more: a ramp line, the evidence of a gore. Its peaks merge
     with the line it joins for the last metre or so; the meeting is where its slope
-    carries it onto the nearest other line (``other_peaks``: the other tracks' column
-    indices and offsets, columns centred at ``centres``) within ``_SHORT_RAMP_REACH_M``,
-    else its last (first) column. A ramp line converging through
-    an occlusion gap of the outer edge is cut by the edge's bound there and may be left too
-    short for a track (soderleden-s2, noisier sensor: then nothing placed the gore, and
-    the acceleration lane began where the line beside it did, 54 m early)."""
+    carries it onto the nearest other line (``peaks``: every track's column indices and
+    offsets, and the mask of the other tracks' ones, applied only when the line qualifies;
+    columns centred at ``centres``) within ``_SHORT_RAMP_REACH_M``, else its last (first)
+    column. A ramp line converging through an occlusion gap of the outer edge is cut by
+    the edge's bound there and may be left too short for a track (soderleden-s2, noisier
+    sensor: then nothing placed the gore, and the acceleration lane began where the line
+    beside it did, 54 m early)."""
     s_cols, d_cols = centres[tr.cols], np.asarray(tr.d)
     if s_cols.size < 4 or s_cols[-1] - s_cols[0] < _SHORT_RAMP_LINE_M:
         return None
@@ -448,7 +449,8 @@ def _short_ramp_line_meeting(
     slope = abs(float(np.median(rate[-3:] if end == -1 else rate[:3])))
     # the other lines inward of its end, in the columns it would cross next
     reach = round(_SHORT_RAMP_REACH_M / float(centres[1] - centres[0])) if centres.size > 1 else 0
-    cols, offsets = other_peaks
+    cols, offsets, other = peaks
+    cols, offsets = cols[other], offsets[other]
     ahead = (cols - col) * toward
     inward = offsets[
         (ahead >= 0)
