@@ -297,6 +297,8 @@ def build_and_judge(
             km=sum(r.length for r in result.network.roads if r.name == "mainline") / 1000.0,
             edge_rmse=(t.get("road_edge") or {}).get("rmse_m"),
             lane_rmse=(t.get("lane_boundary") or {}).get("rmse_m"),
+            edge_rmse_strict=(t.get("road_edge_strict") or {}).get("rmse_m"),
+            lane_rmse_strict=(t.get("lane_boundary_strict") or {}).get("rmse_m"),
             edge_p95=(t.get("road_edge") or {}).get("p95_m"),
             lane_p95=(t.get("lane_boundary") or {}).get("p95_m"),
             lane_count=(t.get("lane_count") or {}).get("matched_fraction"),

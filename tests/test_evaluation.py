@@ -322,9 +322,13 @@ def test_shifted_map_against_truth_reports_shift(truth):
     report = evaluate(shifted(truth, 0.3), run, truth=truth, truth_info=TRUTH_INFO)
     res = report.runs[0].truth
     for kind in ("road_edge", "lane_boundary"):
+        strict = res[f"{kind}_strict"]
+        assert strict["rmse_m"] == pytest.approx(0.3, abs=0.01)
+        assert strict["p95_m"] == pytest.approx(0.3, abs=0.01)
+        assert strict["max_m"] == pytest.approx(0.3, abs=0.01)
+        # beside the ramps' (unshifted) connecting roads a few points match their borders
         assert res[kind]["rmse_m"] == pytest.approx(0.3, abs=0.01)
-        assert res[kind]["p95_m"] == pytest.approx(0.3, abs=0.01)
-        assert res[kind]["max_m"] == pytest.approx(0.3, abs=0.01)
+        assert res[kind]["max_m"] <= 0.3 + 1e-6
     # every 1 m along 1280 m of mainline, 2 edges and 3 markings; where the entry's
     # connecting road converges across the through connector's hard shoulder (J300), 30 m
     # of the outer edge lie on the entry's pavement and are no edge
@@ -336,7 +340,8 @@ def test_shifted_map_against_truth_reports_shift(truth):
     assert res["ramp_centre"]["max_m"] == pytest.approx(0.0, abs=1e-6)
     assert res["lane_count"]["matched_fraction"] == pytest.approx(1.0)
     signed = report.runs[0].details["truth/road_edge"].error_m
-    np.testing.assert_allclose(signed, -0.3, atol=1e-6)  # truth lies 0.3 m right of the map
+    shifted_by = np.isclose(signed, -0.3, atol=1e-6)  # truth lies 0.3 m right of the map
+    assert np.count_nonzero(~shifted_by) <= 10 <= res["junction_points"]
 
 
 def test_ramp_shift_and_elevation_against_truth(truth):
@@ -354,10 +359,13 @@ def test_ramp_shift_and_elevation_against_truth(truth):
     assert res["ramp_boundary"]["rmse_m"] == pytest.approx(0.5, abs=0.01)
     assert res["ramp_centre"]["covered_fraction"] > 0.95
     # connectors 101 and 301 were shifted too (role "connector") but named roads not
-    assert res["road_edge"]["max_m"] == pytest.approx(0.5, abs=1e-6)
+    assert res["road_edge_strict"]["max_m"] == pytest.approx(0.5, abs=1e-6)
     # 2 x 80 connector points of 2 x 1280, less the 30 of connector 301's outer edge on
     # the entry connector's pavement
-    assert res["road_edge"]["rmse_m"] == pytest.approx(0.5 * math.sqrt(130 / 2530), abs=1e-3)
+    strict = 0.5 * math.sqrt(130 / 2530)
+    assert res["road_edge_strict"]["rmse_m"] == pytest.approx(strict, abs=1e-3)
+    # beside the ramps' connecting roads (shifted alike) some match their borders
+    assert 0.8 * strict < res["road_edge"]["rmse_m"] < strict
     # the three named mainline roads are 0.2 m high, the through connectors are not
     assert res["elevation"]["rmse_m"] == pytest.approx(0.2 * math.sqrt(1200 / 1280), abs=1e-3)
 

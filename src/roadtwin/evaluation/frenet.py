@@ -269,13 +269,15 @@ def on_pavement_of(
     roads: Sequence[Road], points: FloatArray, *, margin_m: float
 ) -> NDArray[np.bool_]:
     """Mask of points that lie on the pavement of one of ``roads``: at least ``margin_m``
-    inside its road edges (metres) and, for ``(N, 3)`` points, within ``SAME_LEVEL_M`` of
-    its surface (a road passing over or under is not the same pavement)."""
+    inside its road edges (metres; negative: at most ``-margin_m`` outside them) and, for
+    ``(N, 3)`` points, within ``SAME_LEVEL_M`` of its surface (a road passing over or under
+    is not the same pavement)."""
     raw = np.asarray(points, dtype=float)
     out = np.zeros(raw.shape[0], dtype=bool)
     if not roads or raw.shape[0] == 0:
         return out
-    proj = project_points(roads, raw, max_lateral_m=0.0, end_tolerance_m=0.0)
+    # a negative margin reaches outside the edges: the projection must too
+    proj = project_points(roads, raw, max_lateral_m=max(0.0, -margin_m), end_tolerance_m=0.0)
     for r in np.unique(proj.road_index[proj.ok]):
         sel = np.nonzero(proj.ok & (proj.road_index == r))[0]
         road = roads[int(r)]

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import EvaluationConfig
-from ..model import Road, RoadNetwork
+from ..model import SAME_LEVEL_M, Road, RoadNetwork
 from .frenet import (
     _BEYOND_ENDS,
     _NO_ROAD,
@@ -333,6 +333,55 @@ _ON_RAMP_MARGIN_M = 0.3
 the ramp's pavement and is left out of the mainline's truth."""
 
 
+def _at_junction(
+    truth: RoadNetwork, built: RoadNetwork, pts: FloatArray, on_ramp: NDArray[np.bool_]
+) -> NDArray[np.bool_]:
+    """Mask of true mainline boundary points (``(N, 3)``, mapping frame, metres) on or
+    within ``_ON_RAMP_MARGIN_M`` of the pavement of a true or built ramp road (with the
+    connecting roads joining it), not on a true ramp's pavement (those are left out)."""
+    near = np.zeros(pts.shape[0], dtype=bool)
+    for network in (truth, built):
+        near |= on_pavement_of(ramp_roads(network), pts, margin_m=-_ON_RAMP_MARGIN_M)
+    return near & ~on_ramp
+
+
+def _junction_errors(
+    built: RoadNetwork,
+    pts: FloatArray,
+    mainline_err: FloatArray,
+    mainline_any: FloatArray,
+    at_junction: NDArray[np.bool_],
+) -> FloatArray:
+    """Errors of true mainline boundary points where a ramp leaves or joins (metres): the
+    smallest in magnitude against any boundary of the built mainline or of a built ramp road
+    (or its connecting road) the point is on or beside; ``mainline_err`` elsewhere.
+
+    Where a ramp lane stops being a mainline lane is a convention of each map (a junction
+    starting at the painted gore, at the nose, a connecting road of 12 or 20 m): the same
+    pavement edge is the mainline's edge in one map and a ramp connecting road's edge, or a
+    lane border between through and ramp lanes, in another, a few metres along. A true
+    boundary there is matched with the nearest built boundary of the carriageway, whichever
+    road carries it; away from ramps the kinds and roads must agree.
+    """
+    err = mainline_err.copy()
+    idx = np.nonzero(at_junction)[0]
+    if not idx.size:
+        return err
+    best = np.where(np.isfinite(mainline_any[idx]), mainline_any[idx], np.inf)
+    ramps = ramp_roads(built)
+    proj = project_points(ramps, pts[idx], max_lateral_m=_ON_RAMP_MARGIN_M, end_tolerance_m=0.0)
+    for r in np.unique(proj.road_index[proj.ok]):
+        sel = np.nonzero(proj.ok & (proj.road_index == r))[0]
+        road = ramps[int(r)]
+        level = np.abs(road.surface_height(proj.s[sel], proj.t[sel]) - pts[idx[sel], 2])
+        t_b, _ = nearest_boundary(road, proj.s[sel], proj.t[sel], None)
+        cand = np.where(level <= SAME_LEVEL_M, proj.t[sel] - t_b, np.nan)
+        better = np.isfinite(cand) & (np.abs(cand) < np.abs(best[sel]))
+        best[sel[better]] = cand[better]
+    err[idx] = np.where(np.isfinite(best), best, err[idx])
+    return err
+
+
 def _truth_mainline(
     network: RoadNetwork, truth: RoadNetwork, cfg: EvaluationConfig
 ) -> tuple[dict[str, Any], dict[str, PointErrors]]:
@@ -384,6 +433,7 @@ def _truth_mainline(
         "covered_fraction": float(np.mean(proj.ok)) if proj.ok.size else 0.0,
     }
     twin = np.concatenate(twin_l)
+    at_junction = _at_junction(truth, network, np.column_stack([xy, z_true]), on_ramp)
     for kind in (EDGE, LANE):
         mask = kinds_arr == kind
         sub = Projection(
@@ -393,9 +443,20 @@ def _truth_mainline(
             np.where(mask, proj.status, _NO_ROAD),
             station,  # plots along the TRUE mainline station
         )
-        pe = _lateral_errors(built, xy, sub, kind, f"truth/{kind}", either=twin)
+        err, lane = _errors_full(built, sub, kind)
+        err_any, lane_any = _errors_full(built, sub, None)
+        strict = np.where(twin, err_any, err)
+        lane = np.where(twin, lane_any, lane)
+        good = np.isfinite(strict)
+        err = _junction_errors(
+            network, np.column_stack([xy, z_true]), strict, err_any, at_junction & good
+        )
+        pe = PointErrors(f"truth/{kind}", xy[good], station[good], err[good], lane[good])
         details[f"truth/{kind}"] = pe
         result[kind] = error_stats(pe.error_m)
+        # the same points with kinds and roads that must agree at junctions too
+        result[f"{kind}_strict"] = error_stats(strict[good])
+    result["junction_points"] = int(np.count_nonzero(at_junction))
     # elevation at every covered true boundary point
     ok = np.nonzero(proj.ok)[0]
     dz = np.full(ok.size, np.nan)
