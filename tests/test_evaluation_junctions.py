@@ -130,3 +130,16 @@ def test_ramp_lane_in_the_wrong_place_is_still_an_error():
     assert near.sum() >= 8
     np.testing.assert_allclose(np.abs(err.error_m[near]), 1.0, atol=0.01)
     assert res["road_edge"]["max_m"] == pytest.approx(1.0, abs=0.01)
+
+
+def test_lane_count_across_the_carriageway_where_the_maps_split_it_apart():
+    """Where the map's junction starts 10 m before the truth's, its mainline roads have one
+    lane fewer than the truth's, its ramp connecting road carries that lane: counted across
+    the carriageway the lanes agree. A ramp lane 3 m off the mainline is no lane of it."""
+    truth = exit_network(300.0)
+    res, _ = _truth_mainline(exit_network(290.0), truth, EvaluationConfig())
+    assert res["lane_count"]["matched_fraction"] == pytest.approx(1.0)
+    res, _ = _truth_mainline(exit_network(290.0, ramp_offset_m=3.0), truth, EvaluationConfig())
+    stations = res["lane_count"]["stations"]
+    # stations every metre: the 10 between 290 and 300 m count 2 lanes against 3
+    assert res["lane_count"]["matched_fraction"] == pytest.approx(1.0 - 10 / stations, abs=1e-9)

@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from ..config import EvaluationConfig
 from ..model import SAME_LEVEL_M, Road, RoadNetwork
+from .cross_section import carriageway_lane_count
 from .frenet import (
     _BEYOND_ENDS,
     _NO_ROAD,
@@ -469,7 +470,14 @@ def _truth_mainline(
         "truth/elevation", xy[ok], station[ok], dz, np.concatenate(id_l)[ok]
     )
     result["elevation"] = error_stats(dz)
-    result["lane_count"] = _lane_count(true_roads, built, offsets, cfg)
+    result["lane_count"] = _lane_count(
+        true_roads,
+        built,
+        offsets,
+        cfg,
+        true_ramps=ramp_roads(truth),
+        built_ramps=ramp_roads(network),
+    )
     return result, details
 
 
@@ -504,10 +512,23 @@ def _centre_points(
     return stations, centres
 
 
+_NEAR_RAMP_M = 15.0
+"""Stations whose centre point lies within this distance (metres) of a true or built ramp's
+pavement are counted across the carriageway (:mod:`.cross_section`)."""
+
+
 def _lane_count(
-    true_roads: Sequence[Road], built: Sequence[Road], offsets: FloatArray, cfg: EvaluationConfig
+    true_roads: Sequence[Road],
+    built: Sequence[Road],
+    offsets: FloatArray,
+    cfg: EvaluationConfig,
+    *,
+    true_ramps: Sequence[Road] = (),
+    built_ramps: Sequence[Road] = (),
 ) -> dict[str, Any]:
-    """Driving-lane count of the built map against truth at every station."""
+    """Driving-lane count of the built map against truth at every station: of the mainline
+    roads, and near a ramp (``true_ramps``, ``built_ramps``: ramp and connecting roads) of
+    every road across the carriageway in each map."""
     sections = []
     all_match: list[NDArray[np.bool_]] = []
     stations, centres = _centre_points(true_roads, cfg.truth_step_m)
@@ -519,6 +540,7 @@ def _lane_count(
         end_tolerance_m=cfg.end_tolerance_m,
     )
     bounds = np.concatenate([[0], np.cumsum([s.size for s in stations])])
+    min_w = cfg.lane_count_min_width_m
     for i, road in enumerate(true_roads):
         s = stations[i]
         sec_idx = road.section_index(s)
@@ -530,7 +552,23 @@ def _lane_count(
             built_n[sel] = driving_lane_count(
                 built[int(r)], proj.s[sel], min_width_m=cfg.lane_count_min_width_m
             )
+        near = proj.ok & on_pavement_of(
+            [*true_ramps, *built_ramps], centres[i], margin_m=-_NEAR_RAMP_M
+        )
         match = (built_n == true_n) & proj.ok
+        # near a ramp, a count that differs on the mainline roads may agree across the
+        # carriageway: the maps put the ramp's lanes on different roads there
+        near &= ~match
+        if near.any():
+            h = road.heading(s[near])
+            normals = np.column_stack([-np.sin(h), np.cos(h)])
+            true_cw = carriageway_lane_count(
+                [*true_roads, *true_ramps], centres[i][near], normals, min_width_m=min_w
+            )
+            built_cw = carriageway_lane_count(
+                [*built, *built_ramps], centres[i][near], normals, min_width_m=min_w
+            )
+            match[near] = built_cw == true_cw
         for k in np.unique(sec_idx):
             sel = (sec_idx == k) & proj.ok
             sec = road.lane_sections[int(k)]
