@@ -218,3 +218,25 @@ def test_a_step_station_belongs_to_the_segment_it_begins():
 
     steps = EdgeSteps(np.array([1375.0]), np.array([0.0, -10.9]))
     np.testing.assert_allclose(steps.at(np.array([1374.9, 1375.0, 1375.1])), [0.0, -10.9, -10.9])
+
+
+def test_a_noisier_sensors_scattered_levels_are_followed_not_left_unseen():
+    """Each 2 m bin's level scatters by 0.15 m (a noisier sensor): an entry's new outer
+    edge (7 m -> 10.5 m at 100 m, the ramp's edge beside the mainline's before it) is
+    followed from the gore on; with the configured 0.15 m sigma alone the path went on
+    unseen at 7 m for 40 m, that cost less per bin than following the scatter."""
+    rng = np.random.default_rng(11)
+    s = np.arange(0.0, 300.0, 0.25)
+    jitter = rng.normal(0.0, 0.15, 150)[(s // 2.0).astype(int)]  # one offset per bin
+    d = np.where(s < 100.0, 7.0, 10.5) + jitter + rng.normal(0.0, 0.03, s.size)
+    ramp = (s > 40.0) & (s < 100.0)  # the ramp's edge before the gore
+    s = np.concatenate([s, s[ramp]])
+    d = np.concatenate([d, 10.6 + rng.normal(0.0, 0.05, np.count_nonzero(ramp))])
+    edges = np.arange(0.0, 301.0, 2.0)
+    level = edge_level_path(s, d, edges)
+    c = 0.5 * (edges[1:] + edges[:-1])
+    after = c > 102.0
+    assert np.mean(np.isfinite(level[after])) > 0.95
+    assert np.nanmax(np.abs(level[after] - 10.5)) < 0.6
+    before = c < 98.0
+    assert np.nanmax(np.abs(level[before] - 7.0)) < 0.6
