@@ -414,10 +414,11 @@ def _f(value, digits: int = 3) -> str:
 
 def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
     head = (
-        "| run | split | method | km | edge RMSE | lane RMSE | edge / lane away | lane count "
+        "| run | split | method | km | edge RMSE | lane RMSE | edge / lane strict "
+        "| edge / lane away | lane count "
         "| ramps found/true | typed | spurious | ramp centre RMSE | widest lane | check errors "
         "| SUMO | ASAM | drive | build s |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     lines = [head]
     for name, split, rows in results:
@@ -440,6 +441,7 @@ def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
             lines.append(
                 f"| {name} | {split} | {r['method']} | {_f(r['km'], 1)} | {_f(r['edge_rmse'])} "
                 f"| {_f(r['lane_rmse'])} "
+                f"| {_f(r.get('edge_rmse_strict'))} / {_f(r.get('lane_rmse_strict'))} "
                 f"| {_f(r.get('edge_rmse_away'))} / {_f(r.get('lane_rmse_away'))} "
                 f"| {count_txt} | {r['matched']}/{r['true_ramps']} "
                 f"| {r['typed']} | {r['spurious']} | {_f(r.get('ramp_centre'), 2)} "
@@ -469,11 +471,18 @@ def summary(results: list[tuple[str, str, list[dict]]], method: str) -> str:
             f"lane median {np.median(l_a):.3f} m, <= 0.10 m on {int(np.sum(e_a <= 0.1))} / "
             f"{int(np.sum(l_a <= 0.1))} of {len(rows)}; "
         )
+    strict = ""
+    if col("edge_rmse_strict").size and col("lane_rmse_strict").size:
+        e_s, l_s = col("edge_rmse_strict"), col("lane_rmse_strict")
+        strict = (
+            f"strict (a ramp's lane counts on the mainline road only) edge median "
+            f"{np.median(e_s):.3f}, lane median {np.median(l_s):.3f} m; "
+        )
     missed = sum((r["true_ramps"] or 0) - (r["matched"] or 0) for r in rows)
     return (
         f"{method}: {len(rows)} runs built, {len(failed)} failed; "
         f"edge RMSE median {np.median(edge):.3f} max {edge.max():.3f} m; "
-        f"lane RMSE median {np.median(lane):.3f} max {lane.max():.3f} m; {away}"
+        f"lane RMSE median {np.median(lane):.3f} max {lane.max():.3f} m; {strict}{away}"
         f"ramp centre RMSE median {np.median(col('ramp_centre')):.2f} m; "
         f"lane count min {100 * count.min():.1f} %; ramps missed {missed}, "
         f"spurious {sum(r['spurious'] for r in rows)}, "
