@@ -292,3 +292,31 @@ def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_move
     assert float(linked[1].right[2].width.value(0.0)) == pytest.approx(2.67, abs=0.01)
     apart = _link_sections([first, section(100.0, 4.08, 2.0)], [[], []], at_step=[False] * 2)
     assert apart[1].right[2].predecessor is None
+
+
+def test_a_line_bending_towards_an_inner_exit_is_no_outer_ramp_line():
+    """melbourne-1019-lane1-s21: the outer edge is hidden from 589 to 663 m; the inner
+    shoulder's line (1 m) bends 0.3 m outwards over its last 15 m towards an inner exit and
+    ends at 594 m, where the exit lane's outer line leaves the line at 4.6 m. Both have lines
+    farther out: no outer gore (one was made 22 m before the inner exit, the line cut back to
+    it and the shoulder merged into a lane 4.6 m wide). The outermost line diverging in the
+    gap still marks an outer exit's gore."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+    from roadtwin.mainline.markings import _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.5, cfg.grid_step_m)
+    g = grid[grid <= 594.0]
+    bend = 1.0 + 0.3 * np.clip((g - 579.0) / 15.0, 0.0, 1.0) ** 2
+    inner = _Track(0, 0.0, 594.0, g, bend, "solid", g.size, g)
+    lines = [_track(k + 1, grid, 0.0, d) for k, d in enumerate((4.6, 8.0, 11.5))]
+    covered = (grid < 589.0) | (grid > 663.0)
+    out, gores = _snap_to_hidden_gores([inner, *lines], [(595.0, 4.8)], covered, grid, cfg)
+    assert gores.size == 0
+    assert out[0].hi == 594.0
+    # the same bend on the outermost line: an outer exit's ramp line, cut where parallel
+    outer = _Track(3, 0.0, 594.0, g, bend + 10.5, "solid", g.size, g)
+    out, gores = _snap_to_hidden_gores([*lines[:2], outer], [], covered, grid, cfg)
+    assert gores.size == 1
+    assert out[2].hi == pytest.approx(gores[0])
+    assert 575.0 < gores[0] < 585.0

@@ -32,6 +32,22 @@ _BESIDE_GORE_M = 1.0
 hidden gore is a through line: the gore does not cut it."""
 
 
+_THROUGH_M = 60.0
+"""A line that runs on this far (metres) on both sides of a station goes through it."""
+
+
+def _outermost_at(tracks: list[_Track], k: int, station: float) -> bool:
+    """Whether no line that goes through ``station`` (metres along the reference line; it
+    runs on ``_THROUGH_M`` before and after it) lies more than 0.5 m farther out than track
+    ``k`` there. Lines beginning or ending nearer are a gore's own (a ramp's lines)."""
+    d_k = float(np.interp(station, tracks[k].s, tracks[k].d))
+    return not any(
+        float(np.interp(station, tr.s, tr.d)) > d_k + 0.5
+        for j, tr in enumerate(tracks)
+        if j != k and tr.lo <= station - _THROUGH_M and tr.hi >= station + _THROUGH_M
+    )
+
+
 def _snap_to_hidden_gores(
     tracks: list[_Track],
     evidence: list[tuple[float, float]],
@@ -63,18 +79,21 @@ def _snap_to_hidden_gores(
         return bool(gap[max(i - 10, 0) : i + 11].any())
 
     # a marking that starts (ends) inside such a gap while still converging (diverging)
-    # is a ramp line until it runs parallel: the gore is where it does
+    # is a ramp line until it runs parallel: the gore is where it does. Only the outermost
+    # line there can be an outer ramp's: a line with lines farther out is the mainline's
+    # (melbourne-1019-lane1-s21: the inner shoulder's line, bending towards an inner exit
+    # where the outer edge was hidden, was cut back 11 m and made a "gore" 22 m before it)
     for k, tr in enumerate(out):
         if tr.s.size < 20:
             continue
         slope = np.gradient(tr.d, tr.s)
-        if tr.lo > grid[0] + step and hidden(tr.lo):
+        if tr.lo > grid[0] + step and hidden(tr.lo) and _outermost_at(out, k, tr.lo):
             par = np.flatnonzero(slope > -cfg.hidden_gore_slope)
             if par.size and par[0] > 0 and tr.s[par[0]] - tr.lo >= 5.0:
                 i0 = par[0]
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
                 gores.append(tr.lo)
-        if tr.hi < grid[-1] - step and hidden(tr.hi):
+        if tr.hi < grid[-1] - step and hidden(tr.hi) and _outermost_at(out, k, tr.hi):
             slope = np.gradient(tr.d, tr.s)
             par = np.flatnonzero(slope < cfg.hidden_gore_slope)
             if par.size and par[-1] < tr.s.size - 1 and tr.hi - tr.s[par[-1]] >= 5.0:
@@ -88,11 +107,15 @@ def _snap_to_hidden_gores(
         lo_i, hi_i = max(i_g - 10, 0), min(i_g + 11, grid.size)
         if not gap[lo_i:hi_i].any():
             continue
-        # it must touch a mainline marking there
+        # it must touch the outermost mainline marking there (a line meeting one with
+        # through lines farther out is an inner ramp's, whose gore does not step the outer
+        # edge)
         near = [
             tr
-            for tr in out
-            if tr.lo - 1 <= s_g <= tr.hi + 1 and abs(np.interp(s_g, tr.s, tr.d) - d_g) < 1.0
+            for j, tr in enumerate(out)
+            if tr.lo - 1 <= s_g <= tr.hi + 1
+            and abs(np.interp(s_g, tr.s, tr.d) - d_g) < 1.0
+            and _outermost_at(out, j, s_g)
         ]
         if not near:
             continue
