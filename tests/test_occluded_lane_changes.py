@@ -314,9 +314,52 @@ def test_a_line_bending_towards_an_inner_exit_is_no_outer_ramp_line():
     out, gores = _snap_to_hidden_gores([inner, *lines], [(595.0, 4.8)], covered, grid, cfg)
     assert gores.size == 0
     assert out[0].hi == 594.0
-    # the same bend on the outermost line: an outer exit's ramp line, cut where parallel
-    outer = _Track(3, 0.0, 594.0, g, bend + 10.5, "solid", g.size, g)
+    # a bend of 1 m on the outermost line: an outer exit's ramp line, cut where parallel
+    outer = _Track(3, 0.0, 594.0, g, 1.0 + 10.5 + 3.0 * (bend - 1.0), "solid", g.size, g)
     out, gores = _snap_to_hidden_gores([*lines[:2], outer], [], covered, grid, cfg)
     assert gores.size == 1
     assert out[2].hi == pytest.approx(gores[0])
     assert 575.0 < gores[0] < 585.0
+
+
+def test_a_line_starting_in_a_gap_with_a_drift_of_centimetres_is_no_ramp_line():
+    """a9-10959882-s9 with a noisier sensor: the outer edge is hidden from 589 to 683 m;
+    a deceleration lane's outer line, first tracked at 581 m, drifts 4 cm inwards over its
+    first 5 m. That is no ramp line converging onto the mainline: no gore, the line keeps
+    its start (a "gore" at 586 m cut the lane and shoulder off for 75 m). A line that
+    converges by 1 m at its start still marks an entry's gore."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+    from roadtwin.mainline.markings import _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.5, cfg.grid_step_m)
+    g = grid[(grid >= 581.0) & (grid <= 660.0)]
+    drift = 11.64 + 0.04 * np.clip((586.0 - g) / 5.0, 0.0, 1.0)
+    line = _Track(0, 581.0, 660.0, g, drift, "solid", g.size, g)
+    through = _track(1, grid, 0.0, 8.0)
+    covered = (grid < 589.0) | (grid > 683.0)
+    out, gores = _snap_to_hidden_gores([through, line], [], covered, grid, cfg)
+    assert gores.size == 0
+    assert out[1].lo == 581.0
+    converging = _Track(0, 581.0, 660.0, g, drift + 25.0 * (drift - 11.64), "solid", g.size, g)
+    out, gores = _snap_to_hidden_gores([through, converging], [], covered, grid, cfg)
+    assert gores.size == 1
+    assert out[1].lo == pytest.approx(gores[0])
+    assert 584.0 < gores[0] < 590.0
+
+
+def test_a_shoulder_is_not_seen_narrowing_where_the_outermost_line_changes():
+    """Bridging an occlusion gap at an exit's gore: 25 m before the gap the outermost line
+    tracked is the through lanes' (8 m; the deceleration lane's line was not yet tracked),
+    5 m before it the deceleration lane's (11.6 m). The shoulder did not narrow by 3.5 m:
+    it keeps its width up to the gore (it tapered to zero 40 m before it)."""
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 8.0), _track(1, grid[grid <= 660.0], 581.0, 11.6)]
+    d_edge = np.where(grid < 661.0, 14.3, 8.2)
+    covered = (grid < 589.0) | (grid > 683.0)
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, np.array([661.0]))
+    at = np.array([600.0, 620.0, 655.0])
+    np.testing.assert_allclose(np.interp(at, grid, out), 14.3, atol=0.05)

@@ -48,6 +48,13 @@ def _outermost_at(tracks: list[_Track], k: int, station: float) -> bool:
     )
 
 
+_RAMP_LINE_TURN_M = 0.3
+"""A ramp line converges (diverges) by at least this much (metres) over the stretch cut
+from it; a line whose offset drifts by centimetres there is the mainline's (a noisier
+sensor's smoothed line starting 2 cm "converging" made an exit's deceleration lane start
+75 m late, a9-10959882-s9+80)."""
+
+
 def _snap_to_hidden_gores(
     tracks: list[_Track],
     evidence: list[tuple[float, float]],
@@ -89,14 +96,24 @@ def _snap_to_hidden_gores(
         slope = np.gradient(tr.d, tr.s)
         if tr.lo > grid[0] + step and hidden(tr.lo) and _outermost_at(out, k, tr.lo):
             par = np.flatnonzero(slope > -cfg.hidden_gore_slope)
-            if par.size and par[0] > 0 and tr.s[par[0]] - tr.lo >= 5.0:
+            if (
+                par.size
+                and par[0] > 0
+                and tr.s[par[0]] - tr.lo >= 5.0
+                and tr.d[0] - tr.d[par[0]] >= _RAMP_LINE_TURN_M
+            ):
                 i0 = par[0]
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
                 gores.append(tr.lo)
         if tr.hi < grid[-1] - step and hidden(tr.hi) and _outermost_at(out, k, tr.hi):
             slope = np.gradient(tr.d, tr.s)
             par = np.flatnonzero(slope < cfg.hidden_gore_slope)
-            if par.size and par[-1] < tr.s.size - 1 and tr.hi - tr.s[par[-1]] >= 5.0:
+            if (
+                par.size
+                and par[-1] < tr.s.size - 1
+                and tr.hi - tr.s[par[-1]] >= 5.0
+                and tr.d[-1] - tr.d[par[-1]] >= _RAMP_LINE_TURN_M
+            ):
                 i1 = par[-1] + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
                 gores.append(tr.hi)

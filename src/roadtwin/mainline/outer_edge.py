@@ -209,6 +209,12 @@ def _outer_edge_with_levels(s_outer, d_outer, grid, cfg):
     return (*fit_outer_edge(s_outer, d_outer, grid, config=cfg, levels=levels), levels)
 
 
+def _one_line(d_last: FloatArray) -> bool:
+    """Whether the outermost marking's offsets (metres, consecutive grid stations) are one
+    line throughout: seen everywhere, no jump of half a metre (another line outermost)."""
+    return bool(np.all(np.isfinite(d_last)) and np.all(np.abs(np.diff(d_last)) < 0.5))
+
+
 def _bridge_edge_gaps(
     d_edge: FloatArray,
     covered: NDArray[np.bool_],
@@ -262,7 +268,7 @@ def _bridge_edge_gaps(
             # the trend over 20 m, 5 m away from the gap (the fit bends at its ends); the
             # taper continues with the observed slope and reaches zero width flat (cubic)
             i_a, i_b = i0 - 25, i0 - 5
-            if i_a >= 0 and np.all(np.isfinite(d_last[[i_a, i_b]])) and j > 0:
+            if i_a >= 0 and _one_line(d_last[i_a : i_b + 1]) and j > 0:
                 narrowing = (d_edge[i_a] - d_last[i_a]) - (d_edge[i_b] - d_last[i_b])
                 if narrowing > 0.5:
                     before = k <= j
@@ -271,7 +277,7 @@ def _bridge_edge_gaps(
                     hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
             i_a, i_b = i1 + 5, i1 + 25
             n_after = b - a - (j + 1)
-            if i_b < grid.size and np.all(np.isfinite(d_last[[i_a, i_b]])) and n_after > 0:
+            if i_b < grid.size and _one_line(d_last[i_a : i_b + 1]) and n_after > 0:
                 widening = (d_edge[i_b] - d_last[i_b]) - (d_edge[i_a] - d_last[i_a])
                 if widening > 0.5:
                     after = k > j
