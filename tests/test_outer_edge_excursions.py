@@ -61,3 +61,17 @@ def test_the_edge_before_an_occlusion_hiding_a_gore_stays_where_it_was_seen():
     after = (grid > 241.0) & (grid < 350.0)
     assert np.max(np.abs(d_edge[after] - 8.0)) < 0.05
     assert not covered[(grid > 205.0) & (grid < 235.0)].any()
+
+
+def test_a_gap_just_past_a_step_is_fitted_with_the_steps_side():
+    """An exit's gore at 200 m (placed from other evidence), the edge hidden from 201 to
+    230 m, then seen curving away from 8 m: the gap lies in the fit of the step's side, the
+    edge there follows that fit's trend (not a line from the level before the step, nor the
+    first value seen after the gap)."""
+    rng = np.random.default_rng(6)
+    s = np.concatenate([np.arange(0.0, 200.0, 0.5), np.arange(230.0, 400.0, 0.5)])
+    d = np.where(s < 200.0, 13.5, 8.0 + 0.02 * (s - 200.0)) + rng.normal(0.0, 0.02, s.size)
+    grid = np.arange(0.0, 400.0, 1.0)
+    d_edge, _, _, _ = fit_outer_edge(s, d, grid, hidden_steps=np.array([200.0]))
+    gap = (grid > 202.0) & (grid < 229.0)
+    np.testing.assert_allclose(d_edge[gap], 8.0 + 0.02 * (grid[gap] - 200.0), atol=0.1)

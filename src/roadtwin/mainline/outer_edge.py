@@ -150,10 +150,15 @@ def fit_outer_edge(
     # towards the level beyond (a gore hidden in the gap) metres before the gap, where the
     # edge was seen straight (kotka-37952515-lane2-s22, noisier sensor: 0.7 m inward over
     # the last 15 m before an exit's gore); the gap is bridged afterwards
+    # (a gap beside a step is split from the other side already: the fit of the step's own
+    # side spans the gap)
     gaps = [
         (grid[a], grid[b - 1])
         for a, b in true_runs(~covered)
-        if grid[b - 1] - grid[a] >= _SPLIT_GAP_M and a > 0 and b < grid.size
+        if grid[b - 1] - grid[a] >= _SPLIT_GAP_M
+        and a > 0
+        and b < grid.size
+        and not np.any((breaks >= grid[a] - 5.0) & (breaks <= grid[b - 1] + 5.0))
     ]
     fit_bounds = np.unique(np.concatenate([bounds, np.ravel(gaps)]))
     out = np.full(grid.size, np.nan)
@@ -181,7 +186,11 @@ def fit_outer_edge(
         idx = np.nonzero(np.isfinite(out))[0]
         for lo, hi in gaps:
             inside = (grid >= lo) & (grid <= hi) & ~np.isfinite(out)
-            if not np.any((breaks >= lo) & (breaks <= hi)):
+            # between the fitted stations on both sides, and not across a step
+            before, after = idx[grid[idx] < lo], idx[grid[idx] > hi]
+            s_lo = grid[before[-1]] if before.size else lo
+            s_hi = grid[after[0]] if after.size else hi
+            if not np.any((breaks >= s_lo) & (breaks <= s_hi)):
                 out[inside] = np.interp(grid[inside], grid[idx], out[idx])
         idx = np.nonzero(np.isfinite(out))[0]
         nearest = idx[np.clip(np.searchsorted(idx, np.arange(grid.size)), 0, idx.size - 1)]
