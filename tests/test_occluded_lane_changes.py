@@ -363,3 +363,33 @@ def test_a_shoulder_is_not_seen_narrowing_where_the_outermost_line_changes():
     out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, np.array([661.0]))
     at = np.array([600.0, 620.0, 655.0])
     np.testing.assert_allclose(np.interp(at, grid, out), 14.3, atol=0.05)
+
+
+def test_the_shoulder_closes_at_an_entry_gore_hidden_in_an_occlusion_gap():
+    """oakland-28393854-opp-s9 with a noisier sensor: the outer edge (10.5 m, a 2.5 m hard
+    shoulder beside the line at 8 m) is hidden from 700 to 850 m; the entry's gore lies in
+    the gap (the line at 8 m turns from solid to broken at 780 m, the acceleration lane's
+    line at 11.5 m begins there). The run shows no taper at a seen gore: the shoulder
+    closes over the default 60 m to zero at the gore (it was kept at full width up to
+    it, 2.4 m off over 70 m)."""
+    rng = np.random.default_rng(8)
+    parts = [_line(rng, 0, 1000, d) for d in (1.0, 4.5)]
+    s8, d8 = _line(rng, 0, 1000, 8.0)
+    keep = (s8 < 780.0) | ((s8 - 780.0) % 12.0 < 3.0)  # solid, then 3 m dashes, 9 m gaps
+    parts += [(s8[keep], d8[keep]), _line(rng, 780, 1000, 11.5)]
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    s_out, d_out = _line(rng, 0, 1000, lambda s: np.where(s < 780.0, 10.5, 14.0), 0.2)
+    seen = (s_out < 700.0) | (s_out > 850.0)
+    sections, _, _, _ = fit_lanes(
+        s_lane, d_lane, s_out[seen], d_out[seen], length=1000.0, sign=1.0,
+        config=MainlineConfig(),
+    )  # fmt: skip
+    k = max(i for i, sc in enumerate(sections) if sc.s0 <= 760.0)
+    sc = sections[k]
+    edge = sum(float(ln.width.value(np.array([760.0 - sc.s0]))[0]) for ln in sc.right)
+    assert edge < 9.2  # 20 m before the gore, a third of the way into the taper
+    k = max(i for i, sc in enumerate(sections) if sc.s0 <= 700.0)
+    sc = sections[k]
+    edge = sum(float(ln.width.value(np.array([700.0 - sc.s0]))[0]) for ln in sc.right)
+    assert edge == pytest.approx(10.5, abs=0.1)

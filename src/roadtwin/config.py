@@ -216,6 +216,11 @@ class MainlineConfig:
     hidden_gore_slope: float = 0.004
     """Where the outer edge is occluded, a marking that starts (ends) converging (diverging)
     faster than this (m/m) is a ramp line up to the gore."""
+    gore_shoulder_taper_m: float = 60.0
+    """Where a gore lies in an occlusion gap of the outer edge and no hard-shoulder taper
+    could be fitted at the run's seen gores, the shoulder closes to zero width at an entry's
+    gore (opens from it after an exit's) over this length, metres (a ramp's own shoulder
+    taper, :attr:`RampConfig.shoulder_taper_m`, has the same default)."""
     edge_line_m: float = 0.35
     """A marking closer than this to a road edge (metres) is the edge line along it, not
     the border of a lane."""

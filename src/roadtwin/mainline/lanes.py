@@ -134,6 +134,11 @@ def fit_lanes(
         taper_length = _visible_taper_length(
             breaks, d_edge, tracks, s_outer[used], d_outer[used], grid
         )
+        if taper_length is None:
+            # the shoulder still ends at an entry's gore (begins at an exit's): the
+            # acceleration lane takes its place (oakland-28393854-opp-s9+80: kept 2.7 m
+            # wide up to a gore hidden 85 m into a gap, 2.4 m off over 70 m)
+            taper_length = cfg.gore_shoulder_taper_m
         tracks, placed, tapers = _place_hidden_gores(
             tracks,
             s_outer[used],
