@@ -463,21 +463,19 @@ def summary(results: list[tuple[str, str, list[dict]]], method: str) -> str:
         return np.array([r[key] for r in rows if r.get(key) is not None], dtype=float)
 
     edge, lane, count = col("edge_rmse"), col("lane_rmse"), col("lane_count")
-    away = ""
-    if col("edge_rmse_away").size and col("lane_rmse_away").size:
-        e_a, l_a = col("edge_rmse_away"), col("lane_rmse_away")
-        away = (
-            f"away from junctions (> {JUNCTION_ZONE_M:g} m) edge median {np.median(e_a):.3f}, "
-            f"lane median {np.median(l_a):.3f} m, <= 0.10 m on {int(np.sum(e_a <= 0.1))} / "
-            f"{int(np.sum(l_a <= 0.1))} of {len(rows)}; "
+
+    def medians(suffix: str, label: str) -> str:
+        e_x, l_x = col(f"edge_rmse_{suffix}"), col(f"lane_rmse_{suffix}")
+        if not (e_x.size and l_x.size):
+            return ""
+        return (
+            f"{label} edge median {np.median(e_x):.3f}, lane median {np.median(l_x):.3f} m, "
+            f"<= 0.10 m on {int(np.sum(e_x <= 0.1))} / {int(np.sum(l_x <= 0.1))} of "
+            f"{len(rows)}; "
         )
-    strict = ""
-    if col("edge_rmse_strict").size and col("lane_rmse_strict").size:
-        e_s, l_s = col("edge_rmse_strict"), col("lane_rmse_strict")
-        strict = (
-            f"strict (a ramp's lane counts on the mainline road only) edge median "
-            f"{np.median(e_s):.3f}, lane median {np.median(l_s):.3f} m; "
-        )
+
+    away = medians("away", f"away from junctions (> {JUNCTION_ZONE_M:g} m)")
+    strict = medians("strict", "strict (a ramp's lane counts on the mainline road only)")
     missed = sum((r["true_ramps"] or 0) - (r["matched"] or 0) for r in rows)
     return (
         f"{method}: {len(rows)} runs built, {len(failed)} failed; "

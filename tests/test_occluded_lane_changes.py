@@ -39,6 +39,19 @@ def _lane(lane_id, width_m, lane_type="driving"):
     return constant_lane(lane_id, width_m, lane_type=lane_type)
 
 
+def _fit_parts(parts, s_out, d_out, length):
+    """fit_lanes on lane samples ``parts`` (list of (s, d)) and outer-edge points."""
+    s_lane = np.concatenate([p[0] for p in parts])
+    d_lane = np.concatenate([p[1] for p in parts])
+    return fit_lanes(s_lane, d_lane, s_out, d_out, length=length, sign=1.0, config=MainlineConfig())
+
+
+def _edge_at(sections, station):
+    """Outer road edge offset (metres from the reference) of right-hand lane sections."""
+    sc = sections[max(i for i, sc in enumerate(sections) if sc.s0 <= station)]
+    return sum(float(ln.width.value(np.array([station - sc.s0]))[0]) for ln in sc.right)
+
+
 def _driving_lanes_at(sections, station):
     k = max(i for i, sc in enumerate(sections) if sc.s0 <= station)
     return sum(ln.type == "driving" for ln in sections[k].right)
@@ -237,14 +250,9 @@ def test_an_entry_line_converging_in_an_occlusion_gap_places_the_gore_where_it_m
     parts = [_line(rng, 0, 500, 3.5), _line(rng, 174, 500, 7.0)]
     ramp_s = np.arange(182.0, 228.0, 0.5)
     parts.append((ramp_s, 10.5 - 3.5 * (ramp_s - 182.0) / 46.0 + rng.normal(0, 0.02, ramp_s.size)))
-    s_lane = np.concatenate([p[0] for p in parts])
-    d_lane = np.concatenate([p[1] for p in parts])
     s_out, d_out = _line(rng, 0, 500, lambda s: np.where(s < 200.0, 7.0, 10.5), 0.2)
     seen = (s_out < 148.0) | (s_out > 268.0)
-    sections, _, _, _ = fit_lanes(
-        s_lane, d_lane, s_out[seen], d_out[seen], length=500.0, sign=1.0,
-        config=MainlineConfig(),
-    )  # fmt: skip
+    sections, _, _, _ = _fit_parts(parts, s_out[seen], d_out[seen], 500.0)
     births = [sc.s0 for sc in sections[1:]]
     assert len(births) == 1
     assert births[0] == pytest.approx(228.0, abs=8.0)
@@ -377,19 +385,9 @@ def test_the_shoulder_closes_at_an_entry_gore_hidden_in_an_occlusion_gap():
     s8, d8 = _line(rng, 0, 1000, 8.0)
     keep = (s8 < 780.0) | ((s8 - 780.0) % 12.0 < 3.0)  # solid, then 3 m dashes, 9 m gaps
     parts += [(s8[keep], d8[keep]), _line(rng, 780, 1000, 11.5)]
-    s_lane = np.concatenate([p[0] for p in parts])
-    d_lane = np.concatenate([p[1] for p in parts])
     s_out, d_out = _line(rng, 0, 1000, lambda s: np.where(s < 780.0, 10.5, 14.0), 0.2)
     seen = (s_out < 700.0) | (s_out > 850.0)
-    sections, _, _, _ = fit_lanes(
-        s_lane, d_lane, s_out[seen], d_out[seen], length=1000.0, sign=1.0,
-        config=MainlineConfig(),
-    )  # fmt: skip
-    k = max(i for i, sc in enumerate(sections) if sc.s0 <= 760.0)
-    sc = sections[k]
-    edge = sum(float(ln.width.value(np.array([760.0 - sc.s0]))[0]) for ln in sc.right)
-    assert edge < 9.2  # 20 m before the gore, a third of the way into the taper
-    k = max(i for i, sc in enumerate(sections) if sc.s0 <= 700.0)
-    sc = sections[k]
-    edge = sum(float(ln.width.value(np.array([700.0 - sc.s0]))[0]) for ln in sc.right)
-    assert edge == pytest.approx(10.5, abs=0.1)
+    sections, _, _, _ = _fit_parts(parts, s_out[seen], d_out[seen], 1000.0)
+    # 20 m before the gore, a third of the way into the taper; full width where it begins
+    assert _edge_at(sections, 760.0) < 9.2
+    assert _edge_at(sections, 700.0) == pytest.approx(10.5, abs=0.1)
