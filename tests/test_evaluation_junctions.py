@@ -41,10 +41,13 @@ def _section(n_lanes: int, *, succ: bool = False, pred: bool = False) -> LaneSec
     return LaneSection(0.0, right=lanes)
 
 
-def exit_network(split_m: float, *, ramp_offset_m: float = 0.0) -> RoadNetwork:
+def exit_network(
+    split_m: float, *, ramp_offset_m: float = 0.0, ramp_heading: float = 0.0
+) -> RoadNetwork:
     """A straight 2-lane mainline with an exit lane (lane -3) up to ``split_m``; there a
     20 m junction splits it into a through connecting road (2 lanes) and a ramp connecting
-    road (1 lane) that runs on beside the mainline, ``ramp_offset_m`` farther out."""
+    road (1 lane) that runs on beside the mainline, ``ramp_offset_m`` farther out (or
+    ``ramp_heading`` radians off its heading)."""
     j = RoadLink("junction", "100")
     up = Road(
         "1",
@@ -65,7 +68,7 @@ def exit_network(split_m: float, *, ramp_offset_m: float = 0.0) -> RoadNetwork:
     y_ramp = -2 * LANE_M - ramp_offset_m
     ramp_conn = Road(
         "102",
-        (Line(0.0, split_m, y_ramp, 0.0, JUNCTION_M),),
+        (Line(0.0, split_m, y_ramp, ramp_heading, JUNCTION_M),),
         (_section(1, succ=True),),
         name="connector",
         predecessor=RoadLink("road", "1", "end"),
@@ -79,9 +82,10 @@ def exit_network(split_m: float, *, ramp_offset_m: float = 0.0) -> RoadNetwork:
         name="mainline",
         predecessor=j,
     )
+    x_end, y_end, _ = ramp_conn.geometry[-1].end_pose()
     ramp = Road(
         "10",
-        (Line(0.0, split_m + JUNCTION_M, y_ramp, 0.0, 100.0),),
+        (Line(0.0, x_end, y_end, ramp_heading, 100.0),),
         (_section(1, pred=True),),
         name="exit",
         predecessor=j,
@@ -143,3 +147,17 @@ def test_lane_count_across_the_carriageway_where_the_maps_split_it_apart():
     stations = res["lane_count"]["stations"]
     # stations every metre: the 10 between 290 and 300 m count 2 lanes against 3
     assert res["lane_count"]["matched_fraction"] == pytest.approx(1.0 - 10 / stations, abs=1e-9)
+
+
+def test_a_ramp_crossing_the_mainline_matches_none_of_its_boundaries():
+    """A built ramp connecting road that leaves 10 m early heading 45 degrees off the
+    mainline crosses the truth's exit lane: its borders are no lanes beside the mainline,
+    the exit lane's edge stays a lane width off where the map's junction started early."""
+    truth = exit_network(300.0)
+    crossing = exit_network(290.0, ramp_heading=-0.8)
+    res, details = _truth_mainline(crossing, truth, EvaluationConfig())
+    err = details["truth/road_edge"]
+    early = (err.station_m > 290.5) & (err.station_m < 299.5) & (err.xy[:, 1] < -9.0)
+    assert early.sum() >= 8
+    np.testing.assert_allclose(np.abs(err.error_m[early]), LANE_M, atol=0.01)
+    assert res["lane_count"]["matched_fraction"] < 1.0

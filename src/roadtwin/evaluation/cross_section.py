@@ -11,6 +11,7 @@ level, a lane that two roads overlap once.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -24,6 +25,9 @@ HALF_WIDTH_M = 30.0
 """Reach of the line across the carriageway on each side of its centre point (metres)."""
 STEP_M = 0.25
 """Spacing of the samples along the line (metres)."""
+ALONG_RAD = math.radians(20.0)
+"""A road whose heading differs from the carriageway's by more than this (radians) crosses
+it (a ramp on a bridge, a knotted ramp): its lanes are no lanes of the carriageway."""
 GAP_M = 0.6
 """Pavement interrupted by at most this much (metres; the seam between two roads, a
 painted gore's first centimetres) is the same carriageway."""
@@ -66,7 +70,9 @@ def carriageway_lane_count(
         ``(M, 3)`` mapping-frame points on the carriageway (metres, with the surface
         height: roads passing over or under are not the same pavement).
     normals
-        ``(M, 2)`` unit vectors across the carriageway at ``centres``.
+        ``(M, 2)`` unit vectors across the carriageway at ``centres`` (pointing left of its
+        driving direction: lanes of roads heading more than ``ALONG_RAD`` off it cross it
+        and are not counted).
     min_width_m
         A lane counts where the line runs at least this far through it (metres).
 
@@ -87,13 +93,17 @@ def carriageway_lane_count(
     k0 = int(np.argmin(np.abs(offsets)))
     xy = centres[:, None, :2] + offsets[None, :, None] * np.asarray(normals)[:, None, :]
     pts = np.column_stack([xy.reshape(-1, 2), np.repeat(centres[:, 2], k)])
+    normals_all = np.repeat(np.asarray(normals, dtype=float), k, axis=0)
     paved = np.zeros(m * k, dtype=bool)
     hits: list[tuple[NDArray[np.intp], NDArray[np.int64], int]] = []
     for r, road in enumerate(roads):  # loop over roads, vectorised over samples
         proj = project_points([road], pts, max_lateral_m=0.0, end_tolerance_m=0.0)
         idx = np.nonzero(proj.ok)[0]
         level = np.abs(road.surface_height(proj.s[idx], proj.t[idx]) - pts[idx, 2])
-        idx = idx[level <= SAME_LEVEL_M]
+        # the carriageway's heading is the normal turned right by 90 degrees
+        heading = np.arctan2(-normals_all[idx, 0], normals_all[idx, 1])
+        along = np.abs(np.angle(np.exp(1j * (road.heading(proj.s[idx]) - heading))))
+        idx = idx[(level <= SAME_LEVEL_M) & (along <= ALONG_RAD)]
         paved[idx] = True
         lane = _lane_at(road, proj.s[idx], proj.t[idx])
         hits.append((idx[lane != 0], lane[lane != 0], r))

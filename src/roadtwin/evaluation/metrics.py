@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 
 from ..config import EvaluationConfig
 from ..model import SAME_LEVEL_M, Road, RoadNetwork
-from .cross_section import carriageway_lane_count
+from .cross_section import ALONG_RAD, carriageway_lane_count
 from .frenet import (
     _BEYOND_ENDS,
     _NO_ROAD,
@@ -349,13 +349,16 @@ def _at_junction(
 def _junction_errors(
     built: RoadNetwork,
     pts: FloatArray,
+    heading: FloatArray,
     mainline_err: FloatArray,
     mainline_any: FloatArray,
     at_junction: NDArray[np.bool_],
 ) -> FloatArray:
     """Errors of true mainline boundary points where a ramp leaves or joins (metres): the
     smallest in magnitude against any boundary of the built mainline or of a built ramp road
-    (or its connecting road) the point is on or beside; ``mainline_err`` elsewhere.
+    (or its connecting road) the point is on or beside, running along the true mainline
+    (``heading``: its heading at each point, radians; within ``ALONG_RAD``);
+    ``mainline_err`` elsewhere.
 
     Where a ramp lane stops being a mainline lane is a convention of each map (a junction
     starting at the painted gore, at the nose, a connecting road of 12 or 20 m): the same
@@ -375,8 +378,10 @@ def _junction_errors(
         sel = np.nonzero(proj.ok & (proj.road_index == r))[0]
         road = ramps[int(r)]
         level = np.abs(road.surface_height(proj.s[sel], proj.t[sel]) - pts[idx[sel], 2])
+        # a ramp crossing the mainline (a knotted or misplaced one) is no lane beside it
+        along = np.abs(np.angle(np.exp(1j * (road.heading(proj.s[sel]) - heading[idx[sel]]))))
         t_b, _ = nearest_boundary(road, proj.s[sel], proj.t[sel], None)
-        cand = np.where(level <= SAME_LEVEL_M, proj.t[sel] - t_b, np.nan)
+        cand = np.where((level <= SAME_LEVEL_M) & (along <= ALONG_RAD), proj.t[sel] - t_b, np.nan)
         better = np.isfinite(cand) & (np.abs(cand) < np.abs(best[sel]))
         best[sel[better]] = cand[better]
     err[idx] = np.where(np.isfinite(best), best, err[idx])
@@ -389,10 +394,11 @@ def _truth_mainline(
     true_roads = mainline_roads(truth)
     built = mainline_roads(network)
     offsets = np.concatenate([[0.0], np.cumsum([r.length for r in true_roads])])
-    xy_l, st_l, kind_l, z_l, id_l, twin_l = [], [], [], [], [], []
+    xy_l, st_l, kind_l, z_l, id_l, twin_l, h_l = [], [], [], [], [], [], []
     for i, road in enumerate(true_roads):
         s, t, kinds, lane_ids, z = _sample_boundaries(road, cfg.truth_step_m, seen_only=True)
         twin_l.append(_twins(s, t, np.asarray(kinds)))
+        h_l.append(road.heading(s))
         xy_l.append(road.to_xy(s, t).reshape(-1, 2))
         st_l.append(offsets[i] + s)
         kind_l += kinds
@@ -450,7 +456,12 @@ def _truth_mainline(
         lane = np.where(twin, lane_any, lane)
         good = np.isfinite(strict)
         err = _junction_errors(
-            network, np.column_stack([xy, z_true]), strict, err_any, at_junction & good
+            network,
+            np.column_stack([xy, z_true]),
+            np.concatenate(h_l),
+            strict,
+            err_any,
+            at_junction & good,
         )
         pe = PointErrors(f"truth/{kind}", xy[good], station[good], err[good], lane[good])
         details[f"truth/{kind}"] = pe
