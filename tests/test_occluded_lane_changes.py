@@ -391,3 +391,25 @@ def test_the_shoulder_closes_at_an_entry_gore_hidden_in_an_occlusion_gap():
     # 20 m before the gore, a third of the way into the taper; full width where it begins
     assert _edge_at(sections, 760.0) < 9.2
     assert _edge_at(sections, 700.0) == pytest.approx(10.5, abs=0.1)
+
+
+def test_an_unseen_exit_lane_line_ends_at_the_gore_not_with_the_lane_dropped_after_it():
+    """melbourne-408-lane1-s21, the car in the inner lane: an exit lane (11.4-14.9 m) and
+    its shoulder to 17.3 m from 555 m to the gore at 752 m, where the edge steps in to 11 m;
+    after it the outer through lane closes over 73 m (its line 11.4 -> 7.8 m). The exit
+    lane's outer line, 12 m from the car, is never seen; the line inferred there ends at
+    the gore (it took the dropped lane's taper and ran on to 825 m beyond the edge, the
+    edge 3 m off)."""
+    rng = np.random.default_rng(9)
+    closing = lambda s: 11.4 - 3.6 * _smoothstep(s, 752.0, 73.0)  # noqa: E731
+    parts = [_line(rng, 0, 1200, d) for d in (1.0, 4.4, 7.8)]
+    parts.append(_line(rng, 555, 825, closing))
+
+    def edge(s):
+        after = 10.3 + 0.8 * (1.0 - _smoothstep(s, 752.0, 73.0))
+        return np.where(s < 555.0, 10.3, np.where(s < 752.0, 17.3, after))
+
+    s_out, d_out = _line(rng, 0, 1200, edge, 0.2)
+    sections, _, _, _ = _fit_parts(parts, s_out, d_out, 1200.0)
+    for station in (700.0, 760.0, 790.0, 820.0, 900.0):
+        assert _edge_at(sections, station) == pytest.approx(float(edge(station)), abs=0.3)

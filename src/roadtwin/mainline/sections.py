@@ -425,14 +425,17 @@ def _sections_from_tracks(
                 ]
                 fixed = sib[0] if sib else None
             raw = (tracks[k].s_samples, tracks[k].d_samples)
-            at_median_gore = bool(
+            beside = _steps_beside(tracks, k, float(grid[i_edge]), outer_steps, median_steps)
+            at_gore = bool(
                 tracks[k].n == 0
-                and median_steps.size
-                and np.min(np.abs(median_steps - grid[i_edge])) < _GORE_MATCH_M
+                and beside.size
+                and np.min(np.abs(beside - grid[i_edge])) < _GORE_MATCH_M
             )
-            # an inferred median-side marking that ends at a median-side gore ends there
-            # with its lane (no taper borrowed from a marking elsewhere)
-            info = None if at_median_gore else _taper(dmat, k, grid, end, cfg, fixed, raw)
+            # an inferred marking that ends at a gore of the edge beside it ends there with
+            # its lane (no taper borrowed from a marking elsewhere: an exit lane's unseen
+            # outer line took the taper of the lane dropped after the exit and ran on 75 m
+            # past the gore, beyond the edge, melbourne-408-lane1-s21)
+            info = None if at_gore else _taper(dmat, k, grid, end, cfg, fixed, raw)
             if info is None:
                 # a lane that begins/ends at full width does so at a gore, where an edge
                 # steps; a marking that merely starts/ends (paint beginning at a road
