@@ -413,23 +413,3 @@ def test_an_unseen_exit_lane_line_ends_at_the_gore_not_with_the_lane_dropped_aft
     sections, _, _, _ = _fit_parts(parts, s_out, d_out, 1200.0)
     for station in (700.0, 760.0, 790.0, 820.0, 900.0):
         assert _edge_at(sections, station) == pytest.approx(float(edge(station)), abs=0.3)
-
-
-def test_a_gap_ending_at_an_edge_step_keeps_the_shoulder_seen_before_it():
-    """The outer edge is hidden from 1125 m up to an exit's gore at 1258.5 m, where it is
-    seen stepping in; the fit before the step ran on across the gap with the widening it
-    had seen (to 19.4 m). The shoulder keeps the width seen before the gap (it widened to
-    7 m at the gore, a9-206615404-lane1-s21 with a noisier sensor)."""
-    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
-
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 1500.5, cfg.grid_step_m)
-    tracks = [_track(0, grid, 0.0, 8.1), _track(1, grid[grid <= 1258.0], 0.0, 11.8)]
-    ramp_up = 14.3 + 5.1 * np.clip((grid - 1125.0) / 133.0, 0.0, 1.0)
-    d_edge = np.where(grid < 1258.5, ramp_up, 8.3)
-    covered = (grid < 1125.0) | (grid > 1257.0)
-    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, None, np.array([1258.5]))
-    gap = (grid > 1126.0) & (grid < 1256.0)
-    np.testing.assert_allclose(out[gap], 14.3, atol=0.05)
-    widened = _bridge_edge_gaps(d_edge, covered, tracks, grid)
-    assert float(np.interp(1250.0, grid, widened)) > 18.0  # what it was

@@ -231,7 +231,6 @@ def _bridge_edge_gaps(
     grid: FloatArray,
     tapers: list[ShoulderTaper] | None = None,
     hidden_steps: FloatArray | None = None,
-    edge_steps: FloatArray | None = None,
 ) -> FloatArray:
     """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
     outermost marking) linear between the gap ends instead of the edge offset itself, so
@@ -241,12 +240,8 @@ def _bridge_edge_gaps(
     there) is where the width changes when the outermost marking shows no jump inside the
     gap (krems-30799129-s11, noisier sensor: the acceleration lane's outer line was first
     seen 4 m past the gap, and the edge widened linearly over the 146 m gap, 2.9 m off at
-    its end). Where the gap ends (begins) within 5 m of a step of the edge
-    (``edge_steps``, metres), the edge was not seen on the gap's side of it: the shoulder
-    keeps the width seen at the gap's other end (the fit's value there is its extrapolation
-    across the gap; a9-206615404-lane1-s21, noisier sensor: 7 m wide at an exit's gore)."""
+    its end)."""
     steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
-    stepped = np.asarray(edge_steps if edge_steps is not None else [], dtype=float)
     d_last = _last_marking(tracks, grid)
     out = d_edge.copy()
     for a, b in true_runs(~covered):
@@ -256,10 +251,6 @@ def _bridge_edge_gaps(
         if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
             continue
         hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
-        if np.any((stepped > grid[b - 1] - 1.0) & (stepped <= grid[b - 1] + 5.0)):
-            hw1 = hw0
-        elif np.any((stepped >= grid[a] - 5.0) & (stepped < grid[a] + 1.0)):
-            hw0 = hw1
         x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
         inner = d_last[a:b]
         ok = np.isfinite(inner)
