@@ -419,18 +419,16 @@ def _truth_mainline(
     station = np.concatenate(st_l)
     z_true = np.concatenate(z_l)
     kinds_arr = np.asarray(kind_l)
+    pts3 = np.column_stack([xy, z_true])
     # a true boundary on the pavement of a true ramp is no border of anything: truths that
     # keep a diverging lane on the mainline while the ramp road already covers it (or grow
     # an entry's lanes under the ramp's end) sweep their "edge" across the ramp there
     others = ramp_roads(truth)
-    on_ramp = on_pavement_of(others, np.column_stack([xy, z_true]), margin_m=_ON_RAMP_MARGIN_M)
+    on_ramp = on_pavement_of(others, pts3, margin_m=_ON_RAMP_MARGIN_M)
     kinds_arr = np.where(on_ramp, "", kinds_arr)
     # with their heights: a run that passes over itself has two levels of boundaries
     proj = project_points(
-        built,
-        np.column_stack([xy, z_true]),
-        max_lateral_m=cfg.max_lateral_m,
-        end_tolerance_m=cfg.end_tolerance_m,
+        built, pts3, max_lateral_m=cfg.max_lateral_m, end_tolerance_m=cfg.end_tolerance_m
     )
     details: dict[str, PointErrors] = {}
     result: dict[str, Any] = {
@@ -440,7 +438,7 @@ def _truth_mainline(
         "covered_fraction": float(np.mean(proj.ok)) if proj.ok.size else 0.0,
     }
     twin = np.concatenate(twin_l)
-    at_junction = _at_junction(truth, network, np.column_stack([xy, z_true]), on_ramp)
+    at_junction = _at_junction(truth, network, pts3, on_ramp)
     for kind in (EDGE, LANE):
         mask = kinds_arr == kind
         sub = Projection(
@@ -456,12 +454,7 @@ def _truth_mainline(
         lane = np.where(twin, lane_any, lane)
         good = np.isfinite(strict)
         err = _junction_errors(
-            network,
-            np.column_stack([xy, z_true]),
-            np.concatenate(h_l),
-            strict,
-            err_any,
-            at_junction & good,
+            network, pts3, np.concatenate(h_l), strict, err_any, at_junction & good
         )
         pe = PointErrors(f"truth/{kind}", xy[good], station[good], err[good], lane[good])
         details[f"truth/{kind}"] = pe
