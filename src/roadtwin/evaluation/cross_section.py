@@ -84,6 +84,7 @@ def carriageway_lane_count(
         middles along the line are less than ``min_width_m`` apart are one lane.
     """
     centres = np.asarray(centres, dtype=float)
+    normals = np.asarray(normals, dtype=float)
     m = centres.shape[0]
     counts = np.zeros(m, dtype=np.int64)
     if m == 0 or not roads:
@@ -91,18 +92,17 @@ def carriageway_lane_count(
     offsets = np.arange(-HALF_WIDTH_M, HALF_WIDTH_M + 0.5 * STEP_M, STEP_M)
     k = offsets.size
     k0 = int(np.argmin(np.abs(offsets)))
-    xy = centres[:, None, :2] + offsets[None, :, None] * np.asarray(normals)[:, None, :]
+    xy = centres[:, None, :2] + offsets[None, :, None] * normals[:, None, :]
     pts = np.column_stack([xy.reshape(-1, 2), np.repeat(centres[:, 2], k)])
-    normals_all = np.repeat(np.asarray(normals, dtype=float), k, axis=0)
+    # the carriageway's heading per point: the normal turned right by 90 degrees
+    heading = np.arctan2(-normals[:, 0], normals[:, 1])
     paved = np.zeros(m * k, dtype=bool)
     hits: list[tuple[NDArray[np.intp], NDArray[np.int64], int]] = []
     for r, road in enumerate(roads):  # loop over roads, vectorised over samples
         proj = project_points([road], pts, max_lateral_m=0.0, end_tolerance_m=0.0)
         idx = np.nonzero(proj.ok)[0]
         level = np.abs(road.surface_height(proj.s[idx], proj.t[idx]) - pts[idx, 2])
-        # the carriageway's heading is the normal turned right by 90 degrees
-        heading = np.arctan2(-normals_all[idx, 0], normals_all[idx, 1])
-        along = np.abs(np.angle(np.exp(1j * (road.heading(proj.s[idx]) - heading))))
+        along = np.abs(np.angle(np.exp(1j * (road.heading(proj.s[idx]) - heading[idx // k]))))
         idx = idx[(level <= SAME_LEVEL_M) & (along <= ALONG_RAD)]
         paved[idx] = True
         lane = _lane_at(road, proj.s[idx], proj.t[idx])

@@ -145,13 +145,25 @@ def _lateral_errors(
 ) -> PointErrors:
     """Signed ``t - t_b`` of projected points against the nearest boundary of ``kind``;
     the points of the mask ``either`` against the nearest boundary of any kind."""
-    err, lane = _errors_full(roads, proj, kind)
-    if either is not None and kind is not None and np.any(either & proj.ok):
-        err_any, lane_any = _errors_full(roads, proj, None)
+    err, lane, err_any, lane_any = _errors_and_any(roads, proj, kind, either)
+    if either is not None:
         err = np.where(either, err_any, err)
         lane = np.where(either, lane_any, lane)
     good = np.isfinite(err)
     return PointErrors(name, pts[good, :2], proj.station_m[good], err[good], lane[good])
+
+
+def _errors_and_any(
+    roads: Sequence[Road], proj: Projection, kind: str | None, need_any: NDArray[np.bool_] | None
+) -> tuple[FloatArray, NDArray[np.int64], FloatArray, NDArray[np.int64]]:
+    """:func:`_errors_full` against boundaries of ``kind`` and against boundaries of any
+    kind; the second pass only where a point of the mask ``need_any`` was projected (else
+    the first pass's arrays are returned twice)."""
+    err, lane = _errors_full(roads, proj, kind)
+    if need_any is None or kind is None or not np.any(need_any & proj.ok):
+        return err, lane, err, lane
+    err_any, lane_any = _errors_full(roads, proj, None)
+    return err, lane, err_any, lane_any
 
 
 def self_consistency_errors(
@@ -335,19 +347,23 @@ the ramp's pavement and is left out of the mainline's truth."""
 
 
 def _at_junction(
-    truth: RoadNetwork, built: RoadNetwork, pts: FloatArray, on_ramp: NDArray[np.bool_]
+    true_ramps: Sequence[Road],
+    built_ramps: Sequence[Road],
+    pts: FloatArray,
+    on_ramp: NDArray[np.bool_],
 ) -> NDArray[np.bool_]:
     """Mask of true mainline boundary points (``(N, 3)``, mapping frame, metres) on or
     within ``_ON_RAMP_MARGIN_M`` of the pavement of a true or built ramp road (with the
-    connecting roads joining it), not on a true ramp's pavement (those are left out)."""
+    connecting roads joining it: :func:`~.frenet.ramp_roads`), not on a true ramp's
+    pavement (those are left out)."""
     near = np.zeros(pts.shape[0], dtype=bool)
-    for network in (truth, built):
-        near |= on_pavement_of(ramp_roads(network), pts, margin_m=-_ON_RAMP_MARGIN_M)
+    for ramps in (true_ramps, built_ramps):
+        near |= on_pavement_of(ramps, pts, margin_m=-_ON_RAMP_MARGIN_M)
     return near & ~on_ramp
 
 
 def _junction_errors(
-    built: RoadNetwork,
+    ramps: Sequence[Road],
     pts: FloatArray,
     heading: FloatArray,
     mainline_err: FloatArray,
@@ -356,7 +372,7 @@ def _junction_errors(
 ) -> FloatArray:
     """Errors of true mainline boundary points where a ramp leaves or joins (metres): the
     smallest in magnitude against any boundary of the built mainline or of a built ramp road
-    (or its connecting road) the point is on or beside, running along the true mainline
+    (or its connecting road; ``ramps``) the point is on or beside, running along the true mainline
     (``heading``: its heading at each point, radians; within ``ALONG_RAD``);
     ``mainline_err`` elsewhere.
 
@@ -372,7 +388,6 @@ def _junction_errors(
     if not idx.size:
         return err
     best = np.where(np.isfinite(mainline_any[idx]), mainline_any[idx], np.inf)
-    ramps = ramp_roads(built)
     proj = project_points(ramps, pts[idx], max_lateral_m=_ON_RAMP_MARGIN_M, end_tolerance_m=0.0)
     for r in np.unique(proj.road_index[proj.ok]):
         sel = np.nonzero(proj.ok & (proj.road_index == r))[0]
@@ -423,8 +438,8 @@ def _truth_mainline(
     # a true boundary on the pavement of a true ramp is no border of anything: truths that
     # keep a diverging lane on the mainline while the ramp road already covers it (or grow
     # an entry's lanes under the ramp's end) sweep their "edge" across the ramp there
-    others = ramp_roads(truth)
-    on_ramp = on_pavement_of(others, pts3, margin_m=_ON_RAMP_MARGIN_M)
+    true_ramps, built_ramps = ramp_roads(truth), ramp_roads(network)
+    on_ramp = on_pavement_of(true_ramps, pts3, margin_m=_ON_RAMP_MARGIN_M)
     kinds_arr = np.where(on_ramp, "", kinds_arr)
     # with their heights: a run that passes over itself has two levels of boundaries
     proj = project_points(
@@ -438,7 +453,8 @@ def _truth_mainline(
         "covered_fraction": float(np.mean(proj.ok)) if proj.ok.size else 0.0,
     }
     twin = np.concatenate(twin_l)
-    at_junction = _at_junction(truth, network, pts3, on_ramp)
+    heading = np.concatenate(h_l)
+    at_junction = _at_junction(true_ramps, built_ramps, pts3, on_ramp)
     for kind in (EDGE, LANE):
         mask = kinds_arr == kind
         sub = Projection(
@@ -448,14 +464,11 @@ def _truth_mainline(
             np.where(mask, proj.status, _NO_ROAD),
             station,  # plots along the TRUE mainline station
         )
-        err, lane = _errors_full(built, sub, kind)
-        err_any, lane_any = _errors_full(built, sub, None)
+        err, lane, err_any, lane_any = _errors_and_any(built, sub, kind, twin | at_junction)
         strict = np.where(twin, err_any, err)
         lane = np.where(twin, lane_any, lane)
         good = np.isfinite(strict)
-        err = _junction_errors(
-            network, pts3, np.concatenate(h_l), strict, err_any, at_junction & good
-        )
+        err = _junction_errors(built_ramps, pts3, heading, strict, err_any, at_junction & good)
         pe = PointErrors(f"truth/{kind}", xy[good], station[good], err[good], lane[good])
         details[f"truth/{kind}"] = pe
         result[kind] = error_stats(pe.error_m)
@@ -479,8 +492,8 @@ def _truth_mainline(
         built,
         offsets,
         cfg,
-        true_ramps=ramp_roads(truth),
-        built_ramps=ramp_roads(network),
+        true_ramps=true_ramps,
+        built_ramps=built_ramps,
     )
     return result, details
 
