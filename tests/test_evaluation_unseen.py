@@ -41,15 +41,54 @@ SPLIT_SHOULDER = LaneSection(
 
 
 def test_only_an_unmarked_border_between_two_non_driving_lanes_is_unseen():
-    assert unseen_boundary(SPLIT_SHOULDER, -1)  # shoulder | shoulder, no paint
-    assert not unseen_boundary(SPLIT_SHOULDER, -2)  # shoulder | driving
-    assert not unseen_boundary(SPLIT_SHOULDER, -3)  # driving | driving
-    assert not unseen_boundary(SPLIT_SHOULDER, -5)  # the road edge
+    assert unseen_boundary(SPLIT_SHOULDER, -1).tolist() == [True]  # shoulder | shoulder
+    assert unseen_boundary(SPLIT_SHOULDER, -2).tolist() == [False]  # shoulder | driving
+    assert unseen_boundary(SPLIT_SHOULDER, -3).tolist() == [False]  # driving | driving
+    assert unseen_boundary(SPLIT_SHOULDER, -5).tolist() == [False]  # the road edge
     painted = replace(
         SPLIT_SHOULDER,
         right=(_strip(-1, "shoulder", 0.64, "solid"), *SPLIT_SHOULDER.right[1:]),
     )
-    assert not unseen_boundary(painted, -1)  # a painted line is seen
+    assert unseen_boundary(painted, -1).tolist() == [False]  # a painted line is seen
+
+
+def _painted_between(s_a: float, s_b: float) -> LaneSection:
+    """SPLIT_SHOULDER with the split painted solid from ``s_a`` to ``s_b`` only (metres,
+    section-relative; Town06 paints it over a few hundred metres of a road)."""
+    split = Lane(
+        -1,
+        "shoulder",
+        CubicProfile.constant(0.64),
+        (RoadMark(0.0, "none"), RoadMark(s_a, "solid"), RoadMark(s_b, "none")),
+    )
+    return replace(SPLIT_SHOULDER, right=(split, *SPLIT_SHOULDER.right[1:]))
+
+
+def test_a_split_painted_over_part_of_a_section_is_seen_there_only():
+    section = _painted_between(100.0, 250.0)
+    ds = np.array([0.0, 99.0, 100.0, 200.0, 249.9, 250.0, 399.0])
+    np.testing.assert_array_equal(
+        unseen_boundary(section, -1, ds), [True, True, False, False, False, True, True]
+    )
+    assert not unseen_boundary(section, -2, ds).any()
+
+
+def test_a_partly_painted_split_is_measured_where_it_is_painted():
+    """The truth's split (0.5 m from the build's nearest border) painted from 100 to
+    250 m of road 1 only: those 150 m are measured, 0.5 m off; a perfect map elsewhere.
+    Before, the whole section's split counted (every point of road 1's 400 m)."""
+    built = make_truth()
+    whole = ((-1, "shoulder", 1.14), *MAIN_WIDTHS[1:])
+    truth = _with_first_section(built, "1", _painted_between(100.0, 250.0))
+    built = _with_first_section(built, "1", LaneSection(0.0, right=_lanes(whole)))
+    run = make_run(built, edge_sigma=0.0, lane_sigma=0.0, seed=5)
+    rep = evaluate(built, run, truth=truth, truth_info=TRUTH_INFO).runs[0]
+    err = rep.details["truth/lane_boundary"].error_m
+    off = np.abs(err) > 0.4
+    assert rep.truth["lane_boundary"]["max_m"] == pytest.approx(0.5, abs=1e-3)
+    step = 150.0 / np.count_nonzero(off)  # one point per truth_step_m along the 150 m
+    assert 0.4 <= step <= 2.1
+    assert np.count_nonzero(np.abs(err[~off]) > 1e-6) == 0
 
 
 def _with_first_section(network, road_id: str, section: LaneSection):

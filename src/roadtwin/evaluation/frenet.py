@@ -120,25 +120,49 @@ def section_boundaries(section: LaneSection) -> list[tuple[str, int]]:
     return out
 
 
-def unseen_boundary(section: LaneSection, lane_id: int) -> bool:
-    """Whether the outer border of lane ``lane_id`` is a border no sensor can see: it
+def unseen_boundary(
+    section: LaneSection, lane_id: int, ds: FloatArray | None = None
+) -> NDArray[np.bool_]:
+    """Where the outer border of lane ``lane_id`` is a border no sensor can see: it
     divides two lanes of which neither is a driving lane (two shoulder or border strips of
-    one paved area, e.g. CARLA's inner shoulder split 0.64 + 0.5 m) and carries no marking
-    anywhere in the section. Such a border marks nothing on the road; the truth's lane
+    one paved area, e.g. CARLA's inner shoulder split 0.64 + 0.5 m) and the marking in
+    effect there is ``none``. Such a border marks nothing on the road; the truth's lane
     boundaries leave it out (:func:`roadtwin.evaluation.metrics`), as a built map cannot
-    place it but by chance."""
+    place it but by chance. Town06 paints the split over parts of a section only: the
+    painted stretches are measured, the rest is not.
+
+    Parameters
+    ----------
+    section, lane_id
+        The lane section and the lane whose outer border is asked about.
+    ds
+        Section-relative stations (metres); ``None``: the section's start only.
+
+    Returns
+    -------
+    Boolean per station of ``ds`` (one element for ``None``).
+    """
+    ds = np.zeros(1) if ds is None else np.asarray(ds, dtype=float)
+    unseen = np.zeros(ds.shape, dtype=bool)
     for side in (section.right, section.left):
         ids = [lane.id for lane in side]
         if lane_id not in ids:
             continue
         i = ids.index(lane_id)
         if i + 1 >= len(side):
-            return False  # the road edge
+            return unseen  # the road edge
         lane, outer = side[i], side[i + 1]
         if "driving" in (lane.type, outer.type):
-            return False
-        return all(mark.type == "none" for mark in lane.road_marks)
-    return False
+            return unseen
+        marks = sorted(lane.road_marks, key=lambda mark: mark.s_offset)
+        if not marks:
+            return ~unseen
+        starts = np.array([mark.s_offset for mark in marks])
+        painted = np.array([mark.type != "none" for mark in marks])
+        # before the first mark's offset nothing is painted either (OpenDRIVE: no mark)
+        k = np.searchsorted(starts, ds, side="right") - 1
+        return np.where(k >= 0, ~painted[np.clip(k, 0, None)], True)
+    return unseen
 
 
 def _section_centre_t(road: Road, s: FloatArray, section: LaneSection) -> FloatArray:

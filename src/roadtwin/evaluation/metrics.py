@@ -309,12 +309,13 @@ def _sample_boundaries(
         s = s_all[sec_idx == k]
         section = road.lane_sections[int(k)]
         for kind, lid in section_boundaries(section):
-            if seen_only and kind == LANE and unseen_boundary(section, lid):
-                continue
-            s_list.append(s)
-            t_list.append(road.lane_border_t(s, lid))
-            kinds += [kind] * s.size
-            ids.append(np.full(s.size, lid, dtype=np.int64))
+            at = s
+            if seen_only and kind == LANE:
+                at = s[~unseen_boundary(section, lid, s - section.s0)]
+            s_list.append(at)
+            t_list.append(road.lane_border_t(at, lid))
+            kinds += [kind] * at.size
+            ids.append(np.full(at.size, lid, dtype=np.int64))
     s = np.concatenate(s_list) if s_list else np.zeros(0)
     t = np.concatenate(t_list) if t_list else np.zeros(0)
     lane_ids = np.concatenate(ids) if ids else np.zeros(0, dtype=np.int64)
