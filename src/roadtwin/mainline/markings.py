@@ -92,6 +92,7 @@ def _find_track_peaks(
     flat = np.zeros((n_col, stride))
     flat[:, :n_bin] = hist
     idx = find_peaks(flat.ravel(), height=thr, distance=min_dist, prominence=0.5 * thr)
+    idx = np.union1d(idx, _double_line_peaks(flat, idx, thr, stride, cfg))
     row, j = np.divmod(idx, stride)
     # a column's first/last bin is never a peak (as for a search per column)
     inner = (j > 0) & (j < n_bin - 1)
@@ -104,6 +105,68 @@ def _find_track_peaks(
     split = np.searchsorted(row, np.arange(1, n_col))
     peaks = np.split(ref, split)
     return centres, peaks
+
+
+_DOUBLE_MIN_M = 0.35
+"""Two parallel lines this far apart (metres) or more are two markings ..."""
+_DOUBLE_SAME_M = 0.1
+"""... where their separation stays within this (metres) ..."""
+_DOUBLE_COLUMNS = 6
+"""... over this many consecutive columns."""
+
+
+def _double_line_peaks(
+    flat: FloatArray, idx: NDArray[np.intp], thr: float, stride: int, cfg: MainlineConfig
+) -> NDArray[np.intp]:
+    """Peaks (indices into the padded histogram ``flat``) of the second line of a double
+    line: closer to a peak ``idx`` than ``lane_min_separation_m`` but at least
+    ``_DOUBLE_MIN_M`` from it, at the same separation (within ``_DOUBLE_SAME_M``) in
+    ``_DOUBLE_COLUMNS`` consecutive columns.
+
+    A shoulder split by a line 0.5 m beside the edge line (CARLA Town06, both sides) is
+    two markings; as one, the two lines took turns as its track's peak and the lane
+    borders jumped 0.5 m between them. A ramp's line leaving a marking at a gore moves
+    away column by column and is not doubled here: resolved early, it split the mainline
+    line in two at a bundled exit (which then took two lanes)."""
+    fine_dist = max(1, int(_DOUBLE_MIN_M / cfg.lane_bin_m))
+    fine = find_peaks(flat.ravel(), height=thr, distance=fine_dist, prominence=0.5 * thr)
+    if idx.size == 0 or fine.size == 0:
+        return np.zeros(0, dtype=np.intp)
+    near = int(cfg.lane_min_separation_m / cfg.lane_bin_m)
+    row_c, j_c = np.divmod(idx, stride)
+    row_f, j_f = np.divmod(fine, stride)
+    # the separation (bins, signed) of each fine peak from the nearest coarse peak of its
+    # column; fine peaks that are coarse peaks themselves are left out
+    order = np.lexsort((j_c, row_c))
+    key_c = row_c[order] * stride + j_c[order]
+    pos = np.searchsorted(key_c, fine)
+    best = np.full(fine.size, np.iinfo(np.int64).max)
+    for cand in (pos - 1, pos):
+        ok = (cand >= 0) & (cand < key_c.size)
+        c = np.clip(cand, 0, key_c.size - 1)
+        same_row = ok & (row_c[order][c] == row_f)
+        sep = np.where(same_row, j_f - j_c[order][c], np.iinfo(np.int64).max)
+        best = np.where(np.abs(sep) < np.abs(best), sep, best)
+    extra = (np.abs(best) >= fine_dist) & (np.abs(best) < near)
+    if not extra.any():
+        return np.zeros(0, dtype=np.intp)
+    from scipy.ndimage import maximum_filter1d
+
+    rows, seps = row_f[extra], np.abs(best[extra])  # whichever of the two is higher
+    # columns x separations (bins) with an extra peak, widened by the tolerance; a run of
+    # _DOUBLE_COLUMNS columns at one separation keeps the peaks on it
+    tol = max(1, round(_DOUBLE_SAME_M / cfg.lane_bin_m))
+    occ = np.zeros((flat.shape[0], near + tol + 1), dtype=bool)
+    occ[rows, seps] = True
+    occ = maximum_filter1d(occ.astype(np.uint8), 2 * tol + 1, axis=1).astype(bool)
+    k = _DOUBLE_COLUMNS
+    csum = np.vstack([np.zeros((1, occ.shape[1]), dtype=np.int64), np.cumsum(occ, axis=0)])
+    full = (csum[k:] - csum[:-k]) == k  # a run of k starting at each column
+    covered = np.zeros_like(occ)
+    for lag in range(k):  # k <= a few: the columns each run covers
+        covered[lag : lag + full.shape[0]] |= full
+    keep = covered[rows, seps]
+    return fine[extra][keep].astype(np.intp)
 
 
 _SETTLE_GAP_M = 25.0  # a line may go on at its last offset across at most this gap ...

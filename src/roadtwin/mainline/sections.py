@@ -51,6 +51,10 @@ _SPLIT_SAME_M = 0.3  # a neighbour this close to a line's offset was at the line
 _SPLIT_MIN_M = 1.0  # ... and this far from it at the line's first station has left it
 
 
+_STRIP_CLOSE_M = 20.0  # a line this near its neighbour that ends meets it over this (m)
+_STRIP_SEEN_M = 50.0  # ... if it ran beside it this long (metres) ...
+_STRIP_STEADY_M = 0.3  # ... at a separation varying by no more than this (metres)
+
 _SHOULDER_LINE_M = 20.0  # shortest section in which an edge line can be a shoulder's line
 _SHOULDER_MIN_M = 1.8  # ... whose shoulder is at least this wide all through it (metres)
 
@@ -232,6 +236,56 @@ def _taper(
     ok = fill & np.isfinite(dmat[jn])
     dmat[k, ok] = dmat[jn, ok] + sgn * w_full * smoothstep(x[ok[fill]])
     return s_zero, taper, jn
+
+
+def _close_strip(dmat: FloatArray, k: int, grid: FloatArray, end: str) -> bool:
+    """Let line ``k``, whose paint starts/ends beside another line closer than a lane's
+    rest (``_RESIDUAL_WIDTH_M``), meet that line over ``_STRIP_CLOSE_M`` beyond its end.
+
+    The strip between them is no lane (a shoulder split by a painted line, Town06's
+    0.64 + 0.5 m): where the paint stops, the two strips become one shoulder. Left open,
+    both strips ended unlinked at the section border, closed to zero width there, and
+    every lane outside them stepped 1.15 m towards the median for 40 m
+    (town06-auto-lane1-s21). Only a strip of steady width (within ``_STRIP_STEADY_M``
+    over the ``_STRIP_SEEN_M`` next to the end) beside a line that runs on past the
+    closing: a ramp's line starting near a mainline line at an entry converges with it
+    and is no split shoulder (melbourne-921-s9 with a noisier sensor). ``dmat`` is filled
+    in place. Returns whether the line met a neighbour."""
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    idx = np.flatnonzero(np.isfinite(dmat[k]))
+    i_edge = int(idx[0] if end == "start" else idx[-1])
+    n_seen = round(_STRIP_SEEN_M / step)
+    n_close = round(_STRIP_CLOSE_M / step)
+    if end == "start":
+        seen, closing = slice(i_edge, i_edge + n_seen), slice(i_edge - n_close, i_edge)
+    else:
+        seen, closing = (
+            slice(i_edge - n_seen + 1, i_edge + 1),
+            slice(i_edge + 1, i_edge + n_close + 1),
+        )
+    if seen.start < 0 or closing.start < 0 or max(seen.stop, closing.stop) > grid.size:
+        return False
+    if not np.all(np.isfinite(dmat[k, seen])):
+        return False
+    others = [
+        j
+        for j in range(dmat.shape[0])
+        if j != k and np.all(np.isfinite(dmat[j, seen])) and np.all(np.isfinite(dmat[j, closing]))
+    ]
+    if not others:
+        return False
+    jn = min(others, key=lambda j: abs(float(dmat[j, i_edge] - dmat[k, i_edge])))
+    gaps = dmat[k, seen] - dmat[jn, seen]
+    gap = float(dmat[k, i_edge] - dmat[jn, i_edge])
+    if abs(gap) >= _RESIDUAL_WIDTH_M or float(np.ptp(gaps)) > _STRIP_STEADY_M:
+        return False
+    x = (
+        np.linspace(0.0, 1.0, n_close + 1)[1:]
+        if end == "start"
+        else np.linspace(1.0, 0.0, n_close + 1)[:-1]
+    )
+    dmat[k, closing] = dmat[jn, closing] + gap * smoothstep(x)
+    return True
 
 
 def _fit_taper(
@@ -436,6 +490,10 @@ def _sections_from_tracks(
             # outer line took the taper of the lane dropped after the exit and ran on 75 m
             # past the gore, beyond the edge, melbourne-408-lane1-s21)
             info = None if at_gore else _taper(dmat, k, grid, end, cfg, fixed, raw)
+            if info is None and not at_gore and tracks[k].n > 0:
+                near_break = breaks.size and np.min(np.abs(breaks - grid[i_edge])) < _GORE_MATCH_M
+                if not near_break and _close_strip(dmat, k, grid, end):
+                    continue
             if info is None:
                 # a lane that begins/ends at full width does so at a gore, where an edge
                 # steps; a marking that merely starts/ends (paint beginning at a road
