@@ -279,6 +279,46 @@ def test_a_gore_placed_in_an_occlusion_gap_is_where_the_bridged_edge_steps():
     assert float(np.interp(320.0, grid, linear)) > 16.0  # what it was
 
 
+def test_a_gap_beginning_at_an_exits_step_hides_a_shoulder_opening_from_the_gore():
+    """An exit's step seen at 200 m (the edge moves in from 15.8 m), the edge hidden from
+    203 to 290 m and seen again at 13.9 m; the outermost line at 11.3 m all along. The hard
+    shoulder opens from zero width at the gore over the default taper (60 m) to the 2.6 m
+    seen past the gap; bridged linearly from the level extrapolated past the step, it kept
+    1.5 m from the gore on (krems-30799129-s11 with a noisier sensor: 2.5 m off the truth's
+    edge next to the gore). An entry's step just after a gap closes it the same way."""
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 400.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 11.3)]
+    d_edge = np.where(grid < 200.0, 15.8, np.where(grid < 250.0, 12.8, 13.9))
+    covered = (grid < 203.0) | (grid > 290.0)
+    exits = np.array([200.0])
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, None, exits, 60.0)
+    at = np.array([199.0, 201.0, 230.0, 260.0, 280.0, 300.0])
+    expected = [15.8, 11.3 + 2.6 * (3 * (1 / 60) ** 2 - 2 * (1 / 60) ** 3), 12.6, 13.9, 13.9, 13.9]
+    np.testing.assert_allclose(np.interp(at, grid, out), expected, atol=0.02)
+    old = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    assert float(np.interp(201.0, grid, old)) > 12.7  # what it was
+    # mirrored: an entry's step at 200 m just after a gap from 110 to 197 m
+    d_entry = np.where(grid < 200.0, 13.9, 15.8)
+    covered = (grid < 110.0) | (grid > 197.0)
+    entries = np.array([200.0])
+    out = _bridge_edge_gaps(d_entry, covered, tracks, grid, None, None, entries, 60.0)
+    np.testing.assert_allclose(
+        np.interp([100.0, 130.0, 170.0, 199.0, 201.0], grid, out),
+        [13.9, 13.9, 12.6, 11.3, 15.8],
+        atol=0.02,
+    )
+    # an exit's step just after a gap in which its lane opened: the edge beyond the step
+    # is the shoulder's as before the gap, no entry (kotka-37952515-opp-s9, noisier
+    # sensor): bridged as before
+    d_exit = np.where((grid > 150.0) & (grid < 200.0), 15.8, 13.9)
+    out = _bridge_edge_gaps(d_exit, covered, tracks, grid, None, None, entries, 60.0)
+    plain = _bridge_edge_gaps(d_exit, covered, tracks, grid)
+    np.testing.assert_array_equal(out, plain)
+
+
 def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_moved():
     """melbourne-1019-lane1-s21 with a noisier sensor: at a section border the outer
     driving lane is 2.67 m wide before and 4.08 m after, the hard shoulder beside it 2.34 m

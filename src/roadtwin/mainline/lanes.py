@@ -155,7 +155,16 @@ def fit_lanes(
             d_edge, breaks, used, covered = fit_outer_edge(
                 s_outer, d_outer, grid, config=cfg, hidden_steps=np.asarray(hidden), levels=levels
             )
-        d_edge = _bridge_edge_gaps(d_edge, covered, tracks, grid, tapers, np.asarray(hidden))
+        d_edge = _bridge_edge_gaps(
+            d_edge,
+            covered,
+            tracks,
+            grid,
+            tapers,
+            np.asarray(hidden),
+            breaks,
+            taper_length,
+        )
         if cfg.painted_gore_max_m > 0.0:
             tracks, d_edge, breaks, painted = move_gores_to_paint(
                 tracks, grid, d_edge, breaks, np.sort(s_l), cfg

@@ -22,6 +22,7 @@ from ._common import (
 from .edge_levels import edge_level_path, refine_step
 from .gores import (
     ShoulderTaper,
+    taper_width,
 )
 from .hidden_gores import _hermite01
 from .markings import _last_marking, _Track
@@ -32,6 +33,8 @@ FloatArray = NDArray[np.float64]
 _EXCURSION_MAX_M = 60.0  # a step outward and back within this many metres ...
 _EXCURSION_AGREE_M = 0.6  # ... to within this of the level before is another road's edge
 _SPLIT_GAP_M = 10.0  # an occlusion gap of the outer edge this long splits its fit
+_GORE_AT_GAP_M = 5.0  # a seen step this close to a gap leaves the shoulder there unseen
+_GORE_LEVEL_M = 1.5  # ... if the edge beyond it is this much wider than across the gap
 
 
 def without_short_excursions(
@@ -224,6 +227,52 @@ def _one_line(d_last: FloatArray) -> bool:
     return bool(np.all(np.isfinite(d_last)) and np.all(np.abs(np.diff(d_last)) < 0.5))
 
 
+def _shoulder_at_gore(
+    out: FloatArray,
+    d_edge: FloatArray,
+    d_last: FloatArray,
+    grid: FloatArray,
+    a: int,
+    b: int,
+    steps: FloatArray,
+    hw0: float,
+    hw1: float,
+    taper_length_m: float,
+) -> bool:
+    """The edge (``out``, filled in place) over the gap ``a:b`` and from a gore just
+    before / after it to it, where an exit's step lies just before the gap or an entry's
+    just after: the outermost marking plus a shoulder opening from / closing to zero at
+    the gore, to the width seen at the gap's far end (``hw1`` / ``hw0``, metres). An
+    exit's step comes down from an edge a lane (``_GORE_LEVEL_M``) wider than the one seen
+    past the gap, an entry's goes up to one a lane wider than before it (a step at a gap's
+    end may be an exit's whose lane opened in the gap: kotka-37952515-opp-s9 with a
+    noisier sensor, where its edge had been right). Returns whether a gore was there
+    (see :func:`_bridge_edge_gaps`)."""
+    n = grid.size
+    i_step = np.searchsorted(grid, steps)
+    before = d_edge[np.clip(i_step - 2, 0, n - 1)]
+    after = d_edge[np.clip(i_step + 2, 0, n - 1)]
+    near_start = (steps >= grid[a] - _GORE_AT_GAP_M) & (steps <= grid[a])
+    near_end = (steps >= grid[b - 1]) & (steps <= grid[b - 1] + _GORE_AT_GAP_M)
+    exits = steps[near_start & (before - d_edge[b] > _GORE_LEVEL_M)]
+    entries = steps[near_end & (after - d_edge[a - 1] > _GORE_LEVEL_M)]
+    if not exits.size and not entries.size:
+        return False
+    lo = int(np.searchsorted(grid, exits[-1], side="right")) if exits.size else a
+    hi = int(np.searchsorted(grid, entries[0], side="left")) if entries.size else b
+    g = grid[lo:hi]
+    hw = np.full(g.size, np.inf)
+    if exits.size:
+        length = max(min(taper_length_m, float(grid[b] - exits[-1])), 1.0)
+        hw = np.minimum(hw, taper_width(g, hw1, float(exits[-1]), length, entry=False))
+    if entries.size:
+        length = max(min(taper_length_m, float(entries[0] - grid[a - 1])), 1.0)
+        hw = np.minimum(hw, taper_width(g, hw0, float(entries[0]), length, entry=True))
+    ok = np.isfinite(d_last[lo:hi])
+    out[lo:hi][ok] = d_last[lo:hi][ok] + hw[ok]
+    return True
+
+
 def _bridge_edge_gaps(
     d_edge: FloatArray,
     covered: NDArray[np.bool_],
@@ -231,6 +280,8 @@ def _bridge_edge_gaps(
     grid: FloatArray,
     tapers: list[ShoulderTaper] | None = None,
     hidden_steps: FloatArray | None = None,
+    seen_steps: FloatArray | None = None,
+    taper_length_m: float = 60.0,
 ) -> FloatArray:
     """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
     outermost marking) linear between the gap ends instead of the edge offset itself, so
@@ -240,7 +291,15 @@ def _bridge_edge_gaps(
     there) is where the width changes when the outermost marking shows no jump inside the
     gap (krems-30799129-s11, noisier sensor: the acceleration lane's outer line was first
     seen 4 m past the gap, and the edge widened linearly over the 146 m gap, 2.9 m off at
-    its end)."""
+    its end).
+
+    A gap that begins at an exit's seen step (ends at an entry's; ``seen_steps``:
+    stations, metres, within ``_GORE_AT_GAP_M``) hides the hard
+    shoulder next to the gore: it opens from zero width at the gore (closes to it) over
+    ``taper_length_m`` (metres), as at a gore placed in a gap. Bridged linearly from the
+    level extrapolated past the step, the edge of krems-30799129-s11 with a noisier sensor
+    kept a 1.5-2.7 m shoulder from the gore on and lay 2.5 m off the truth's, whose
+    shoulder opened over the 85 m gap."""
     steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
     d_last = _last_marking(tracks, grid)
     out = d_edge.copy()
@@ -255,6 +314,19 @@ def _bridge_edge_gaps(
         inner = d_last[a:b]
         ok = np.isfinite(inner)
         hw = (1 - x) * hw0 + x * hw1
+        if seen_steps is not None and _shoulder_at_gore(
+            out,
+            d_edge,
+            d_last,
+            grid,
+            a,
+            b,
+            np.asarray(seen_steps, dtype=float),
+            hw0,
+            hw1,
+            taper_length_m,
+        ):
+            continue
         # a lane that starts/ends inside the gap (a gore): each side keeps its own width,
         # unless the shoulder was seen narrowing towards the gore (entry) / widening from
         # it (exit): then it tapers linearly from / to zero width at the gore
