@@ -342,6 +342,38 @@ def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_move
     assert apart[1].right[2].predecessor is None
 
 
+def test_a_narrow_lane_beginning_between_linked_lanes_at_a_gore_opens_from_zero():
+    """At a median-side step (a gore's section border) a shoulder 34 mm wide begins
+    unlinked between the driving lanes and the outer shoulders, which go on linked: it
+    opens from zero width, so the borders beyond it stay where they were. It kept its
+    34 mm, and the map's link there had a 33.7 mm gap (town06-auto-s2, noisier sensor).
+    Its width profile falls from 34 mm to 0 within 20 m: a correction over the whole
+    profile would make it negative; it fades out over 20 m."""
+    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+
+    before = LaneSection(
+        0.0,
+        right=(_lane(-1, 1.0, "shoulder"), _lane(-2, 3.5), _lane(-3, 0.45, "shoulder")),
+    )
+    narrow = Lane(-3, "shoulder", CubicProfile((CubicPiece(0.0, 0.034, -0.034 / 69.0),)))
+    after = LaneSection(
+        100.0,
+        right=(_lane(-1, 1.0, "shoulder"), _lane(-2, 3.5), narrow, _lane(-4, 0.45, "shoulder")),
+    )
+    linked = _link_sections([before, after], [[], []], at_step=[True, True])
+    lanes = linked[1].right
+    assert lanes[2].predecessor is None
+    assert lanes[3].predecessor == -3
+    ds = np.linspace(0.0, 69.0, 691)
+    assert float(lanes[2].width.value(0.0)) == pytest.approx(0.0, abs=1e-9)
+    assert float(np.min(lanes[2].width.value(ds))) >= 0.0
+    # the outer shoulder's border is continuous across the border (within 0.1 mm)
+    b_before = sum(float(ln.width.value(100.0)) for ln in linked[0].right)
+    b_after = sum(float(ln.width.value(0.0)) for ln in lanes)
+    assert b_after == pytest.approx(b_before, abs=1e-4)
+
+
 def test_a_line_bending_towards_an_inner_exit_is_no_outer_ramp_line():
     """melbourne-1019-lane1-s21: the outer edge is hidden from 589 to 663 m; the inner
     shoulder's line (1 m) bends 0.3 m outwards over its last 15 m towards an inner exit and

@@ -22,6 +22,7 @@ from ..model import (
     RoadMark,
     close_width,
     continue_width,
+    fade_width,
 )
 from ._common import (
     BoundaryTrack,
@@ -40,6 +41,7 @@ FloatArray = NDArray[np.float64]
 _GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that gore
 
 _RESIDUAL_WIDTH_M = 1.0  # a lane beginning/ending narrower than this is a taper's rest
+_ZERO_FADE_M = 20.0  # ... and its rest fades out over this where a whole piece cannot
 
 _LINK_TOLERANCE_M = 0.3  # lanes whose borders meet this closely continue across sections
 _WIDTH_JUMP_M = 1.0  # a driving lane this much narrower/wider beyond a border is the same
@@ -716,9 +718,36 @@ def _side_lanes(sec: LaneSection) -> tuple[Lane, ...]:
     return sec.right if sec.right else sec.left
 
 
-def _nonnegative(fixed: Lane, original: Lane, ds: FloatArray) -> Lane:
-    """``fixed`` unless its width dips below zero on ``ds`` (metres), then ``original``."""
-    return fixed if float(np.min(fixed.width.value(ds))) >= 0.0 else original
+def _nonnegative(candidates: tuple[Lane, ...], original: Lane, ds: FloatArray) -> Lane:
+    """The first of ``candidates`` whose width does not dip below zero on ``ds``
+    (metres), else ``original``."""
+    for fixed in candidates:
+        if float(np.min(fixed.width.value(ds))) >= 0.0:
+            return fixed
+    return original
+
+
+def _between_linked(lanes: tuple[Lane, ...], i: int, link: str) -> bool:
+    """Whether lanes inside and outside lane ``i`` are linked (``link``: the attribute,
+    ``"predecessor"`` or ``"successor"``)."""
+    return any(getattr(o, link) is not None for o in lanes[:i]) and any(
+        getattr(o, link) is not None for o in lanes[i + 1 :]
+    )
+
+
+def _open_from_zero(lane: Lane, sec_len: float) -> tuple[Lane, ...]:
+    """``lane`` corrected to start at zero width: over its first piece, or if that makes
+    it negative, over ``_ZERO_FADE_M`` (:func:`~roadtwin.model.fade_width`)."""
+    w0 = float(lane.width.value(np.array([0.0]))[0])
+    fade = min(_ZERO_FADE_M, sec_len)
+    return continue_width(lane, 0.0), fade_width(lane, -w0, 0.0, fade)
+
+
+def _close_to_zero(lane: Lane, sec_len: float) -> tuple[Lane, ...]:
+    """``lane`` corrected to end at zero width at ``sec_len`` (see :func:`_open_from_zero`)."""
+    w1 = float(lane.width.value(np.array([sec_len]))[0])
+    fade = min(_ZERO_FADE_M, sec_len)
+    return close_width(lane, sec_len), fade_width(lane, -w1, sec_len, -fade)
 
 
 def _link_first_free(
@@ -889,23 +918,28 @@ def _link_sections(
                 np.linspace(max(end - 20.0, 0.0), end, 400),
             ]
         )
+        # at a gore too between lanes linked there (a median-side step: a shoulder 34 mm
+        # wide began unlinked between linked lanes and moved the outer ones by that,
+        # town06-auto-s2 with a noisier sensor); the innermost / outermost lanes at a gore
+        # begin and end at full width
         lanes = tuple(
-            _nonnegative(continue_width(ln, 0.0), ln, span)
+            _nonnegative(_open_from_zero(ln, end), ln, span)
             if n > 0
-            and not at_step[n]
+            and (not at_step[n] or _between_linked(lanes, i, "predecessor"))
             and ln.predecessor is None
             and preds[n]
             and abs(float(ln.width.value(np.array([0.0]))[0])) < _RESIDUAL_WIDTH_M
             else ln
-            for ln in lanes
+            for i, ln in enumerate(lanes)
         )
-        if n + 1 < len(sections) and not at_step[n + 1] and succs[n]:
+        if n + 1 < len(sections) and succs[n]:
             lanes = tuple(
-                _nonnegative(close_width(ln, sec_len), ln, span)
-                if ln.successor is None
+                _nonnegative(_close_to_zero(ln, sec_len), ln, span)
+                if (not at_step[n + 1] or _between_linked(lanes, i, "successor"))
+                and ln.successor is None
                 and abs(float(ln.width.value(np.array([sec_len]))[0])) < _RESIDUAL_WIDTH_M
                 else ln
-                for ln in lanes
+                for i, ln in enumerate(lanes)
             )
         if n > 0:
             # linked lanes continue with the width they had (sections are fitted one by
