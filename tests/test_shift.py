@@ -83,7 +83,13 @@ def test_the_shift_of_lines_moving_out_by_lanes_is_found_where_and_how_far_it_go
 
 @pytest.mark.parametrize(
     "what",
-    ["straight", "a bump of a metre", "an exit's lines leaving", "an outer lane opening"],
+    [
+        "straight",
+        "a bump of a metre",
+        "an exit's lines leaving",
+        "an outer lane opening",
+        "an outer lane opening fast beside a double edge line",
+    ],
 )
 def test_no_shift_where_the_pattern_does_not_move_as_a_whole(what):
     """Straight lines; every line swinging out by 1 m and back (the linking follows
@@ -106,9 +112,19 @@ def test_no_shift_where_the_pattern_does_not_move_as_a_whole(what):
             _line(rng, lambda s: 1.0 + 3 * LANE + leave(s), s0=300.0, s1=420.0, dashed=False),
             _line(rng, lambda s: 1.0 + 4 * LANE + leave(s), s0=300.0, s1=420.0, dashed=False),
         ]
-    else:
+    elif what == "an outer lane opening":
         opening = lambda s: 1.0 + 3 * LANE + LANE * _smoothstep(s, 300.0, 380.0)  # noqa: E731
         lines = [*flat[:3], _line(rng, opening, dashed=False)]
+    else:
+        # Town06's entries: the edge line and the shoulder's split line 0.5 m beyond it
+        # swing out by a lane over 45 m, a broken line goes on where the edge line was
+        opening = lambda s: 1.0 + 3 * LANE + LANE * _smoothstep(s, 300.0, 345.0)  # noqa: E731
+        lines = [
+            *flat[:3],
+            _line(rng, opening, dashed=False),
+            _line(rng, lambda s: opening(s) + 0.5, dashed=False),
+            _line(rng, lambda s: np.full(s.size, 1.0 + 3 * LANE), s0=305.0),
+        ]
     s, d = _samples(lines)
     assert _frame(s, d, MainlineConfig()) is None
 
@@ -164,3 +180,42 @@ def test_a_jump_of_the_innermost_marking_spread_over_two_grid_steps_is_a_jump():
     assert np.flatnonzero(_two_step_jumps(jump, LANE)).tolist() in ([49], [50])
     shift = 8.1 - LANE * _smoothstep(np.arange(100.0), 20.0, 80.0)
     assert not _two_step_jumps(shift, LANE).any()
+
+
+def _peaks(tracks):
+    """Peak stations, offsets and track ids from ``{track: [(s, d), ...]}``."""
+    rows = [(s, d, k) for k, pts in tracks.items() for s, d in pts]
+    s, d, k = (np.array(v) for v in zip(*rows, strict=True))
+    return s.astype(float), d.astype(float), k.astype(np.int64)
+
+
+def test_a_stretch_where_lines_stay_and_only_outer_ones_move_is_no_common_shift():
+    """town06-auto-s1: over 1562-1588 m the edge line and the shoulder's split line swing
+    out by a lane (a lane opens at the outer edge) while the lane lines at 4.6 (the
+    innermost seen), 8.2, 11.7 and 15.2 m go on: the stretch moves only lines beyond the
+    pattern. Lanes added beside the median (melbourne-921-s2): one line linked across
+    at 7.9 m hops between moving lines, and the moving lines cross the stretch inside
+    it: a common shift."""
+    from roadtwin.mainline.shift import _a_line_stays
+
+    def flat(d, stations):
+        return [(s, d) for s in stations]
+
+    outer = {
+        0: flat(4.63, [1540, 1550, 1600, 1610]),
+        1: flat(8.16, [1535, 1545, 1595, 1605]),
+        2: flat(11.67, [1540, 1555, 1570, 1580, 1600]),
+        3: flat(15.17, [1535, 1545, 1555, 1565, 1575, 1585, 1595]),
+        4: [(1570, 16.6), (1575, 17.0), (1580, 18.0), (1585, 18.6), (1600, 18.6)],
+    }
+    assert _a_line_stays(*_peaks(outer), 1562.0, 1588.0)
+    median = {
+        0: flat(0.96, [350, 360, 380, 400, 420, 440, 450]),
+        1: flat(7.94, [350, 365, 390, 415, 440, 455]),
+        2: [(380, 3.4), (390, 4.2), (400, 5.0), (410, 5.9)],
+        3: [(385, 6.4), (395, 7.2)],
+    }
+    assert not _a_line_stays(*_peaks(median), 372.0, 432.0)
+    # nothing stays but the innermost line: a common shift
+    inner_only = {0: median[0], 2: median[2]}
+    assert not _a_line_stays(*_peaks(inner_only), 372.0, 432.0)

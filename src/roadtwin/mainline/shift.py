@@ -59,6 +59,14 @@ SPREAD_WINDOWS = 3
 """The rate path is smoothed over this many windows either way (a triangle)."""
 PATTERN_M = 30.0
 """Length of the line patterns compared before and after a shift (metres)."""
+STAY_M = 0.3
+"""A line whose peaks stay this close (metres) to their median offset from before a
+shifting stretch to after it, more than ``STAY_INNER_M`` beyond the innermost line, did not
+shift: the stretch is a lane added or dropped beside the lines that moved (at the outer
+edge), not a shift of the whole pattern (beside the median, where only the innermost
+line stays)."""
+STAY_INNER_M = 2.0
+"""(metres) see ``STAY_M``."""
 OWNER_M = 0.6
 """A sample belongs to the line whose peak track lies this close (metres, with a column's
 spacing counted as 0.5 m)."""
@@ -132,7 +140,8 @@ def common_shift(
         if matched is not None and abs(total) > 1e-9:
             rate[a:b] *= matched / total
             total = matched
-        if abs(total) < MIN_TOTAL_M:
+        s_a, s_b = mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M
+        if abs(total) < MIN_TOTAL_M or _a_line_stays(peak_s, peak_d, peak_track, s_a, s_b):
             rate[a:b] = 0.0
     if not np.any(rate != 0.0):
         return None
@@ -152,6 +161,47 @@ def common_shift(
             if abs(float(np.sum(refined))) > 1e-9:
                 rate[a:b] = refined * (total / float(np.sum(refined)))
     return ShiftFrame(mids, _integrate(rate))
+
+
+def _a_line_stays(
+    peak_s: FloatArray, peak_d: FloatArray, peak_track: IntArray, s_a: float, s_b: float
+) -> bool:
+    """Whether the stretch ``[s_a, s_b]`` (metres) moves only lines beyond the pattern:
+    linked lines seen within ``PATTERN_M`` before and after it keep their offset all
+    through (``STAY_M``; more than ``STAY_INNER_M`` beyond the innermost line seen
+    before), and every peak inside the stretch off those lines lies beyond the outermost of
+    them.
+
+    A lane added at the outer edge moves the edge line and the lines beyond it out by a
+    lane width while the lane lines inside stay: taken for a shift of the whole pattern,
+    the lines that stayed were linked in the moving frame, each to the next one out, and
+    three lane borders swept 3.5 m across the lanes over 140 m (town06-auto-s1). A lane
+    added beside the median moves every line but the innermost; shifted by a lane width
+    or two the pattern looks the same after it, and a line linked across may hop from
+    one moving line to the next at one offset: there the moving lines cross the stretch
+    inside it."""
+    win = (peak_s >= s_a - PATTERN_M) & (peak_s <= s_b + PATTERN_M) & (peak_track >= 0)
+    before = win & (peak_s < s_a)
+    if not before.any():
+        return False
+    inner = float(np.min(peak_d[before]))
+    tracks, inverse = np.unique(peak_track[win], return_inverse=True)
+    d_w, s_w = peak_d[win], peak_s[win]
+    n = tracks.size
+    med = np.array([np.median(d_w[inverse == k]) for k in range(n)])
+    spread = np.zeros(n)
+    np.maximum.at(spread, inverse, np.abs(d_w - med[inverse]))
+    seen_before = np.zeros(n, dtype=bool)
+    seen_before[inverse[s_w < s_a]] = True
+    seen_after = np.zeros(n, dtype=bool)
+    seen_after[inverse[s_w > s_b]] = True
+    stays = seen_before & seen_after & (spread <= STAY_M) & (med >= inner + STAY_INNER_M)
+    if not stays.any():
+        return False
+    inside = (s_w >= s_a) & (s_w <= s_b) & ~stays[inverse]
+    off_lines = np.min(np.abs(d_w[inside, None] - med[stays][None, :]), axis=1) > STAY_M
+    moving = d_w[inside][off_lines]
+    return bool(np.all(moving > float(np.max(med[stays]))))
 
 
 def _integrate(rate: FloatArray) -> FloatArray:
