@@ -485,3 +485,24 @@ def test_an_unseen_exit_lane_line_ends_at_the_gore_not_with_the_lane_dropped_aft
     sections, _, _, _ = _fit_parts(parts, s_out, d_out, 1200.0)
     for station in (700.0, 760.0, 790.0, 820.0, 900.0):
         assert _edge_at(sections, station) == pytest.approx(float(edge(station)), abs=0.3)
+
+
+def test_a_line_ended_beside_a_closing_lane_meets_its_neighbour_where_that_settles():
+    """melbourne-408-opp-s4: a lane line ends at 650 m, 15.38 m out; the line beyond comes
+    in from 18.55 m and settles at 16.1 m by 700 m (the lane between them closed 0.7 m
+    short of the ended line), runs flat to 880 m and bends in to 15.6 m by 900 m. They
+    meet where the neighbour settled (within a quarter lane), not at 898 m, where the bend
+    came within 0.3 m: continued that far, a lane 0.7 m wide ran along 200 m."""
+    from roadtwin.mainline.markings import _meeting_station, _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 1000.5, cfg.grid_step_m)
+    g = grid[grid <= 650.0]
+    ended = _Track(0, 0.0, 650.0, g, np.full(g.size, 15.38), "broken", g.size, g)
+    nb_d = (
+        16.1 + 2.45 * (1.0 - _smoothstep(grid, 600.0, 100.0)) - 0.5 * _smoothstep(grid, 880.0, 20.0)
+    )
+    near = _Track(1, 0.0, 1000.0, grid, nb_d, "solid", grid.size, grid)
+    s_meet = _meeting_station(ended, near, grid, cfg, forward=True, lane_m=3.5)
+    assert s_meet is not None
+    assert 680.0 <= s_meet <= 720.0

@@ -528,6 +528,8 @@ def _short_ramp_line_meeting(
 
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
+_SETTLE_RUN_M = 50.0  # a neighbour whose gap shrinks by less than _SETTLE_DROP_M over this
+_SETTLE_DROP_M = 0.1  # ... (metres) has settled
 _EDGE_TAPER_MAX_M = 60.0  # the outer edge closes a lane over at most this (metres)
 # another line this close to a continued line's offset along the continuation takes its
 # place, or is converging onto it from the far side: the lanes shift sideways there and
@@ -576,6 +578,18 @@ def _meeting_station(
         return None
     gap = np.abs(np.interp(probe, nb.s, nb.d) - d_end)
     met = np.flatnonzero(gap <= _MEET_M)
+    # where the neighbour stops converging (the gap shrinks by less than _SETTLE_DROP_M over
+    # the next _SETTLE_RUN_M) it has settled; a meeting farther on is another line's
+    # business (melbourne-408-opp-s4: a lane line ended 0.7 m short of where the lane
+    # beside it closed, was carried on 250 m to where the line bent towards it, and a lane
+    # 0.7 m wide ran along 200 m)
+    step = float(abs(probe[1] - probe[0]))
+    w = max(1, round(_SETTLE_RUN_M / step))
+    ahead = np.concatenate([gap[w:], np.full(min(w, gap.size), gap[-1])])
+    settled = np.flatnonzero((gap - ahead < _SETTLE_DROP_M) & (gap > _MEET_M))
+    if settled.size and (not met.size or settled[0] < met[0]) and gap.size > w:
+        met = np.zeros(0, dtype=np.int64)
+        gap = gap[: settled[0] + 1]
     if met.size:
         i = int(met[0])
     else:
