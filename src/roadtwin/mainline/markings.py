@@ -587,7 +587,8 @@ def _meeting_station(
     w = max(1, round(_SETTLE_RUN_M / step))
     ahead = np.concatenate([gap[w:], np.full(min(w, gap.size), gap[-1])])
     settled = np.flatnonzero((gap - ahead < _SETTLE_DROP_M) & (gap > _MEET_M))
-    if settled.size and (not met.size or settled[0] < met[0]) and gap.size > w:
+    settled = settled[settled < gap.size - w]  # a whole run ahead to judge by
+    if settled.size and (not met.size or settled[0] < met[0]):
         met = np.zeros(0, dtype=np.int64)
         gap = gap[: settled[0] + 1]
     if met.size:

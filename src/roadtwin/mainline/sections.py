@@ -910,7 +910,8 @@ def _link_sections(
         # to zero width, so that the lanes beyond it keep their place (a lane born 0.3 m
         # wide moved every lane outside it sideways by 0.3 m at the section border)
         sec_len = (sections[n + 1].s0 if n + 1 < len(sections) else np.inf) - sec.s0
-        end = sec_len if np.isfinite(sec_len) else 1.0
+        # the last section: its start (where a lane opening from zero fades in) is checked
+        end = sec_len if np.isfinite(sec_len) else _ZERO_FADE_M
         span = np.concatenate(  # densest near the ends, where a closed taper dips
             [
                 np.linspace(0.0, end, 400),
