@@ -150,23 +150,36 @@ def _double_line_peaks(
     extra = (np.abs(best) >= fine_dist) & (np.abs(best) < near)
     if not extra.any():
         return np.zeros(0, dtype=np.intp)
+    rows, seps = row_f[extra], np.abs(best[extra])  # whichever of the two is higher
+    tol = max(1, round(_DOUBLE_SAME_M / cfg.lane_bin_m))
+    # at one separation and at one offset: a pair of lines moving sideways (a shift of the
+    # whole pattern, lines crossing where it is lost) is left to the linking as before (as
+    # two markings there, Town06's lines seen by a narrow sensor broke into pieces too
+    # short to keep, and one lane 15 m wide was left)
+    middle = 2 * j_f[extra] - best[extra]  # the pair's middle, in half bins
+    keep = _runs_at(rows, seps, flat.shape[0], near + tol + 1, tol) & _runs_at(
+        rows, middle, flat.shape[0], 2 * stride, 2 * tol
+    )
+    return fine[extra][keep].astype(np.intp)
+
+
+def _runs_at(
+    rows: NDArray[np.int64], values: NDArray[np.int64], n_rows: int, n_values: int, tol: int
+) -> NDArray[np.bool_]:
+    """Whether each ``(row, value)`` lies in a run of ``_DOUBLE_COLUMNS`` consecutive rows
+    that each hold one within ``tol`` of ``value`` (integer bins)."""
     from scipy.ndimage import maximum_filter1d
 
-    rows, seps = row_f[extra], np.abs(best[extra])  # whichever of the two is higher
-    # columns x separations (bins) with an extra peak, widened by the tolerance; a run of
-    # _DOUBLE_COLUMNS columns at one separation keeps the peaks on it
-    tol = max(1, round(_DOUBLE_SAME_M / cfg.lane_bin_m))
-    occ = np.zeros((flat.shape[0], near + tol + 1), dtype=bool)
-    occ[rows, seps] = True
-    occ = maximum_filter1d(occ.astype(np.uint8), 2 * tol + 1, axis=1).astype(bool)
+    occ = np.zeros((n_rows, n_values), dtype=np.uint8)
+    occ[rows, values] = 1
+    occ = maximum_filter1d(occ, 2 * tol + 1, axis=1).astype(bool)
     k = _DOUBLE_COLUMNS
-    csum = np.vstack([np.zeros((1, occ.shape[1]), dtype=np.int64), np.cumsum(occ, axis=0)])
-    full = (csum[k:] - csum[:-k]) == k  # a run of k starting at each column
+    csum = np.vstack([np.zeros((1, n_values), dtype=np.int64), np.cumsum(occ, axis=0)])
+    full = (csum[k:] - csum[:-k]) == k  # a run of k starting at each row
     covered = np.zeros_like(occ)
-    for lag in range(k):  # k <= a few: the columns each run covers
+    for lag in range(k):  # the rows each run covers
         covered[lag : lag + full.shape[0]] |= full
-    keep = covered[rows, seps]
-    return fine[extra][keep].astype(np.intp)
+    return covered[rows, values]
 
 
 _SETTLE_GAP_M = 25.0  # a line may go on at its last offset across at most this gap ...
