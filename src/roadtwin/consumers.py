@@ -21,7 +21,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -81,22 +83,51 @@ def run_tool(
     subprocess.TimeoutExpired
         The tool ran longer than ``timeout_s`` (it has been killed).
     """
-    proc = subprocess.Popen(
-        cmd,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        stdin=subprocess.DEVNULL,
-        text=True,
-        errors="replace",
-        cwd=cwd,
-        start_new_session=True,  # own process group; a terminal's Ctrl-C reaches only us
-    )
+    with _signals_deferred() as pending:
+        proc = subprocess.Popen(
+            cmd,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            errors="replace",
+            cwd=cwd,
+            start_new_session=True,  # own process group; a terminal's Ctrl-C reaches only us
+        )
     try:
+        for signum in pending:  # delivered again here, where the tool is stopped with us
+            os.kill(os.getpid(), signum)
         out, err = proc.communicate(timeout=timeout_s)
     except BaseException:
         _kill_group(proc)
         raise
     return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
+
+
+_DEFERRED = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[list[int]]:
+    """Signals that arrive while a tool is being started are recorded, not handled: one
+    that raised inside ``Popen`` after the fork (the exec handshake, slow on a loaded
+    machine) lost the tool's ``Popen``, and the tool ran on after roadtwin had exited
+    ("subprocess ... is still running"). Yields the list of signals received; only in the
+    main thread (where Python handles signals), and only for Python-level handlers."""
+    pending: list[int] = []
+    previous: dict[int, object] = {}
+    if threading.current_thread() is threading.main_thread():
+        for signum in _DEFERRED:
+            handler = signal.getsignal(signum)
+            if callable(handler):
+                previous[signum] = signal.signal(signum, lambda n, _f: pending.append(n))
+    try:
+        yield pending
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)  # type: ignore[arg-type]
 
 
 def _kill_group(proc: subprocess.Popen) -> None:
