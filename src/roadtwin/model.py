@@ -812,44 +812,6 @@ def constant_lane(
     )
 
 
-def _split_piece_at(profile: CubicProfile, s: float) -> CubicProfile:
-    """``profile`` with a piece boundary at ``s`` (metres), the same function."""
-    pieces = list(profile.pieces)
-    starts = [p.s0 for p in pieces]
-    k = int(np.searchsorted(starts, s, side="right")) - 1
-    if k < 0 or any(abs(x - s) < 1e-9 for x in starts):
-        return profile
-    p = pieces[k]
-    h = s - p.s0
-    tail = CubicPiece(
-        s,
-        p.a + p.b * h + p.c * h * h + p.d * h**3,
-        p.b + 2.0 * p.c * h + 3.0 * p.d * h * h,
-        p.c + 3.0 * p.d * h,
-        p.d,
-    )
-    return replace(profile, pieces=(*pieces[: k + 1], tail, *pieces[k + 1 :]))
-
-
-def fade_width(lane: Lane, delta_m: float, at_m: float, fade_m: float) -> Lane:
-    """``lane`` with ``delta_m`` (metres) added to its width at ``at_m`` (metres from the
-    section start), the correction fading out linearly over ``fade_m`` metres (forward
-    if ``fade_m`` > 0, backward if < 0): a lane that opens from (closes to) zero width
-    beside others where the correction over its whole first (last) piece would make it
-    negative, a shoulder a few centimetres wide (town06-auto-s2 with a noisier sensor:
-    kept its 34 mm, and every lane beyond it moved by that at the section border)."""
-    lo, hi = sorted((at_m, at_m + fade_m))
-    width = _split_piece_at(_split_piece_at(lane.width, lo), hi)
-    pieces = []
-    for p in width.pieces:
-        if lo - 1e-9 <= p.s0 < hi - 1e-9:
-            slope = -delta_m / fade_m
-            pieces.append(replace(p, a=p.a + delta_m + slope * (p.s0 - at_m), b=p.b + slope))
-        else:
-            pieces.append(p)
-    return replace(lane, width=replace(width, pieces=tuple(pieces)))
-
-
 def close_width(lane: Lane, length_m: float) -> Lane:
     """``lane`` with its last width piece corrected to end at zero width at ``length_m``
     (metres from the section start); the correction grows linearly over that piece (a

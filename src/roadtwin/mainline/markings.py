@@ -133,19 +133,16 @@ def _double_line_peaks(
     if idx.size == 0 or fine.size == 0:
         return np.zeros(0, dtype=np.intp)
     near = int(cfg.lane_min_separation_m / cfg.lane_bin_m)
-    row_c, j_c = np.divmod(idx, stride)
     row_f, j_f = np.divmod(fine, stride)
     # the separation (bins, signed) of each fine peak from the nearest coarse peak of its
-    # column; fine peaks that are coarse peaks themselves are left out
-    order = np.lexsort((j_c, row_c))
-    key_c = row_c[order] * stride + j_c[order]
-    pos = np.searchsorted(key_c, fine)
+    # column (``idx`` is sorted, columns laid end to end); fine peaks that are coarse peaks
+    # themselves are left out
+    pos = np.searchsorted(idx, fine)
     best = np.full(fine.size, np.iinfo(np.int64).max)
     for cand in (pos - 1, pos):
-        ok = (cand >= 0) & (cand < key_c.size)
-        c = np.clip(cand, 0, key_c.size - 1)
-        same_row = ok & (row_c[order][c] == row_f)
-        sep = np.where(same_row, j_f - j_c[order][c], np.iinfo(np.int64).max)
+        c = idx[np.clip(cand, 0, idx.size - 1)]
+        same_row = (cand >= 0) & (cand < idx.size) & (c // stride == row_f)
+        sep = np.where(same_row, fine - c, np.iinfo(np.int64).max)
         best = np.where(np.abs(sep) < np.abs(best), sep, best)
     extra = (np.abs(best) >= fine_dist) & (np.abs(best) < near)
     if not extra.any():

@@ -22,7 +22,6 @@ from ..model import (
     RoadMark,
     close_width,
     continue_width,
-    fade_width,
 )
 from ._common import (
     BoundaryTrack,
@@ -34,6 +33,7 @@ from .gores import (
     taper_width,
 )
 from .markings import _dashed, _mark_type, _Track
+from .seal import add_linear_ramp
 
 FloatArray = NDArray[np.float64]
 
@@ -737,17 +737,20 @@ def _between_linked(lanes: tuple[Lane, ...], i: int, link: str) -> bool:
 
 def _open_from_zero(lane: Lane, sec_len: float) -> tuple[Lane, ...]:
     """``lane`` corrected to start at zero width: over its first piece, or if that makes
-    it negative, over ``_ZERO_FADE_M`` (:func:`~roadtwin.model.fade_width`)."""
+    it negative, over ``_ZERO_FADE_M`` (:func:`.seal.add_linear_ramp`; ``sec_len`` metres,
+    inf for the road's last section)."""
     w0 = float(lane.width.value(np.array([0.0]))[0])
     fade = min(_ZERO_FADE_M, sec_len)
-    return continue_width(lane, 0.0), fade_width(lane, -w0, 0.0, fade)
+    faded = add_linear_ramp(lane.width, 0.0, fade, -w0, 0.0, sec_len)
+    return continue_width(lane, 0.0), replace(lane, width=faded)
 
 
 def _close_to_zero(lane: Lane, sec_len: float) -> tuple[Lane, ...]:
     """``lane`` corrected to end at zero width at ``sec_len`` (see :func:`_open_from_zero`)."""
     w1 = float(lane.width.value(np.array([sec_len]))[0])
     fade = min(_ZERO_FADE_M, sec_len)
-    return close_width(lane, sec_len), fade_width(lane, -w1, sec_len, -fade)
+    faded = add_linear_ramp(lane.width, sec_len - fade, sec_len, 0.0, -w1, sec_len)
+    return close_width(lane, sec_len), replace(lane, width=faded)
 
 
 def _link_first_free(
@@ -924,7 +927,7 @@ def _link_sections(
         # town06-auto-s2 with a noisier sensor); the innermost / outermost lanes at a gore
         # begin and end at full width
         lanes = tuple(
-            _nonnegative(_open_from_zero(ln, end), ln, span)
+            _nonnegative(_open_from_zero(ln, sec_len), ln, span)
             if n > 0
             and (not at_step[n] or _between_linked(lanes, i, "predecessor"))
             and ln.predecessor is None
