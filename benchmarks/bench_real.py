@@ -307,6 +307,7 @@ def build_and_judge(
             matched=topo.get("matched"),
             typed=topo.get("type_correct"),
             spurious=len(topo.get("spurious") or []),
+            unjudged=len(topo.get("unjudged") or []),
             connected=topo.get("connected"),
             widest_lane_m=widest,
             **_away_from_junctions(rep.details, run_dir),
@@ -483,7 +484,8 @@ def summary(results: list[tuple[str, str, list[dict]]], method: str) -> str:
         f"lane RMSE median {np.median(lane):.3f} max {lane.max():.3f} m; {strict}{away}"
         f"ramp centre RMSE median {np.median(col('ramp_centre')):.2f} m; "
         f"lane count min {100 * count.min():.1f} %; ramps missed {missed}, "
-        f"spurious {sum(r['spurious'] for r in rows)}, "
+        f"spurious {sum(r['spurious'] for r in rows)} "
+        f"(+{sum(r.get('unjudged', 0) for r in rows)} where the truth left a source ramp out), "
         f"mistyped {sum((r['matched'] or 0) - (r['typed'] or 0) for r in rows)}; "
         f"maps with check errors {sum(r['check_errors'] > 0 for r in rows)}; "
         f"widest lane {col('widest_lane_m').max():.1f} m"

@@ -24,6 +24,7 @@ from roadtwin.evaluation import (
     self_consistency,
     topology_against_truth,
 )
+from roadtwin.evaluation.topology import _attachment_point
 from roadtwin.frames import MappingFrame, Origin
 from roadtwin.io import MappingRun, Trajectory
 from roadtwin.model import (
@@ -442,6 +443,17 @@ def test_topology_against_truth(truth):
     )
     assert topo["spurious"] == ["99"]
     assert topo["matched"] == 2
+
+    # ... unless the truth left a ramp of its source out there: then it is unjudged
+    with_extra = replace(truth, roads=(*truth.roads, extra))
+    at = _attachment_point(with_extra, extra, mainline_roads(with_extra))
+    for dist, spurious, unjudged in ((5.0, [], ["99"]), (65.0, ["99"], [])):
+        left_out = {"type": "exit", "what": "exit way 1", "why": "link only 40 m long"}
+        info = TRUTH_INFO | {
+            "ramps_left_out": [left_out | {"x": at[0] + dist, "y": at[1]}],
+        }
+        topo = topology_against_truth(with_extra, truth, truth_info=info)
+        assert (topo["spurious"], topo["unjudged"], topo["matched"]) == (spurious, unjudged, 2)
 
 
 def test_multi_run_table_reproducible_from_json(truth, tmp_path):

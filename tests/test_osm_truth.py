@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from roadtwin.check import check_file, check_network, find_tool, network_stats
 from roadtwin.simulate.osm_truth import OsmTruthSettings, truth_from_osm
@@ -235,8 +236,13 @@ def test_links_that_would_knot_are_not_ramps():
     # median side turning back on themselves: drawn as ramps they knotted (radius 0.2 m)
     # and left 9 m weaving lanes between them on the mainline
     truth = _truth(KREMS_LINKS, 53304186, 11)
-    knotted = {what.split()[2] for what, why in truth.skipped if "knot" in why}
+    knotted = {x.what.split()[2] for x in truth.skipped if "knot" in x.why}
     assert knotted == {"102561712", "4682215", "41194190", "14823176"}
+    # each is recorded where it meets the mainline (the evaluation leaves a built ramp
+    # there unjudged): within OSM's offset of the true reference line
+    line = truth.mainline.xy(np.arange(0.0, truth.mainline.length, 1.0))
+    d, _ = cKDTree(line).query(np.array([x.xy for x in truth.skipped]))
+    assert d.max() < 25.0, d
     assert all(r.min_radius_m >= 7.5 for r in truth.ramps)
     assert not [x.key for x in truth.layout.strips if x.kind == "aux" and x.s1 - x.s0 < 100.0]
     assert not [f for f in check_network(truth.network) if f.severity == "error"]

@@ -460,6 +460,12 @@ def test_cli_simulates_a_real_osm_carriageway(tmp_path, capsys):
     truth = json.loads((out / "truth.json").read_text())
     assert truth["mainline_length_m"] > 1000.0
     assert truth["ramps"], "the Kotka chain has link ways"
+    # a link meeting the chain at its first node cannot be drawn; it is recorded where it
+    # meets the run (the evaluation does not count a ramp built there as spurious)
+    (left_out,) = truth["ramps_left_out"]
+    assert left_out["why"] == "gore too close to the end of the chain window"
+    start = np.loadtxt(out / "truth_trajectory.csv", delimiter=",", skiprows=1, max_rows=1)
+    assert math.hypot(left_out["x"] - start[2], left_out["y"] - start[3]) < 15.0
     assert main(["simulate", "--from-osm", str(tmp_path / "none.osm"), "-o", str(out)]) == 2
     assert main(["simulate", "straight_curve_2km", "--from-osm", str(osm), "-o", str(out)]) == 2
 

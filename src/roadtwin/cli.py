@@ -828,10 +828,12 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         topo = run.topology or {}
         ramps = topo.get("ramps", [])
         if "true_ramps" in topo:
+            unjudged = len(topo.get("unjudged") or [])
             line += (
                 f"; ramps {topo['matched']}/{topo['true_ramps']} matched,"
                 f" {len(topo['missed'])} missed, {len(topo['spurious'])} spurious,"
-                f" {topo['type_correct']} typed right"
+                + (f" {unjudged} unjudged (left out of the truth)," if unjudged else "")
+                + f" {topo['type_correct']} typed right"
             )
         line += f"; {sum(r['connected'] for r in ramps)}/{len(ramps)} ramps connected by lane links"
         print(line)

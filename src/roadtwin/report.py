@@ -349,7 +349,12 @@ def _topology_tables(doc: dict) -> str:
                 tp.get("built_ramps", len(ramps)),
                 tp.get("matched"),
                 ", ".join(tp.get("missed", [])) or "–",
-                ", ".join(tp.get("spurious", [])) or "–",
+                (", ".join(tp.get("spurious", [])) or "–")
+                + (
+                    f" (left out of the truth: {', '.join(tp['unjudged'])})"
+                    if tp.get("unjudged")
+                    else ""
+                ),
                 tp.get("type_correct"),
                 conn,
             ]

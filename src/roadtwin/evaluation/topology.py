@@ -108,6 +108,11 @@ def topology_against_truth(
     ``config.ramp_match_distance_m``. True ramps come from ``truth_info["ramps"]`` (the
     simulator's truth.json) when given, else from the truth network's ``exit``/``entry``
     roads.
+
+    A built ramp left unmatched within that distance of a ramp the truth left out
+    (``truth_info["ramps_left_out"]``: a ramp of the source map the simulator could not
+    draw, which the run's OSM still has) is ``unjudged``, not spurious: the run holds no
+    truth of it.
     """
     cfg = config or EvaluationConfig()
     true_main = mainline_roads(truth)
@@ -148,6 +153,14 @@ def topology_against_truth(
                         "attachment_distance_m": float(cost[i, j]),
                     }
                 )
+    unmatched = [j for j in range(len(built_list)) if j not in matched_built]
+    left_out = [(r["x"], r["y"]) for r in (truth_info or {}).get("ramps_left_out") or []]
+    unjudged: set[int] = set()
+    if unmatched and left_out:
+        d, _ = cKDTree(np.array(left_out, dtype=float)).query(built_pts[unmatched])
+        unjudged = {
+            j for j, dj in zip(unmatched, d, strict=True) if dj <= cfg.ramp_match_distance_m
+        }
     connectivity = ramp_connectivity(network, traffic_side=traffic_side)
     conn_by_id = {c["road_id"]: c["connected"] for c in connectivity}
     for p in pairs:
@@ -157,7 +170,8 @@ def topology_against_truth(
         "built_ramps": len(built_list),
         "matched": len(pairs),
         "missed": [true_list[i][0] for i in range(len(true_list)) if i not in matched_true],
-        "spurious": [built_list[j][0] for j in range(len(built_list)) if j not in matched_built],
+        "spurious": [built_list[j][0] for j in unmatched if j not in unjudged],
+        "unjudged": [built_list[j][0] for j in sorted(unjudged)],
         "type_correct": sum(p["type_correct"] for p in pairs),
         "connected": sum(c["connected"] for c in connectivity),
         "all_connected": all(c["connected"] for c in connectivity),

@@ -45,7 +45,7 @@ from .route_sensor import (
     sensor_view,
     true_edges,
 )
-from .route_truth import RouteTruth, build_route_truth
+from .route_truth import LeftOutRamp, RouteTruth, build_route_truth
 from .scenario import Car, Noise, OsmStyle, Sensor
 from .sensor import noisy_poses, observe_edges, observe_markings
 from .writer import (
@@ -211,9 +211,11 @@ def route_truth_json(
     car_lane: int,
     ramp_ways: dict[int, list[int]],
     counts: dict,
+    left_out: Sequence[LeftOutRamp] = (),
 ) -> dict:
     """``truth.json`` of a network run: the keys of the parametric runs' truth.json plus
-    the source, route and fit accuracy."""
+    the source, route and fit accuracy, and ``ramps_left_out``: the ramps of the source
+    that the truth has not (``left_out`` and those the route truth left out)."""
     roads = truth.mainline_roads
     starts = truth.mainline_road_starts
     sections = []
@@ -264,6 +266,7 @@ def route_truth_json(
             for r, s in zip(roads, starts, strict=True)
         ],
         "ramps": ramps,
+        "ramps_left_out": [r.to_dict() for r in (*left_out, *truth.left_out)],
         "lane_drops": _lane_drops(truth),
         "lane_sections": sections,
         "through_lanes": [
@@ -297,6 +300,7 @@ def simulate_network_run(
     settings: NetworkRunSettings | None = None,
     seed: int = 0,
     name: str = "network",
+    left_out: Sequence[LeftOutRamp] = (),
 ) -> Path:
     """Simulate a mapping run along a route through ``network`` (the ground truth).
 
@@ -317,6 +321,9 @@ def simulate_network_run(
         Seed of every random stream; same inputs and seed give the same bytes.
     name
         Name of the source (for truth.json and comments).
+    left_out
+        Ramps of the source that ``network`` leaves out (e.g. OSM links the OSM truth
+        could not draw), recorded in truth.json's ``ramps_left_out``.
 
     Returns
     -------
@@ -406,8 +413,9 @@ def simulate_network_run(
             "lanes": lane_counts,
         }
         doc = route_truth_json(
-            truth, cfg, seed=seed, car_lane=car_lane, ramp_ways=ramp_ways, counts=counts
-        )
+            truth, cfg, seed=seed, car_lane=car_lane, ramp_ways=ramp_ways, counts=counts,
+            left_out=left_out,
+        )  # fmt: skip
         if cfg.pass_index > 1:
             doc["pass"] = cfg.pass_index
         write_truth_files(tmp, doc, truth.network)

@@ -77,6 +77,26 @@ fold or cross, which esmini cannot drive either) is left out of the truth."""
 
 
 @dataclass(frozen=True)
+class LeftOutRamp:
+    """A ramp of the source map that the truth leaves out (too close to the window's end,
+    too short, knotted, or not representable by one road), so that its run has no truth
+    of it. ``xy`` is where it leaves (exit) or joins (entry) the mainline, mapping-frame
+    metres; a built ramp there is neither matched nor spurious
+    (:func:`roadtwin.evaluation.topology.topology_against_truth`)."""
+
+    type: str
+    what: str
+    why: str
+    xy: tuple[float, float]
+
+    def to_dict(self) -> dict:
+        """The truth.json record."""
+        x, y = self.xy
+        return {"type": self.type, "what": self.what, "why": self.why,
+                "x": round(x, 3), "y": round(y, 3)}  # fmt: skip
+
+
+@dataclass(frozen=True)
 class RampTruth:
     """A ramp of the true network.
 
@@ -117,6 +137,7 @@ class RouteTruth:
     source_name: str = ""
     aux_keys: frozenset[int] = field(default_factory=frozenset)
     fit_error_m: dict[str, float] = field(default_factory=dict)
+    left_out: tuple[LeftOutRamp, ...] = ()
 
     @property
     def sign(self) -> float:
@@ -268,6 +289,17 @@ def find_branches(
     return out
 
 
+def _left_out(network: RoadNetwork, branch: _Branch, why: str) -> LeftOutRamp:
+    """The record of a branch left out of the truth, placed where it leaves (exit) or
+    joins (entry) the route: the reference line at the end of its leg on the route."""
+    leg = branch.legs[0] if branch.kind == "exit" else branch.legs[-1]
+    span = leg.spans[0]
+    s = span.s_start if branch.kind == "exit" else span.s_end
+    xy = network.road(span.road_id).xy(np.array([s]))[0]
+    what = f"{branch.kind} via roads {','.join(_roads_of(branch))}"
+    return LeftOutRamp(branch.kind, what, why, (float(xy[0]), float(xy[1])))
+
+
 def _roads_of(branch: _Branch) -> tuple[str, ...]:
     return tuple(dict.fromkeys(sp.road_id for leg in branch.legs for sp in leg.spans))
 
@@ -410,6 +442,7 @@ def build_route_truth(
     # (lanes folding inside a tight turn, lanes of separate connectors crossing) is left
     # out of the truth altogether, so the run stays consistent with truth.xodr
     branch_fits: dict[int, ChainFit] = {}
+    left_out: list[LeftOutRamp] = []
     branch_cfg = replace(fit or FitSettings(), **BRANCH_PIECES_M)
     for b_idx, b in enumerate(branches):
         passages: list[Passage | None] = [None] * (len(b.legs) - 1)
@@ -423,6 +456,7 @@ def build_route_truth(
             )  # fmt: skip
         except (FitError, InputError) as exc:
             log.warning("%s from %s left out: %s", b.kind, _roads_of(b), exc)
+            left_out.append(_left_out(network, b, f"cannot be fitted: {exc}"))
             continue
         err = max_border_error_m(bfit)
         if max(err.values()) > max_branch_error_m:
@@ -431,6 +465,7 @@ def build_route_truth(
                 "(borders %.2f m off; lanes fold or cross)",
                 b.kind, ",".join(_roads_of(b)), max(err.values()),
             )  # fmt: skip
+            left_out.append(_left_out(network, b, "one road cannot represent it"))
             continue
         branch_fits[b_idx] = bfit
     # the lanes of the kept ramps on the median side end / start at full width where the
@@ -593,4 +628,5 @@ def build_route_truth(
         source_name=name,
         aux_keys=frozenset(aux_keys),
         fit_error_m=errors,
+        left_out=tuple(left_out),
     )

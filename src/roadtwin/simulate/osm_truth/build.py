@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from ...fitting import arc_length
 from ...frames import Origin
 from ...model import Connection, Header, Junction, Road, RoadLink, RoadNetwork
+from ..route_truth import LeftOutRamp
 from .chain import OsmRoads, read_osm_roads, resolve_selection, select_chain, window_chain
 from .elevation import mainline_profile, ramp_profile
 from .geometry import (
@@ -90,7 +91,7 @@ class OsmTruth:
         along the mainline every 10 m.
     tagged_lanes : ``(s0, s1, lanes)`` of the OSM ``lanes`` tags along the mainline
         (truth stations).
-    skipped : ``(what, why)`` of OSM ramps left out.
+    skipped : the OSM ramps left out, where they meet the truth's mainline.
     notes : what the layout did (weaving lanes, missing shoulders, ...).
     """
 
@@ -107,7 +108,7 @@ class OsmTruth:
     osm_offset_m: NDArray[np.float64]
     tagged_lanes: tuple[tuple[float, float, int], ...]
     seed: int
-    skipped: tuple[tuple[str, str], ...] = ()
+    skipped: tuple[LeftOutRamp, ...] = ()
     notes: tuple[str, ...] = field(default_factory=tuple)
     offset_centre_xy: tuple[float, float] = (0.0, 0.0)
     """Centre (mapping frame, metres) of the OSM offset field's waves: a truth of the other
@@ -131,9 +132,22 @@ class OsmTruth:
             "ramps": [r.to_dict() for r in self.ramps],
             "style": self.style.to_dict(),
             "seed": self.seed,
-            "skipped": [list(x) for x in self.skipped],
+            "skipped": [[x.what, x.why] for x in self.skipped],
             "notes": list(self.notes),
         }
+
+
+def _moved(xy: tuple[float, float], fld) -> tuple[float, float]:
+    """An OSM point moved by the offset field ``fld`` onto the truth (mapping frame)."""
+    p = np.array([xy])
+    q = (p + fld(p))[0]
+    return (float(q[0]), float(q[1]))
+
+
+def _gore_point(r: OsmRamp, fld) -> tuple[float, float]:
+    """Where an OSM ramp meets the truth's mainline (its gore node, moved by ``fld``)."""
+    xy = r.xy[0] if r.kind == "exit" else r.xy[-1]
+    return _moved((float(xy[0]), float(xy[1])), fld)
 
 
 def _rng(seed: int, k: int) -> np.random.Generator:
@@ -204,6 +218,7 @@ def truth_from_osm(
     # ---- mainline reference line ---------------------------------------------------
     centre_xy = ch.xy.mean(axis=0) if offset_centre_xy is None else np.asarray(offset_centre_xy)
     fld = offset_field(_rng(seed, 1), cfg.offset, centre=centre_xy)
+    skipped = [replace(x, xy=_moved(x.xy, fld)) for x in skipped]
     centre = smooth_line(ch.xy + fld(ch.xy), window_m=cfg.mainline_smooth_window_m)
     s_c = arc_length(centre)
     # tagged lanes along the smoothed line (by the OSM stations, scaled)
@@ -233,7 +248,8 @@ def truth_from_osm(
         a, b = (g, g + lz) if r.kind == "exit" else (g - lz, g)
         what = f"{r.kind} way {r.way_ids[0]} at {g:.0f} m"
         if a < last_b + min_gap or a < min_gap or b > L - min_gap:
-            skipped.append((what, "its junction would overlap another ramp's or the end"))
+            why = "its junction would overlap another ramp's or the end"
+            skipped.append(LeftOutRamp(r.kind, what, why, _gore_point(r, fld)))
             continue
         accepted.append((r, g))
         last_b = b
@@ -266,7 +282,8 @@ def truth_from_osm(
         for k in bad:
             r, g = accepted[k]
             what = f"{r.kind} way {r.way_ids[0]} at {g:.0f} m"
-            skipped.append((what, "its path bends tighter than a ramp can (a knot)"))
+            why = "its path bends tighter than a ramp can (a knot)"
+            skipped.append(LeftOutRamp(r.kind, what, why, _gore_point(r, fld)))
         accepted = [a for k, a in enumerate(accepted) if k not in bad]
     z_main = mainline_profile(L, cfg.elevation, _rng(seed, 3))
     main_src = Source(main_geo, z_main, layout)

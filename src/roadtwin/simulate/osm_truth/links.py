@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...fitting import arc_length
+from ..route_truth import LeftOutRamp
 from .chain import CARRIAGEWAY, LINKS, Chain, OsmRoads, _end_heading, _turn
 from .settings import CrossSection, RampShape
 
@@ -102,6 +103,10 @@ def _cap(xy: NDArray, length_m: float, *, from_start: bool) -> NDArray:
     return pts if from_start else pts[::-1]
 
 
+def _point(xy: NDArray[np.float64]) -> tuple[float, float]:
+    return (float(xy[0]), float(xy[1]))
+
+
 def _layer(tags: dict[str, str]) -> int:
     try:
         return int(float(tags.get("layer", "0")))
@@ -116,14 +121,14 @@ def find_ramps(
     shape: RampShape,
     cross_section: CrossSection,
     traffic: str,
-) -> tuple[list[OsmRamp], list[tuple[str, str]]]:
-    """Ramps along the chain's window, sorted by station, and ``(what, why)`` of the
-    links left out (too close to the window's ends, too short)."""
+) -> tuple[list[OsmRamp], list[LeftOutRamp]]:
+    """Ramps along the chain's window, sorted by station, and the links left out (too
+    close to the window's ends, too short; placed at their chain node, OSM as drawn)."""
     chain_ways = set(chain.way_ids)
     index = {int(n): k for k, n in enumerate(chain.node_ids) if n >= 0}
     chain_nodes = set(index)
     ramps: list[OsmRamp] = []
-    skipped: list[tuple[str, str]] = []
+    skipped: list[LeftOutRamp] = []
     allowed = LINKS | (CARRIAGEWAY if shape.include_motorway_branches else frozenset())
     for wid in sorted(roads.ways):
         w = roads.ways[wid]
@@ -135,7 +140,8 @@ def find_ramps(
                 continue
             what = f"{kind} way {wid} at {chain.s[k]:.0f} m"
             if not shape.end_margin_m <= chain.s[k] <= chain.length - shape.end_margin_m:
-                skipped.append((what, "gore too close to the end of the chain window"))
+                why = "gore too close to the end of the chain window"
+                skipped.append(LeftOutRamp(kind, what, why, _point(chain.xy[k])))
                 continue
             ids = _follow(
                 roads,
@@ -153,7 +159,8 @@ def find_ramps(
             xy = _cap(np.column_stack([x, y]), shape.max_length_m, from_start=kind == "exit")
             length = float(np.hypot(*np.diff(xy, axis=0).T).sum())
             if length < shape.min_length_m:
-                skipped.append((what, f"link only {length:.0f} m long"))
+                why = f"link only {length:.0f} m long"
+                skipped.append(LeftOutRamp(kind, what, why, _point(chain.xy[k])))
                 continue
             ramps.append(
                 OsmRamp(
