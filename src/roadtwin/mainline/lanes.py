@@ -74,6 +74,7 @@ def fit_lanes(
     config: MainlineConfig | None = None,
     car: tuple[FloatArray, FloatArray] | None = None,
     median: EdgeSteps | None = None,
+    median_move: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[tuple[LaneSection, ...], tuple[LaneEvent, ...], tuple[BoundaryTrack, ...], FloatArray]:
     """Lane sections from lane samples and outer-edge points in the reference frame.
 
@@ -95,6 +96,11 @@ def fit_lanes(
         Steps of the median-side edge (gores on the median side) and its offset from the
         reference line per segment (metres towards the median): the innermost border of
         the lanes. None: the median-side edge is the reference line everywhere.
+    median_move
+        Where the median-side edge is unseen beside a gore and moves with the lanes
+        (:func:`~.median_moves.edge_moves`): the move on this function's grid (metres
+        towards the carriageway) and the gore stations where it begins or ends at full
+        size (metres). None: no such move.
 
     Returns
     -------
@@ -107,6 +113,9 @@ def fit_lanes(
     # reference line, negative where lanes were added on the median side
     d_median = -median.at(grid) if median is not None else np.zeros(grid.size)
     median_steps = median.stations if median is not None else np.zeros(0)
+    if median_move is not None:
+        d_median = d_median + median_move[0]
+        median_steps = np.sort(np.concatenate([median_steps, median_move[1]]))
     keep = (s_lane >= 0) & (s_lane <= length)
     keep &= d_lane > np.interp(s_lane, grid, d_median) - 0.5
     if np.all(np.isfinite(d_edge)):

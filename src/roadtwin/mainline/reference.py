@@ -6,7 +6,7 @@ import functools
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -42,6 +42,7 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
+from .median_moves import edge_moves, with_edge_moves
 from .seal import nonnegative_widths, seal_lane_borders
 
 log = logging.getLogger(__name__)
@@ -79,7 +80,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     s_car, t_car = frame.project(poses)
     order = np.argsort(s_car)
 
-    def lanes(surface_scale: Callable[[FloatArray], FloatArray | float]):
+    def lanes(surface_scale: Callable[[FloatArray], FloatArray | float], move=None):
         return fit_lanes(
             s_lane,
             -sign * t_lane * surface_scale(s_lane),
@@ -90,9 +91,18 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
             config=cfg,
             car=(s_car[order], -sign * t_car[order] * surface_scale(s_car[order])),
             median=median.steps,
+            median_move=move,
         )
 
     sections, events, tracks, used = lanes(lambda s: 1.0)
+    # where the median-side edge is unseen beside a gore it moves with the lines seen
+    # there: the lanes again, with the edge moved
+    grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
+    move = edge_moves(median.unseen_beside_gores, tracks, grid)
+    if not np.any(move[0]):
+        move = None
+    else:
+        sections, events, tracks, used = lanes(lambda s: 1.0, move)
     timings["lanes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -104,7 +114,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         # are fitted again to the plan offsets divided by cos(roll), so that consumers
         # place every border where it was seen
         t0 = time.perf_counter()
-        sections, events, tracks, _ = lanes(lambda s: 1.0 / np.cos(superelevation.value(s)))
+        sections, events, tracks, _ = lanes(lambda s: 1.0 / np.cos(superelevation.value(s)), move)
         timings["lanes"] += time.perf_counter() - t0
     road = replace(
         base,
@@ -114,6 +124,8 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         lane_offset=_lane_offset(median.steps, sign),
     )
     road = _join_lanes_across_offset_steps(road, median.steps.stations)
+    if move is not None:
+        road = replace(road, lane_offset=with_edge_moves(road.lane_offset, grid, move[0], sign))
     road = nonnegative_widths(seal_lane_borders(road))
     return _Partial(road, events, "default", tracks)
 
@@ -151,11 +163,16 @@ class MedianEdge:
         offset of the centre lane.
     z : ``(G,)`` height of the road surface under the car beside each point of ``xy``
         (mapping frame, metres; from the trajectory), or None.
+    unseen_beside_gores : ``(k, 2)`` rows of (gore station, station where the edge is
+        seen again), metres along ``xy``: a ramp's edge peeled off (joined) on the median
+        side and the road's own edge is unseen after (before) the gore for at least
+        ``_UNSEEN_GORE_M`` (:mod:`.median_moves`).
     """
 
     xy: FloatArray
     steps: EdgeSteps
     z: FloatArray | None = None
+    unseen_beside_gores: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 def _lane_offset(steps: EdgeSteps, sign: float) -> CubicProfile:
@@ -407,6 +424,30 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
     return np.asarray(spans, dtype=float).reshape(-1, 2), np.asarray(bases, dtype=float)
 
 
+_UNSEEN_GORE_M = 20.0  # an excursion's unseen end this long hides the edge beside a gore
+
+
+def _unseen_beside_gores(centres: FloatArray, level: FloatArray, spans: FloatArray) -> FloatArray:
+    """(gore station, station where the edge is seen again) of each excursion (``spans``,
+    :func:`median_excursions`) whose end (an exit's) or beginning (an entry's) is unseen
+    over at least ``_UNSEEN_GORE_M``: the last (first) station where the ramp's edge is
+    seen is the gore; stations and ``level`` on the bin ``centres``, metres."""
+    rows = []
+    ok = np.isfinite(level)
+    for a, b in spans:
+        idx = np.flatnonzero((centres >= a) & (centres <= b))
+        seen = np.flatnonzero(ok[idx])
+        if seen.size == 0:
+            continue
+        half = 0.5 * float(np.median(np.diff(centres)))
+        first, last = centres[idx[seen[0]]] - half, centres[idx[seen[-1]]] + half
+        if b - last >= _UNSEEN_GORE_M:
+            rows.append((last, b))  # an exit: the edge unseen after its gore
+        if first - a >= _UNSEEN_GORE_M:
+            rows.append((first, a))  # an entry: unseen before its gore
+    return np.asarray(rows, dtype=float).reshape(-1, 2)
+
+
 def fit_median_edge(
     ref_pts: FloatArray,
     traj: PolylineFrame,
@@ -472,6 +513,7 @@ def fit_median_edge(
         # a ramp's edge peeling off on the median side is not the road's edge (in every
         # pass: the first one's bend would stay in the frames of the others)
         spans, bases = median_excursions(centres, level)
+        unseen = _unseen_beside_gores(centres, level, spans)
         if spans.size:
             k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
             inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
@@ -512,7 +554,7 @@ def fit_median_edge(
             pts = np.column_stack([pts, z])
         frame = PolylineFrame.from_points(resample_polyline(pts, step))
     if not has_steps:
-        return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)), frame.z)
+        return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)), frame.z, unseen)
     # the steps in the final line's own stations
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
@@ -525,7 +567,7 @@ def fit_median_edge(
         config=cfg,
         across=functools.partial(_across, frame, outer_pts, side),
     )
-    return MedianEdge(frame.xy, steps, frame.z)
+    return MedianEdge(frame.xy, steps, frame.z, unseen)
 
 
 def _across(

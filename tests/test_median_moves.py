@@ -1,0 +1,111 @@
+"""The median-side edge where it is unseen beside a gore moves with the lines seen there.
+
+Town06 (the benchmark's town06-auto-s2): after an inner exit's gore the mainline's median
+edge was unseen for 60 m while the remaining lanes swung back towards the median by a
+lane width. Carried across at its old level, the edge lay 3.3 m off and an invented lane
+tapered to zero between it and the lanes (edge RMSE 0.200 m; 0.075 m with the move)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roadtwin.mainline._common import BoundaryTrack
+from roadtwin.mainline.median_moves import edge_moves, with_edge_moves
+from roadtwin.mainline.reference import _unseen_beside_gores
+from roadtwin.model import CubicPiece, CubicProfile
+
+GRID = np.arange(0.0, 301.0, 1.0)
+
+
+def _track(track_id: int, d: np.ndarray, n_samples: int = 500) -> BoundaryTrack:
+    return BoundaryTrack(track_id, GRID, d, "broken", n_samples)
+
+
+def _swing(start: float, end: float, d0: float, d1: float) -> np.ndarray:
+    """An offset going from ``d0`` to ``d1`` between stations ``start`` and ``end``
+    (smoothstep), constant either side."""
+    x = np.clip((GRID - start) / (end - start), 0.0, 1.0)
+    return d0 + (d1 - d0) * x * x * (3.0 - 2.0 * x)
+
+
+def test_the_edge_follows_the_innermost_line_seen_beyond_the_gap():
+    # an inner exit's gore at 100 m, the edge seen again at 160 m; the inner shoulder line
+    # is inferred (no samples), the line the car sees swings 3.5 m towards the median
+    tracks = (
+        _track(1, np.full(GRID.size, 1.1), n_samples=0),
+        _track(2, _swing(105.0, 160.0, 8.1, 4.6)),
+        _track(3, _swing(105.0, 160.0, 11.6, 8.1)),
+    )
+    move, gores = edge_moves(np.array([[100.0, 160.0]]), tracks, GRID)
+    assert gores.tolist() == [100.0]
+    assert np.all(move[GRID < 100.0] == 0.0)
+    assert np.all(move[GRID > 160.0] == 0.0)
+    # the edge keeps the 4.6 m to the seen line that it has where it is seen again
+    inside = (GRID >= 100.0) & (GRID <= 160.0)
+    expected = _swing(105.0, 160.0, 8.1, 4.6)[inside] - 4.6
+    assert move[inside] == pytest.approx(expected, abs=1e-9)
+    assert move[GRID == 110.0][0] == pytest.approx(3.42, abs=0.01)
+
+
+def test_an_entry_mirrors_it():
+    tracks = (_track(2, _swing(140.0, 195.0, 4.6, 8.1)),)
+    move, gores = edge_moves(np.array([[200.0, 140.0]]), tracks, GRID)
+    assert gores.tolist() == [200.0]
+    assert move[GRID == 195.0][0] == pytest.approx(3.5, abs=1e-9)
+    assert np.all(move[(GRID < 140.0) | (GRID > 200.0)] == 0.0)
+
+
+@pytest.mark.parametrize(
+    "tracks",
+    [
+        # the line seen beyond the gap does not move: an occlusion of the edge alone
+        (_track(2, np.full(GRID.size, 4.6)),),
+        # the moving line is not seen (inferred): nothing says where the edge went
+        (_track(2, _swing(105.0, 160.0, 8.1, 4.6), n_samples=0),),
+        # a line that moves by less than a lane's worth (a curve's smoothing)
+        (_track(2, _swing(105.0, 160.0, 5.6, 4.6)),),
+    ],
+)
+def test_no_move_without_a_seen_line_moving_by_a_lane(tracks):
+    move, gores = edge_moves(np.array([[100.0, 160.0]]), tracks, GRID)
+    assert not np.any(move)
+    assert gores.size == 0
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_the_lane_offset_carries_the_move(sign):
+    """The centre lane moves towards the carriageway by the move (t negative for
+    right-hand traffic), steps at the gore, and runs back onto the step profile without a
+    gap where the edge is seen again."""
+    base = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(250.0, sign * 3.5)))
+    move = np.where((GRID >= 100.0) & (GRID <= 160.0), _swing(100.0, 160.0, 3.5, 0.0), 0.0)
+    prof = with_edge_moves(base, GRID, move, sign)
+    s = np.arange(0.0, 300.0, 0.25)
+    expected = base.value(s) - sign * np.interp(s, GRID, move) * (s >= 100.0)
+    assert prof.value(s) == pytest.approx(expected, abs=0.02)  # linear records every 4 m
+    # a step at the gore, none where the move ends, the median step kept
+    assert prof.value(np.array([100.0]))[0] - prof.value(np.array([99.999]))[0] == pytest.approx(
+        -sign * 3.5, abs=1e-6
+    )
+    for at in (161.0, 250.0):
+        jump = prof.value(np.array([at]))[0] - prof.value(np.array([at - 1e-6]))[0]
+        assert jump == pytest.approx(sign * 3.5 if at == 250.0 else 0.0, abs=1e-6)
+    assert with_edge_moves(base, GRID, np.zeros(GRID.size), sign) is base
+
+
+def test_an_excursion_unseen_after_the_gore_hides_the_edge_beside_it():
+    """Level path on 2 m bins: the ramp's edge peels off over 200-214 m, then nothing is
+    seen up to 270 m, where the edge is back at its level."""
+    centres = np.arange(1.0, 400.0, 2.0)
+    level = np.zeros(centres.size)
+    peel = (centres > 200.0) & (centres < 214.0)
+    level[peel] = 0.25 * (centres[peel] - 200.0)
+    level[(centres >= 214.0) & (centres < 270.0)] = np.nan
+    spans = np.array([[200.0, 270.0]])
+    rows = _unseen_beside_gores(centres, level, spans)
+    assert rows.tolist() == [[214.0, 270.0]]
+    # seen up to the nose: nothing hidden beside the gore
+    level[(centres >= 214.0) & (centres < 230.0)] = 3.0
+    level[(centres >= 230.0) & (centres < 270.0)] = 0.0
+    assert _unseen_beside_gores(centres, level, spans).shape == (0, 2)
