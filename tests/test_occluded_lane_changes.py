@@ -319,6 +319,38 @@ def test_a_gap_beginning_at_an_exits_step_hides_a_shoulder_opening_from_the_gore
     np.testing.assert_array_equal(out, plain)
 
 
+def test_the_edge_beside_an_exits_nose_just_after_a_gap_is_not_the_shoulders():
+    """a9-206615404-lane1-s21 with a noisier sensor: a deceleration lane opens (its line
+    seen moving from 8.1 to 11.8 m), the edge is hidden from 125 to 257 m and seen again
+    for a metre beside the exit's nose at 19.5 m before it steps down at 258.5 m. Bridged
+    from the 2.5 m shoulder before the gap to the 7.5 m beside the nose, the shoulder grew
+    to hold an invented lane (edge RMSE 0.220 m); it keeps its width up to the nose
+    (0.049 m). Mirrored for an entry's nose just before a gap."""
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    grid = np.arange(0.0, 400.5, MainlineConfig().grid_step_m)
+    line = 8.1 + 3.7 * np.clip((grid - 90.0) / 80.0, 0.0, 1.0)
+    tracks = [_track(0, grid, 0.0, 0.0)]
+    tracks[0].d[:] = line
+    d_edge = np.where(grid < 257.0, line + 2.5, np.where(grid < 258.5, 19.5, 8.3))
+    covered = (grid < 125.0) | (grid > 256.0)
+    steps = np.array([258.5])
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, None, steps, 60.0)
+    inside = (grid > 130.0) & (grid < 250.0)
+    np.testing.assert_allclose(out[inside], line[inside] + 2.5, atol=0.05)
+    plain = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    assert float(np.max(plain[inside] - line[inside])) > 6.0  # what it was
+    # the entry: the same mirrored along the station
+    rev = grid[-1] - grid
+    order = np.argsort(rev)
+    tracks_r = [_track(0, grid, 0.0, 0.0)]
+    tracks_r[0].d[:] = line[order]
+    out_r = _bridge_edge_gaps(
+        d_edge[order], covered[order], tracks_r, grid, None, None, grid[-1] - steps, 60.0
+    )
+    np.testing.assert_allclose(out_r[inside[order]], line[order][inside[order]] + 2.5, atol=0.05)
+
+
 def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_moved():
     """melbourne-1019-lane1-s21 with a noisier sensor: at a section border the outer
     driving lane is 2.67 m wide before and 4.08 m after, the hard shoulder beside it 2.34 m

@@ -273,6 +273,42 @@ def _shoulder_at_gore(
     return True
 
 
+def _nose_widths(
+    d_edge: FloatArray,
+    grid: FloatArray,
+    a: int,
+    b: int,
+    steps: FloatArray,
+    hw0: float,
+    hw1: float,
+    d_last: FloatArray,
+) -> tuple[float, float]:
+    """The shoulder widths (metres) to bridge the gap ``a:b`` between: ``hw0`` and
+    ``hw1`` seen at its ends, except where an exit's step down follows just after the
+    gap (an entry's step up comes just before it) and the outermost marking
+    (``d_last``) moved outward across the gap (inward for the entry) by more than
+    ``_GORE_LEVEL_M``: the lane that opened in the gap has its line, and the edge seen
+    for the few metres between the gap and the step is the gore's nose, whose paved band
+    reaches out to the ramp's edge. The shoulder beside the gap keeps the other end's
+    width (a9-206615404-lane1-s21 with a noisier sensor: 7.5 m seen beside the nose, 2.5 m
+    before the gap; bridged between the two, the shoulder held an invented lane). Where
+    the outermost line stays, the wider edge is the opening lane's (its line unseen)."""
+    n = grid.size
+    moved = d_last[b] - d_last[a - 1]
+    i_step = np.searchsorted(grid, steps)
+    before = d_edge[np.clip(i_step - 2, 0, n - 1)]
+    after = d_edge[np.clip(i_step + 2, 0, n - 1)]
+    at_end = (steps >= grid[b - 1]) & (steps <= grid[b - 1] + _GORE_AT_GAP_M)
+    at_start = (steps >= grid[a] - _GORE_AT_GAP_M) & (steps <= grid[a])
+    nose_at_end = np.any(at_end & (d_edge[b] - after > _GORE_LEVEL_M))
+    if nose_at_end and hw1 - hw0 > _GORE_LEVEL_M and moved > _GORE_LEVEL_M:
+        hw1 = hw0
+    nose_at_start = np.any(at_start & (d_edge[a - 1] - before > _GORE_LEVEL_M))
+    if nose_at_start and hw0 - hw1 > _GORE_LEVEL_M and -moved > _GORE_LEVEL_M:
+        hw0 = hw1
+    return hw0, hw1
+
+
 def _bridge_edge_gaps(
     d_edge: FloatArray,
     covered: NDArray[np.bool_],
@@ -310,6 +346,10 @@ def _bridge_edge_gaps(
         if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
             continue
         hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
+        if seen_steps is not None:
+            hw0, hw1 = _nose_widths(
+                d_edge, grid, a, b, np.asarray(seen_steps, float), hw0, hw1, d_last
+            )
         x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
         inner = d_last[a:b]
         ok = np.isfinite(inner)
