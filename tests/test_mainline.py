@@ -603,7 +603,7 @@ def test_inferred_median_side_lanes_end_where_the_innermost_marking_does():
     later (the carriageway splits on the median side); the line inferred from the
     innermost one must not jump a lane inwards with the next marking for its last metres
     (it bent every lane by 1.5-1.9 m there)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes
+    from roadtwin.mainline.hidden_lanes import _add_hidden_lanes
 
     cfg = MainlineConfig()
     grid = np.arange(0.0, 400.5, cfg.grid_step_m)
@@ -650,7 +650,7 @@ def test_a_lane_opening_on_the_median_side_as_the_lanes_shift_keeps_the_shoulder
     the lane beside it opens from zero width there (melbourne-1226-s11: the shoulder grew
     with the marking and was split into shoulder and lane only 45 m later, where the
     strip had become a lane wide: lines 0.3-0.6 m off, lane count wrong over 17 m)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes
+    from roadtwin.mainline.hidden_lanes import _add_hidden_lanes
 
     tracks, d_edge, grid, cfg = _shifting_pattern((1.0, 4.4, 7.8, 11.2))
     out = _add_hidden_lanes(tracks, grid, d_edge, np.zeros(grid.size), cfg)
@@ -672,7 +672,7 @@ def test_no_shoulder_is_held_where_a_line_is_first_seen_as_the_lanes_shift():
     (melbourne-408-opp-s4: two lanes opening one after the other, first seen as they
     opened, were cut into tapers by a held shoulder and jumped by a metre at a section
     border)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes
+    from roadtwin.mainline.hidden_lanes import _add_hidden_lanes
 
     # the line between the second and the third lane: seen up to 295 m, then from 315 m
     tracks, d_edge, grid, cfg = _shifting_pattern(
@@ -688,7 +688,7 @@ def test_an_inferred_line_continues_the_observed_one_it_takes_over_from():
     """The inner edge line is seen for 300 m, then the car moves out and only the markings
     near it are seen: the line inferred on from there is the same line, not a new one (a
     new track started a lane there that opened over 100 m, copying a neighbour's taper)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes
+    from roadtwin.mainline.hidden_lanes import _add_hidden_lanes
 
     cfg = MainlineConfig()
     grid = np.arange(0.0, 600.5, cfg.grid_step_m)
@@ -880,7 +880,7 @@ def test_a_lane_too_wide_between_observed_markings_gets_its_missed_line():
     plus 1.5 m apart over 30 m, the missed line is inferred a lane from the steady one
     (the through lane's); three lanes wide: two lines evenly spaced; a short wide stretch
     (20 m) is left alone."""
-    from roadtwin.mainline.markings import _wide_lane_lines
+    from roadtwin.mainline.hidden_lanes import _wide_lane_lines
 
     grid = np.arange(0.0, 401.0, 1.0)
     x = np.clip((grid - 100.0) / 100.0, 0.0, 1.0)
@@ -1053,7 +1053,7 @@ def test_median_side_lanes_between_an_inner_exits_paint_tip_and_nose_are_inferre
     Hidden median-side lanes are inferred over 30 m or more (they were over 60 m only):
     the two lanes run on to the nose, where they end at the step (a gore the ramp stage
     matches)."""
-    from roadtwin.mainline.markings import _add_hidden_lanes
+    from roadtwin.mainline.hidden_lanes import _add_hidden_lanes
 
     cfg = MainlineConfig()
     grid = np.arange(0.0, 600.5, cfg.grid_step_m)
@@ -1456,7 +1456,7 @@ def test_a_strip_out_of_reach_too_wide_for_its_whole_lanes_holds_one_lane_more()
     6.8 m wide, lane count 95 %). Lanes wider than 4.5 m are split while they stay 2.5 m
     wide (the lane-width prior), here and in the count helper."""
     from roadtwin.mainline import fit_lanes
-    from roadtwin.mainline.markings import _hidden_lane_count
+    from roadtwin.mainline.hidden_lanes import _hidden_lane_count
 
     def count(gap_m: float, lanes_only: bool = True) -> int:
         gap = np.full(200, gap_m)
@@ -1769,7 +1769,7 @@ def test_extreme_markings_are_held_over_the_half_window_at_the_run_ends():
     cut-short windows; held at the first full window's value it does not (town06-auto-s2:
     inferred inner lanes 1.7 m aside over the first 10 m, a step esmini's car met)."""
     from roadtwin.fitting import moving_median
-    from roadtwin.mainline.markings import _held_at_ends
+    from roadtwin.mainline.hidden_lanes import _held_at_ends
 
     raw = np.concatenate([np.full(8, np.nan), np.full(10, 18.62), [11.62], np.full(200, 8.11)])
     window = 41

@@ -5,7 +5,7 @@ line moves out with the edge over the taper, is cut as a ramp line there and is 
 only at its new offset where the taper ends. The strip beyond the last marking is wider
 than a lane over the taper, but shorter than an inferred lane must be (a shorter wide strip
 is a gore); a line seen beyond it, at the strip's end, says it holds the new lane
-(``markings._add_hidden_lanes``). Without that, a fresh run (seed 46) had lines 4 m off
+(``hidden_lanes._add_hidden_lanes``). Without that, a fresh run (seed 46) had lines 4 m off
 there (lane RMSE 1.11 m over s = 1480-1650 m)."""
 
 from __future__ import annotations

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from roadtwin.config import MainlineConfig
+from roadtwin.mainline.hidden_lanes import _inner_shoulder_line
 from roadtwin.mainline.markings import (
     _find_track_peaks,
-    _inner_shoulder_line,
     _link_tracks,
     _shift_frame,
     _tracks_from_samples,
@@ -173,7 +173,7 @@ def test_a_jump_of_the_innermost_marking_spread_over_two_grid_steps_is_a_jump():
     innermost 20 m before the run's end) into two steps of 1.74 m, under half a lane
     each: the median-side run went on across it and a lane 7 m wide was built (Town06).
     A shift moves the marking a few tenths of a metre per grid step: no jump."""
-    from roadtwin.mainline.markings import _extreme_jumps, _two_step_jumps
+    from roadtwin.mainline.hidden_lanes import _extreme_jumps, _two_step_jumps
 
     jump = np.concatenate([np.full(50, 8.13), [9.875], np.full(20, 11.62)])
     assert not _extreme_jumps(jump, LANE).any()

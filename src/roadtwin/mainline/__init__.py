@@ -35,10 +35,17 @@ lateral offsets are handled as ``d`` = distance from the reference edge towards 
 carriageway (``d = -t`` for right-hand traffic, ``d = t`` for left-hand traffic), so the
 method is written once and mirrored by the sign.
 
-Implementation (a subpackage because the stage outgrew one ~800-line module):
-``_common`` (results, helpers, self-consistency), ``reference`` (default method:
-reference edge, elevation), ``lanes`` (marking tracks, outer edge, lane sections, events),
-``paper`` (the seed paper's method), ``cut`` (:func:`cut_road`).
+Implementation, one concern per module: ``_common`` (results, helpers,
+self-consistency); ``reference`` (default method: median-side reference edge, its steps
+and excursions, elevation); ``median_moves`` (the median-side edge unseen beside a gore);
+``edge_levels`` (level paths and steps of an edge); ``lanes`` (the lane fit's driver);
+``markings`` (marking tracks: peaks, linking, ramp lines, collinear pieces);
+``hidden_lanes`` (lanes and lines beyond the sensor's reach); ``shift`` (the marking
+pattern's sideways shift); ``outer_edge`` (the outer edge and its bridging across gaps);
+``gores``, ``hidden_gores``, ``painted_gores`` (where gores are); ``edge_lines`` (lines
+painted on an edge); ``sections`` (lane sections, tapers, events); ``seal`` (joined
+borders, non-negative widths); ``quality`` (poorly determined stretches); ``paper`` (the
+seed paper's method); ``cut`` (:func:`cut_road`).
 """
 
 from __future__ import annotations

@@ -29,7 +29,8 @@ from .hidden_gores import (
     _snap_to_hidden_gores,
     _visible_taper_length,
 )
-from .markings import _add_hidden_lanes, _merge_collinear, _tracks_from_samples
+from .hidden_lanes import _add_hidden_lanes
+from .markings import _merge_collinear, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
