@@ -9,7 +9,7 @@ build had dropped the solid line all along and let the lane beside it take the o
 lane and the shoulder: a driving lane 7.2 m wide, lane RMSE 1.08 m, a route that
 ended nowhere. Now the solid line is the shoulder's line where a shoulder lies beyond it
 (``sections.shoulder_line_in``) and the late broken line begins where the solid one left
-its offset (``sections._lines_from_splits``).
+its offset (``tapers._lines_from_splits``).
 """
 
 from __future__ import annotations

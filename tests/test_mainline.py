@@ -780,7 +780,7 @@ def test_a_driving_lane_refitted_up_to_1_m_wider_or_narrower_after_a_section_bor
     3.83 m after it (its outer line seen again). Its outer borders differ by 0.41 m, more
     than the border tolerance, yet it is the same lane: linked, it continues with the
     width it had; unlinked, a car in it had nowhere to go."""
-    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.mainline.section_links import _link_sections
     from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
 
     def lane(lid, w, kind="driving"):
@@ -829,7 +829,7 @@ def test_a_driving_lane_goes_on_where_the_inner_shoulders_line_is_first_seen():
     3.41 m lane span it. No border met within 0.3 m (the inner ones are the shoulder's
     width apart), the lane led nowhere and a route failed. The lane goes on; the shoulder
     opens from zero width."""
-    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.mainline.section_links import _link_sections
     from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
 
     def lane(lid, w, kind="driving"):
@@ -1230,7 +1230,7 @@ def test_a_driving_lane_goes_on_where_only_its_outer_border_meets():
     the outermost lane's inner border met nothing, it was left unlinked and led nowhere
     (a route failed). Its outer border meets and its width differs by less than a metre:
     it goes on with the width it had."""
-    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.mainline.section_links import _link_sections
     from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
 
     def lane(lid, w, kind="driving"):
@@ -1501,7 +1501,7 @@ def test_a_line_first_seen_soon_after_an_entry_gore_begins_at_the_gore():
     after an entry's step, a lane's width from its neighbour, begins at the step; not a
     taper's tip, not one seen too late, not one beyond the edge, and not at an exit (the
     line between the through and the exit lane ends at the painted gore's tip)."""
-    from roadtwin.mainline.sections import _lines_to_gores
+    from roadtwin.mainline.tapers import _lines_to_gores
 
     grid = np.arange(0.0, 800.5, 1.0)
     d_edge = np.where(grid < 400.0, 12.0, 19.5)  # an entry at 400 m (two lanes)
@@ -1702,7 +1702,7 @@ def test_lines_from_splits_fills_back_to_where_the_neighbour_left():
     """``_lines_from_splits``: a line first seen at 150 m at the offset a neighbouring
     line left between 100 and 200 m begins where that line was last within 0.3 m of it;
     not if another line lies between them, nor if the neighbour never was at its offset."""
-    from roadtwin.mainline.sections import _lines_from_splits
+    from roadtwin.mainline.tapers import _lines_from_splits
 
     grid = np.arange(0.0, 400.0 + 0.5, 1.0)
     moving = np.interp(grid, [0.0, 100.0, 200.0, 400.0], [8.0, 8.0, 11.5, 11.5])

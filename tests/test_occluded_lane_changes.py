@@ -194,7 +194,7 @@ def test_the_innermost_driving_lane_goes_on_where_its_inner_shoulder_widens_at_a
     section border and 0.7 m after it, the innermost driving lane 3.49 m before and 2.8 m
     after, their outer borders where they were. Nothing inside the lane is a driving lane
     to take the difference, so the lane is that lane fitted anew: linked (it led nowhere)."""
-    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.mainline.section_links import _link_sections
     from roadtwin.model import LaneSection
 
     first = LaneSection(
@@ -357,7 +357,7 @@ def test_lanes_fitted_anew_beyond_a_border_go_on_though_a_line_between_them_move
     and 0.93 m: the line between them moved by 1.4 m, their inner border and the edge did
     not. The same lanes fitted anew: the driving lane goes on (it ended at full width where
     the same lane began, a dead end); where the edge moved too they are not the same lanes."""
-    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.mainline.section_links import _link_sections
     from roadtwin.model import LaneSection
 
     def section(s0, outer, shoulder):
@@ -381,7 +381,7 @@ def test_a_narrow_lane_beginning_between_linked_lanes_at_a_gore_opens_from_zero(
     34 mm, and the map's link there had a 33.7 mm gap (town06-auto-s2, noisier sensor).
     Its width profile falls from 34 mm to 0 within 20 m: a correction over the whole
     profile would make it negative; it fades out over 20 m."""
-    from roadtwin.mainline.sections import _link_sections
+    from roadtwin.mainline.section_links import _link_sections
     from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
 
     before = LaneSection(

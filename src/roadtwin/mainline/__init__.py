@@ -37,15 +37,16 @@ method is written once and mirrored by the sign.
 
 Implementation, one concern per module: ``_common`` (results, helpers,
 self-consistency); ``reference`` (default method: median-side reference edge, its steps
-and excursions, elevation); ``median_moves`` (the median-side edge unseen beside a gore);
-``edge_levels`` (level paths and steps of an edge); ``lanes`` (the lane fit's driver);
-``markings`` (marking tracks: peaks, linking, ramp lines, collinear pieces);
+and excursions, elevation); ``median_moves`` (the median-side edge unseen beside a
+gore); ``edge_levels`` (level paths and steps of an edge); ``lanes`` (the lane fit's
+driver); ``markings`` (marking tracks: peaks, linking, ramp lines, collinear pieces);
 ``hidden_lanes`` (lanes and lines beyond the sensor's reach); ``shift`` (the marking
 pattern's sideways shift); ``outer_edge`` (the outer edge and its bridging across gaps);
 ``gores``, ``hidden_gores``, ``painted_gores`` (where gores are); ``edge_lines`` (lines
-painted on an edge); ``sections`` (lane sections, tapers, events); ``seal`` (joined
-borders, non-negative widths); ``quality`` (poorly determined stretches); ``paper`` (the
-seed paper's method); ``cut`` (:func:`cut_road`).
+painted on an edge); ``sections`` (lane sections, lane types, events); ``tapers`` (where
+a line begins or ends); ``section_links`` (lanes linked across sections); ``seal``
+(joined borders, non-negative widths); ``quality`` (poorly determined stretches);
+``paper`` (the seed paper's method); ``cut`` (:func:`cut_road`).
 """
 
 from __future__ import annotations

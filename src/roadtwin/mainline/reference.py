@@ -220,7 +220,7 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
         if n == 0 or abs(s0s[n] - s_step) > _STEP_SECTION_M:
             continue
         prev_sec, sec = road.lane_sections[n - 1], road.lane_sections[n]
-        # linked lanes already continue with the width they had (sections._link_sections)
+        # linked lanes already continue with the width they had (section_links._link_sections)
         linked = [ln for ln in (sec.right or sec.left) if ln.predecessor is not None]
         if not linked:
             continue
