@@ -11,7 +11,12 @@ import numpy as np
 import pytest
 
 from roadtwin.mainline._common import BoundaryTrack
-from roadtwin.mainline.median_moves import edge_moves, with_edge_moves
+from roadtwin.mainline.median_moves import (
+    edge_moves,
+    shoulder_moves,
+    unseen_stretches,
+    with_edge_moves,
+)
 from roadtwin.mainline.reference import _unseen_beside_gores
 from roadtwin.model import CubicPiece, CubicProfile
 
@@ -80,7 +85,7 @@ def test_the_lane_offset_carries_the_move(sign):
     gap where the edge is seen again."""
     base = CubicProfile((CubicPiece(0.0, 0.0), CubicPiece(250.0, sign * 3.5)))
     move = np.where((GRID >= 100.0) & (GRID <= 160.0), _swing(100.0, 160.0, 3.5, 0.0), 0.0)
-    prof = with_edge_moves(base, GRID, move, sign)
+    prof = with_edge_moves(base, GRID, move, sign, np.array([100.0]))
     s = np.arange(0.0, 300.0, 0.25)
     expected = base.value(s) - sign * np.interp(s, GRID, move) * (s >= 100.0)
     assert prof.value(s) == pytest.approx(expected, abs=0.02)  # linear records every 4 m
@@ -92,6 +97,13 @@ def test_the_lane_offset_carries_the_move(sign):
         jump = prof.value(np.array([at]))[0] - prof.value(np.array([at - 1e-6]))[0]
         assert jump == pytest.approx(sign * 3.5 if at == 250.0 else 0.0, abs=1e-6)
     assert with_edge_moves(base, GRID, np.zeros(GRID.size), sign) is base
+    # a move that is not at a gore runs in and out without a step (a shoulder's line
+    # followed across an unseen stretch)
+    bump = np.where((GRID > 120.0) & (GRID < 180.0), np.sin(np.pi * (GRID - 120.0) / 60.0), 0.0)
+    prof = with_edge_moves(base, GRID, bump, sign)
+    s = np.arange(0.0, 240.0, 0.01)
+    assert np.max(np.abs(np.diff(prof.value(s)))) < 0.01
+    assert prof.value(np.array([150.0]))[0] == pytest.approx(-sign * 1.0, abs=0.02)
 
 
 def test_an_excursion_unseen_after_the_gore_hides_the_edge_beside_it():
@@ -109,3 +121,36 @@ def test_an_excursion_unseen_after_the_gore_hides_the_edge_beside_it():
     level[(centres >= 214.0) & (centres < 230.0)] = 3.0
     level[(centres >= 230.0) & (centres < 270.0)] = 0.0
     assert _unseen_beside_gores(centres, level, spans).shape == (0, 2)
+
+
+def _shoulder_run(line: np.ndarray, rng: np.random.Generator, *, seen_every_m: float = 2.0):
+    """Lane samples along ``line`` (offsets on GRID) every ``seen_every_m`` metres, and
+    median-side edge points every metre at offset 0 except over 100-190 m."""
+    s_lane = np.arange(0.0, 300.0, seen_every_m)
+    d_lane = np.interp(s_lane, GRID, line) + rng.normal(0.0, 0.03, s_lane.size)
+    s_edge = np.arange(0.0, 300.0, 1.0)
+    s_edge = s_edge[(s_edge < 100.0) | (s_edge > 190.0)]
+    return s_lane, d_lane, s_edge, rng.normal(0.0, 0.03, s_edge.size)
+
+
+def test_the_edge_follows_the_inner_shoulder_line_across_an_unseen_stretch():
+    """a9-239192816-opp-s12 with a noisier sensor: the shoulder line wandered 1 m over a
+    90 m stretch where the edge was unseen; the edge keeps the shoulder's width beside it
+    (edge RMSE 0.103 -> 0.062 m)."""
+    rng = np.random.default_rng(3)
+    wander = np.where((GRID > 100.0) & (GRID < 190.0), np.sin(np.pi * (GRID - 100.0) / 90.0), 0.0)
+    shoulder = 0.8 + wander
+    lane_line = shoulder + 3.5
+    s_lane, d_lane, s_edge, d_edge = _shoulder_run(shoulder, rng)
+    d_median = np.zeros(GRID.size)
+    gaps = unseen_stretches(s_edge, d_edge, GRID, d_median)
+    assert [(GRID[a], GRID[b - 1]) for a, b in gaps] == [(100.0, 190.0)]
+    tracks = (_track(1, shoulder), _track(2, lane_line))
+    move = shoulder_moves(gaps, tracks, s_lane, d_lane, GRID, d_median)
+    assert move == pytest.approx(wander, abs=1e-9)
+    # the line not seen through the stretch (worn paint over it): the edge stays
+    seen = (s_lane < 105.0) | (s_lane > 180.0)
+    assert not np.any(shoulder_moves(gaps, tracks, s_lane[seen], d_lane[seen], GRID, d_median))
+    # the innermost line a lane away (no shoulder line seen): the edge stays
+    far = shoulder_moves(gaps, (_track(2, lane_line),), s_lane, d_lane + 3.5, GRID, d_median)
+    assert not np.any(far)

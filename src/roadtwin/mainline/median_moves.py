@@ -25,7 +25,7 @@ from ._common import BoundaryTrack, true_runs
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["edge_moves", "with_edge_moves"]
+__all__ = ["edge_moves", "shoulder_moves", "unseen_stretches", "with_edge_moves"]
 
 MIN_MOVE_M = 1.5
 """A seen line moving less than this (metres) inside the unseen stretch leaves the edge
@@ -33,6 +33,16 @@ where the fit put it: noise and a curve's smoothing are smaller, a lane is large
 SEEN_BEYOND_M = 10.0
 """The line must be seen this far (metres) beyond the unseen stretch, where the edge is
 seen too: its distance from the edge there is the one kept."""
+GAP_MIN_M = 20.0
+"""An unseen stretch of the median-side edge at least this long (metres) is bridged along
+its shoulder line (:func:`shoulder_moves`)."""
+SHOULDER_MAX_M = 2.0
+"""A line at most this far (metres) from the edge at both ends of the stretch is the inner
+shoulder's line: no lane lies between them."""
+SEEN_SHARE = 0.6
+"""The share of the stretch's 5 m bins in which the shoulder line must be seen."""
+LINE_NEAR_M = 0.3
+"""A lane sample this close (metres) to a track is the track's."""
 KNOT_M = 4.0
 """Spacing (metres) of the lane-offset records that carry a move (linear in between)."""
 
@@ -85,40 +95,120 @@ def edge_moves(
     return move, np.sort(np.asarray(gores, dtype=float))
 
 
+def unseen_stretches(
+    s_edge: FloatArray, d_edge: FloatArray, grid: FloatArray, d_median: FloatArray
+) -> list[tuple[int, int]]:
+    """Grid index ranges ``[a, b)`` over which no median-side edge point lies on the edge
+    (``d_median`` on ``grid``, within 0.8 m), at least :data:`GAP_MIN_M` long and with the
+    edge seen on both sides. ``s_edge``, ``d_edge``: the edge points' stations and offsets
+    (metres, towards the carriageway)."""
+    on = np.abs(d_edge - np.interp(s_edge, grid, d_median)) < 0.8
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    idx = np.clip(np.round((s_edge[on] - grid[0]) / step).astype(int), 0, grid.size - 1)
+    seen = np.zeros(grid.size, dtype=bool)
+    seen[idx] = True
+    out = []
+    for a, b in true_runs(~seen):
+        if a > 0 and b < grid.size and (b - a) * step >= GAP_MIN_M:
+            out.append((a, b))
+    return out
+
+
+def shoulder_moves(
+    gaps: list[tuple[int, int]],
+    tracks: tuple[BoundaryTrack, ...],
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+) -> FloatArray:
+    """How far the median-side edge moves (metres towards the carriageway, on ``grid``)
+    across each unseen stretch ``gaps`` (:func:`unseen_stretches`) where the inner
+    shoulder's line is seen through it: the shoulder keeps a width linear between the
+    stretch's ends beside that line, instead of the edge holding the course the smoothed
+    fit gave it (a9-239192816-opp-s12 with a noisier sensor: the line wandered 1 m over a
+    90 m stretch, the edge bridged straight lay 0.8 m off). The line is the innermost
+    track at most :data:`SHOULDER_MAX_M` from the edge at both ends and seen in
+    :data:`SEEN_SHARE` of the stretch (``s_lane``, ``d_lane``: the lane samples, metres).
+    Where no such line is seen the edge stays as fitted (a lane gained or dropped beside
+    the median moves the lines beyond the shoulder's, not the edge)."""
+    move = np.zeros(grid.size)
+    for a, b in gaps:
+        i0, i1 = a - 1, b
+        best = None
+        for tr in tracks:
+            if tr.n_samples == 0 or tr.s_m[0] > grid[i0] or tr.s_m[-1] < grid[i1]:
+                continue
+            w0 = float(np.interp(grid[i0], tr.s_m, tr.d_m)) - d_median[i0]
+            w1 = float(np.interp(grid[i1], tr.s_m, tr.d_m)) - d_median[i1]
+            if not (0.0 < w0 <= SHOULDER_MAX_M and 0.0 < w1 <= SHOULDER_MAX_M):
+                continue
+            if best is None or w0 < best[1]:
+                best = (tr, w0, w1)
+        if best is None:
+            continue
+        tr, w0, w1 = best
+        g = grid[a:b]
+        line = np.interp(g, tr.s_m, tr.d_m)
+        inside = (s_lane >= grid[i0]) & (s_lane <= grid[i1])
+        near = inside & (np.abs(d_lane - np.interp(s_lane, tr.s_m, tr.d_m)) < LINE_NEAR_M)
+        bins = np.arange(grid[i0], grid[i1] + 5.0, 5.0)
+        seen = np.histogram(s_lane[near], bins)[0] > 0
+        if seen.size == 0 or float(np.mean(seen)) < SEEN_SHARE:
+            continue
+        x = (g - grid[i0]) / (grid[i1] - grid[i0])
+        move[a:b] = line - ((1.0 - x) * w0 + x * w1) - d_median[a:b]
+    return move
+
+
 def with_edge_moves(
-    offset: CubicProfile, grid: FloatArray, move: FloatArray, sign: float
+    offset: CubicProfile,
+    grid: FloatArray,
+    move: FloatArray,
+    sign: float,
+    gores: FloatArray | None = None,
 ) -> CubicProfile:
     """The centre lane's offset (metres, t left positive) with the median-side edge moved
     by ``move`` (on ``grid``, metres towards the carriageway) where it is not 0: linear
     records every :data:`KNOT_M` metres there, the step profile ``offset`` elsewhere.
-    ``sign`` is +1 for right-hand traffic (the carriageway lies right: negative t)."""
+    A move beginning or ending at one of the ``gores`` (stations, metres) steps there,
+    where the lane sections change too; elsewhere it runs in from (out onto) the step
+    profile over one grid step. ``sign`` is +1 for right-hand traffic (the carriageway
+    lies right: negative t)."""
     if not np.any(move):
         return offset
-    pieces = list(offset.pieces)
-    starts = np.array([p.s0 for p in pieces])
+    n = grid.size
+    step = float(grid[1] - grid[0]) if n > 1 else 1.0
+    at_gore = np.asarray(gores if gores is not None else [], dtype=float)
+
+    def gore_at(s: float) -> bool:
+        return bool(at_gore.size) and float(np.min(np.abs(at_gore - s))) <= 1.5 * step
 
     def base(s: float) -> float:
         return float(offset.value(np.array([s]))[0])
 
-    knots: set[float] = set(starts.tolist())
-    runs = true_runs(move != 0.0)
-    every = max(1, round(KNOT_M / float(grid[1] - grid[0]))) if grid.size > 1 else 1
-    for a, b in runs:
-        idx = [*range(a, b, every), b - 1]
+    knots: set[float] = {p.s0 for p in offset.pieces}
+    on_spans: list[tuple[float, float]] = []  # stations where the move is applied
+    hold: set[float] = set()  # last knots of a move that steps back at a gore
+    every = max(1, round(KNOT_M / step))
+    for a, b in true_runs(move != 0.0):
+        first = a if a == 0 or gore_at(float(grid[a])) else a - 1
+        idx = [*range(first, b, every), b - 1]
         knots.update(float(grid[i]) for i in idx)
-        if b < grid.size:
+        if b < n:
             knots.add(float(grid[b]))  # back on the step profile
+            if gore_at(float(grid[b])):
+                hold.add(float(grid[b - 1]))
+        on_spans.append((float(grid[first]), float(grid[b - 1])))
     ordered = sorted(knots)
-    on = np.zeros(len(ordered), dtype=bool)
-    for a, b in runs:
-        on |= (np.array(ordered) >= grid[a]) & (np.array(ordered) <= grid[b - 1])
+    on = [any(lo <= s0 <= hi for lo, hi in on_spans) for s0 in ordered]
     new: list[CubicPiece] = []
     for k, s0 in enumerate(ordered):
         a_val = base(s0) - sign * float(np.interp(s0, grid, move)) * on[k]
         slope = 0.0
-        if on[k] and k + 1 < len(ordered):  # the last one runs back onto the steps
+        if on[k] and k + 1 < len(ordered) and s0 not in hold:
             s1 = ordered[k + 1]
-            a_next = base(s1 - 1e-9) - sign * float(np.interp(s1, grid, move))
+            a_next = base(s1 - 1e-9) - sign * float(np.interp(s1, grid, move)) * on[k + 1]
             slope = (a_next - a_val) / (s1 - s0)
         new.append(CubicPiece(float(s0), a_val, slope))
     return CubicProfile(tuple(new))

@@ -227,6 +227,21 @@ def _one_line(d_last: FloatArray) -> bool:
     return bool(np.all(np.isfinite(d_last)) and np.all(np.abs(np.diff(d_last)) < 0.5))
 
 
+def _steps_at_gap(
+    d_edge: FloatArray, grid: FloatArray, a: int, b: int, steps: FloatArray
+) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
+    """Per seen edge step (``steps``, stations, metres): the edge's offset 2 m before and
+    after it (metres), and whether it lies within ``_GORE_AT_GAP_M`` before the gap
+    ``a:b`` begins / after it ends."""
+    n = grid.size
+    i_step = np.searchsorted(grid, steps)
+    before = d_edge[np.clip(i_step - 2, 0, n - 1)]
+    after = d_edge[np.clip(i_step + 2, 0, n - 1)]
+    near_start = (steps >= grid[a] - _GORE_AT_GAP_M) & (steps <= grid[a])
+    near_end = (steps >= grid[b - 1]) & (steps <= grid[b - 1] + _GORE_AT_GAP_M)
+    return before, after, near_start, near_end
+
+
 def _shoulder_at_gore(
     out: FloatArray,
     d_edge: FloatArray,
@@ -248,12 +263,7 @@ def _shoulder_at_gore(
     end may be an exit's whose lane opened in the gap: kotka-37952515-opp-s9 with a
     noisier sensor, where its edge had been right). Returns whether a gore was there
     (see :func:`_bridge_edge_gaps`)."""
-    n = grid.size
-    i_step = np.searchsorted(grid, steps)
-    before = d_edge[np.clip(i_step - 2, 0, n - 1)]
-    after = d_edge[np.clip(i_step + 2, 0, n - 1)]
-    near_start = (steps >= grid[a] - _GORE_AT_GAP_M) & (steps <= grid[a])
-    near_end = (steps >= grid[b - 1]) & (steps <= grid[b - 1] + _GORE_AT_GAP_M)
+    before, after, near_start, near_end = _steps_at_gap(d_edge, grid, a, b, steps)
     exits = steps[near_start & (before - d_edge[b] > _GORE_LEVEL_M)]
     entries = steps[near_end & (after - d_edge[a - 1] > _GORE_LEVEL_M)]
     if not exits.size and not entries.size:
@@ -293,13 +303,8 @@ def _nose_widths(
     width (a9-206615404-lane1-s21 with a noisier sensor: 7.5 m seen beside the nose, 2.5 m
     before the gap; bridged between the two, the shoulder held an invented lane). Where
     the outermost line stays, the wider edge is the opening lane's (its line unseen)."""
-    n = grid.size
     moved = d_last[b] - d_last[a - 1]
-    i_step = np.searchsorted(grid, steps)
-    before = d_edge[np.clip(i_step - 2, 0, n - 1)]
-    after = d_edge[np.clip(i_step + 2, 0, n - 1)]
-    at_end = (steps >= grid[b - 1]) & (steps <= grid[b - 1] + _GORE_AT_GAP_M)
-    at_start = (steps >= grid[a] - _GORE_AT_GAP_M) & (steps <= grid[a])
+    before, after, at_start, at_end = _steps_at_gap(d_edge, grid, a, b, steps)
     nose_at_end = np.any(at_end & (d_edge[b] - after > _GORE_LEVEL_M))
     if nose_at_end and hw1 - hw0 > _GORE_LEVEL_M and moved > _GORE_LEVEL_M:
         hw1 = hw0

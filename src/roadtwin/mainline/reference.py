@@ -30,6 +30,7 @@ from ..model import (
     Road,
 )
 from ._common import (
+    BoundaryTrack,
     _grid,
     _lam,
     _Partial,
@@ -42,7 +43,7 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
-from .median_moves import edge_moves, with_edge_moves
+from .median_moves import edge_moves, shoulder_moves, unseen_stretches, with_edge_moves
 from .seal import nonnegative_widths, seal_lane_borders
 
 log = logging.getLogger(__name__)
@@ -95,13 +96,11 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         )
 
     sections, events, tracks, used = lanes(lambda s: 1.0)
-    # where the median-side edge is unseen beside a gore it moves with the lines seen
-    # there: the lanes again, with the edge moved
+    # where the median-side edge is unseen it moves with the lines seen there (beside a
+    # gore, along the inner shoulder's line): the lanes again, with the edge moved
     grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
-    move = edge_moves(median.unseen_beside_gores, tracks, grid)
-    if not np.any(move[0]):
-        move = None
-    else:
+    move = _median_moves(frame, ref_pts, median, tracks, grid, sign, s_lane, -sign * t_lane)
+    if move is not None:
         sections, events, tracks, used = lanes(lambda s: 1.0, move)
     timings["lanes"] = time.perf_counter() - t0
 
@@ -125,9 +124,42 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     )
     road = _join_lanes_across_offset_steps(road, median.steps.stations)
     if move is not None:
-        road = replace(road, lane_offset=with_edge_moves(road.lane_offset, grid, move[0], sign))
+        offset = with_edge_moves(road.lane_offset, grid, move[0], sign, move[1])
+        road = replace(road, lane_offset=offset)
     road = nonnegative_widths(seal_lane_borders(road))
     return _Partial(road, events, "default", tracks)
+
+
+def _median_moves(
+    frame: PolylineFrame,
+    ref_pts: FloatArray,
+    median: MedianEdge,
+    tracks: tuple[BoundaryTrack, ...],
+    grid: FloatArray,
+    sign: float,
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+) -> tuple[FloatArray, FloatArray] | None:
+    """Where the median-side edge is unseen, how far it moves with the lines a first lane
+    fit (``tracks``) found (:mod:`.median_moves`): beside a gore, and across a stretch
+    where the inner shoulder's line is seen through (away from gores and steps). The move
+    on ``grid`` (metres towards the carriageway) and the gore stations where it begins or
+    ends at full size; None where it moves nowhere. ``s_lane``, ``d_lane``: the lane
+    samples in the lanes' frame (metres)."""
+    at_gores, gores = edge_moves(median.unseen_beside_gores, tracks, grid)
+    d_median = -median.steps.at(grid) + at_gores
+    s_edge, t_edge = frame.project(ref_pts)
+    step = float(grid[1] - grid[0])
+    near_step = np.zeros(grid.size, dtype=bool)
+    for st in median.steps.stations:
+        near_step |= np.abs(grid - st) <= 10.0 * step
+    gaps = [
+        (a, b)
+        for a, b in unseen_stretches(s_edge, -sign * t_edge, grid, d_median)
+        if not np.any(at_gores[a - 1 : b + 1]) and not np.any(near_step[a - 1 : b + 1])
+    ]
+    move = at_gores + shoulder_moves(gaps, tracks, s_lane, d_lane, grid, d_median)
+    return (move, gores) if np.any(move) else None
 
 
 _ON_EDGE_M = 0.8  # a median-side edge point this close to the fitted edge is the road's
