@@ -507,3 +507,24 @@ def test_simulate_noisy_flag_gives_a_worse_sensor_on_the_same_route(tmp_path):
     assert noisy.lane_samples.shape[0] < 0.9 * plain.lane_samples.shape[0]
     assert noisy.edges.shape[0] < 0.9 * plain.edges.shape[0]
     assert main(["simulate", "demo", "--noisy", "-o", str(tmp_path / "demo")]) == 2
+
+
+def test_branches_left_out_of_the_truth_are_recorded_where_they_leave():
+    """A branch the route truth cannot represent is left out and recorded where it leaves
+    (joins) the route, so that the evaluation does not call a ramp built there spurious."""
+    network = read_xodr(TOWN06)
+    route = route_from_ids(network, ["35", "36", "37", "38"], traffic_side="right")
+    frame = MappingFrame(Origin(0.0, 0.0))
+    kept = build_route_truth(network, route, frame=frame, traffic_side="right")
+    # no branch fits within a nanometre: every one is left out
+    none = build_route_truth(
+        network, route, frame=frame, traffic_side="right", max_branch_error_m=1e-9
+    )
+    assert not none.ramps
+    assert not kept.left_out
+    assert sorted(x.type for x in none.left_out) == sorted(r.type for r in kept.ramps)
+    for ramp in kept.ramps:
+        at = kept.mainline.xy(np.array([ramp.cut_station_m]))[0]
+        d = [math.dist(at, x.xy) for x in none.left_out if x.type == ramp.type]
+        assert min(d) < 25.0, (ramp.type, d)
+    assert {x.why for x in none.left_out} == {"one road cannot represent it"}
