@@ -98,10 +98,10 @@ def fit_lanes(
         reference line per segment (metres towards the median): the innermost border of
         the lanes. None: the median-side edge is the reference line everywhere.
     median_move
-        Where the median-side edge is unseen beside a gore and moves with the lanes
-        (:func:`~.median_moves.edge_moves`): the move on this function's grid (metres
-        towards the carriageway) and the gore stations where it begins or ends at full
-        size (metres). None: no such move.
+        Where the median-side edge is unseen and moves with the lines seen there
+        (:mod:`.median_moves`): the move on this function's grid (metres towards the
+        carriageway) and the gore stations where it begins or ends at full size
+        (metres). None: no such move.
 
     Returns
     -------

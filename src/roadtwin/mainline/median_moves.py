@@ -1,4 +1,4 @@
-"""The median-side edge where it is unseen beside a gore: it moves with the lanes.
+"""The median-side edge where the run does not see it: it moves with the lines it does.
 
 At a gore on the median side whose edge the run does not see beyond it (an inner exit
 whose mainline edge is unseen for tens of metres after the nose, an inner entry's before
@@ -10,6 +10,14 @@ to zero. The lines the car does see say where the lanes go: the innermost one se
 inside the unseen stretch out to where the edge is seen again keeps its distance from
 the edge there, so the edge follows it (:func:`edge_moves`). A line that does not move
 leaves the edge as it was (an occlusion of the edge alone).
+
+Away from gores, across any stretch where the edge is unseen (:func:`unseen_stretches`),
+the fit carries the edge along the course of its smoothed frame while the inner
+shoulder's line, where the car sees it, says where the edge went: the shoulder keeps a
+width linear between the stretch's ends beside that line (:func:`shoulder_moves`), as
+the outer edge keeps the hard shoulder's (:func:`~.outer_edge._bridge_edge_gaps`). The
+lanes are then fitted again with the edge moved and the centre lane's offset carries the
+move (:func:`with_edge_moves`).
 
 Stations are metres along the reference line; offsets ``d`` metres from the reference
 edge towards the carriageway (the lanes' frame, :func:`~.lanes.fit_lanes`).

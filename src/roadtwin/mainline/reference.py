@@ -81,7 +81,10 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     s_car, t_car = frame.project(poses)
     order = np.argsort(s_car)
 
-    def lanes(surface_scale: Callable[[FloatArray], FloatArray | float], move=None):
+    def lanes(
+        surface_scale: Callable[[FloatArray], FloatArray | float],
+        move: tuple[FloatArray, FloatArray] | None = None,
+    ):
         return fit_lanes(
             s_lane,
             -sign * t_lane * surface_scale(s_lane),

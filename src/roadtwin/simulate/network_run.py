@@ -413,9 +413,14 @@ def simulate_network_run(
             "lanes": lane_counts,
         }
         doc = route_truth_json(
-            truth, cfg, seed=seed, car_lane=car_lane, ramp_ways=ramp_ways, counts=counts,
+            truth,
+            cfg,
+            seed=seed,
+            car_lane=car_lane,
+            ramp_ways=ramp_ways,
+            counts=counts,
             left_out=left_out,
-        )  # fmt: skip
+        )
         if cfg.pass_index > 1:
             doc["pass"] = cfg.pass_index
         write_truth_files(tmp, doc, truth.network)

@@ -84,6 +84,11 @@ def simulate_osm_run(
     stem = Path(osm_path).name.split(".")[0]
     name = f"{stem} chain {truth.chain_way_ids[0] if truth.chain_way_ids else chain}"
     return simulate_network_run(
-        truth.network, out_dir, route=list(truth.route), settings=cfg, seed=seed, name=name,
+        truth.network,
+        out_dir,
+        route=list(truth.route),
+        settings=cfg,
+        seed=seed,
+        name=name,
         left_out=truth.skipped,
-    )  # fmt: skip
+    )

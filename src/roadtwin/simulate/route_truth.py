@@ -92,8 +92,13 @@ class LeftOutRamp:
     def to_dict(self) -> dict:
         """The truth.json record."""
         x, y = self.xy
-        return {"type": self.type, "what": self.what, "why": self.why,
-                "x": round(x, 3), "y": round(y, 3)}  # fmt: skip
+        return {
+            "type": self.type,
+            "what": self.what,
+            "why": self.why,
+            "x": round(x, 3),
+            "y": round(y, 3),
+        }
 
 
 @dataclass(frozen=True)
