@@ -151,6 +151,10 @@ def test_the_edge_follows_the_inner_shoulder_line_across_an_unseen_stretch():
     # the line not seen through the stretch (worn paint over it): the edge stays
     seen = (s_lane < 105.0) | (s_lane > 180.0)
     assert not np.any(shoulder_moves(gaps, tracks, s_lane[seen], d_lane[seen], GRID, d_median))
+    # a line wandering by centimetres: the fit's bridging is as good as the line
+    s_l, d_l, _, _ = _shoulder_run(0.8 + 0.1 * wander, rng)
+    small = (_track(1, 0.8 + 0.1 * wander), _track(2, lane_line))
+    assert not np.any(shoulder_moves(gaps, small, s_l, d_l, GRID, d_median))
     # the innermost line a lane away (no shoulder line seen): the edge stays
     far = shoulder_moves(gaps, (_track(2, lane_line),), s_lane, d_lane + 3.5, GRID, d_median)
     assert not np.any(far)

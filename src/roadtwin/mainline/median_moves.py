@@ -49,6 +49,10 @@ SHOULDER_MAX_M = 2.0
 shoulder's line: no lane lies between them."""
 SEEN_SHARE = 0.6
 """The share of the stretch's 5 m bins in which the shoulder line must be seen."""
+MIN_SHOULDER_MOVE_M = 0.25
+"""A shoulder's line that takes the edge less than this far (metres) from where the fit
+put it leaves it there: the fit's bridging is as good as the line's noise (moves of 1-50
+mm on the bundled scenarios, 0.8-1.3 m where a line wandered)."""
 LINE_NEAR_M = 0.3
 """A lane sample this close (metres) to a track is the track's."""
 KNOT_M = 4.0
@@ -137,7 +141,8 @@ def shoulder_moves(
     fit gave it (a9-239192816-opp-s12 with a noisier sensor: the line wandered 1 m over a
     90 m stretch, the edge bridged straight lay 0.8 m off). The line is the innermost
     track at most :data:`SHOULDER_MAX_M` from the edge at both ends and seen in
-    :data:`SEEN_SHARE` of the stretch (``s_lane``, ``d_lane``: the lane samples, metres).
+    :data:`SEEN_SHARE` of the stretch (``s_lane``, ``d_lane``: the lane samples, metres);
+    a move under :data:`MIN_SHOULDER_MOVE_M` is left out.
     Where no such line is seen the edge stays as fitted (a lane gained or dropped beside
     the median moves the lines beyond the shoulder's, not the edge)."""
     move = np.zeros(grid.size)
@@ -165,7 +170,9 @@ def shoulder_moves(
         if seen.size == 0 or float(np.mean(seen)) < SEEN_SHARE:
             continue
         x = (g - grid[i0]) / (grid[i1] - grid[i0])
-        move[a:b] = line - ((1.0 - x) * w0 + x * w1) - d_median[a:b]
+        shift = line - ((1.0 - x) * w0 + x * w1) - d_median[a:b]
+        if float(np.max(np.abs(shift))) >= MIN_SHOULDER_MOVE_M:
+            move[a:b] = shift
     return move
 
 
