@@ -156,7 +156,7 @@ def _sections_from_tracks(
         hi = length if length - tr.hi < cfg.lane_max_gap_m and cut_end else tr.hi
         sel = (grid >= lo) & (grid <= hi)
         dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
-    _lines_to_gores(dmat, grid, d_edge, outer_steps)
+    at_entry_gore = _lines_to_gores(dmat, grid, d_edge, outer_steps)
     _lines_from_splits(dmat, grid)
     # births / ends inside the run
     raw_events: list[tuple[int, str, float, float, int | None]] = []
@@ -197,6 +197,7 @@ def _sections_from_tracks(
             # its lane (no taper borrowed from a marking elsewhere: an exit lane's unseen
             # outer line took the taper of the lane dropped after the exit and ran on 75 m
             # past the gore, beyond the edge, melbourne-408-lane1-s21)
+            at_gore = at_gore or (end == "start" and k in at_entry_gore)
             info = None if at_gore else _taper(dmat, k, grid, end, cfg, fixed, raw)
             if info is None and not at_gore and tracks[k].n > 0:
                 near_break = breaks.size and np.min(np.abs(breaks - grid[i_edge])) < _GORE_MATCH_M

@@ -44,10 +44,12 @@ def _first_seen(
 
 def _lines_to_gores(
     dmat: FloatArray, grid: FloatArray, d_edge: FloatArray, steps: FloatArray
-) -> None:
+) -> set[int]:
     """Lines first seen soon after an entry's gore begin at the gore: ``dmat`` (tracks x
     ``grid``, offsets in metres, NaN where absent) is filled in place from the line's
-    first offset back to the step.
+    first offset back to the step. Returns the tracks so filled: their lanes begin at
+    the gore at full width, not by a taper (melbourne-921-s2: a taper fitted to a line
+    unpainted after the gore opened the acceleration lane 25 m before the gore).
 
     At an entry's step the outer edge (``d_edge``) moves out and the entry's lanes begin
     at full width; a line between them that the sensor first saw ``_LATE_LINE_M`` or less
@@ -58,6 +60,7 @@ def _lines_to_gores(
     line between the through and the exit lane ends at the painted gore's tip, tens of
     metres before the step (extended, two exits were attached 10-24 m late)."""
     n_g = grid.size
+    filled: set[int] = set()
     for b in steps:
         i_b = int(np.searchsorted(grid, b))
         if i_b <= 0 or i_b >= n_g - 1:
@@ -76,6 +79,8 @@ def _lines_to_gores(
             if np.any(d_edge[i_b:i0] - d_k < 0.3):
                 continue
             dmat[k, i_b:i0] = d_k
+            filled.add(int(k))
+    return filled
 
 
 def _lines_from_splits(dmat: FloatArray, grid: FloatArray) -> None:
