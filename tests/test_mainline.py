@@ -1557,6 +1557,42 @@ def test_a_late_seen_entry_line_makes_its_lane_from_the_gore():
     assert births == [400, 400]
 
 
+def test_a_line_extended_to_an_entry_gore_does_not_open_its_lane_before_it():
+    """melbourne-921-s2: an acceleration lane's outer line was first seen 5 m after the
+    gore, 1.7 m from its neighbour, which later swung 4 m away; the taper fitted to the
+    separation opened the lane 25 m before the gore (lane RMSE 0.191 m, lane count 96.6 %;
+    0.110 m, 99.0 % beginning at the gore)."""
+    from roadtwin.mainline.markings import _Track
+    from roadtwin.mainline.sections import _sections_from_tracks
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.0 + 0.5 * cfg.grid_step_m, cfg.grid_step_m)
+
+    def track(k, lo, hi, d_of):
+        g = grid[(grid >= lo) & (grid <= hi)]
+        d = d_of(g)
+        return _Track(k, lo, hi, g, d, "broken", 400, g, d)
+
+    tracks = [
+        track(0, 0.0, 800.0, lambda g: np.full(g.size, 1.0)),
+        track(1, 0.0, 800.0, lambda g: np.full(g.size, 4.5)),
+        track(2, 0.0, 800.0, lambda g: np.full(g.size, 8.0)),
+        # the entry's inner line from the gore, swinging in onto the through line
+        track(3, 400.0, 580.0, lambda g: 11.5 - 3.5 * _smoothstep(g, 480.0, 100.0)),
+        # its outer line, first seen 5 m after the gore
+        track(4, 405.0, 800.0, lambda g: np.full(g.size, 13.2)),
+    ]
+    d_edge = np.where(grid < 400.0, 9.0, 15.7)
+    sections, events, _ = _sections_from_tracks(
+        tracks, grid, d_edge, np.array([400.0]), 1.0, cfg, None, np.zeros(grid.size)
+    )
+    births = sorted(round(ev.s_m, 1) for ev in events if ev.kind == "birth")
+    assert births
+    assert min(births) >= 400.0, births
+    before = sections[max(i for i, x in enumerate(sections) if x.s0 <= 390.0)]
+    assert sum(ln.type == "driving" for ln in before.right) == 2
+
+
 def test_an_inferred_line_with_its_own_taper_does_not_borrow_a_later_one():
     """An inferred line opens (closes) like an observed sibling near it (two lanes of a
     2-lane exit, one line seen), but not one whose taper begins only after the inferred
