@@ -143,7 +143,7 @@ def test_the_edge_follows_the_inner_shoulder_line_across_an_unseen_stretch():
     lane_line = shoulder + 3.5
     s_lane, d_lane, s_edge, d_edge = _shoulder_run(shoulder, rng)
     d_median = np.zeros(GRID.size)
-    gaps = unseen_stretches(s_edge, d_edge, GRID, d_median)
+    gaps = unseen_stretches(s_edge, d_edge, GRID, d_median, 0.8)
     assert [(GRID[a], GRID[b - 1]) for a, b in gaps] == [(100.0, 190.0)]
     tracks = (_track(1, shoulder), _track(2, lane_line))
     move = shoulder_moves(gaps, tracks, s_lane, d_lane, GRID, d_median)

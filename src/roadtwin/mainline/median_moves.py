@@ -108,13 +108,17 @@ def edge_moves(
 
 
 def unseen_stretches(
-    s_edge: FloatArray, d_edge: FloatArray, grid: FloatArray, d_median: FloatArray
+    s_edge: FloatArray,
+    d_edge: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+    on_edge_m: float,
 ) -> list[tuple[int, int]]:
     """Grid index ranges ``[a, b)`` over which no median-side edge point lies on the edge
-    (``d_median`` on ``grid``, within 0.8 m), at least :data:`GAP_MIN_M` long and with the
-    edge seen on both sides. ``s_edge``, ``d_edge``: the edge points' stations and offsets
-    (metres, towards the carriageway)."""
-    on = np.abs(d_edge - np.interp(s_edge, grid, d_median)) < 0.8
+    (``d_median`` on ``grid``, within ``on_edge_m``), at least :data:`GAP_MIN_M` long and
+    with the edge seen on both sides. ``s_edge``, ``d_edge``: the edge points' stations and
+    offsets (metres, towards the carriageway)."""
+    on = np.abs(d_edge - np.interp(s_edge, grid, d_median)) < on_edge_m
     step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
     idx = np.clip(np.round((s_edge[on] - grid[0]) / step).astype(int), 0, grid.size - 1)
     seen = np.zeros(grid.size, dtype=bool)

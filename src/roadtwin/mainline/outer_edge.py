@@ -5,6 +5,7 @@ path smoothed per segment between its gore steps, and bridged where nothing was 
 from __future__ import annotations
 
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -227,19 +228,34 @@ def _one_line(d_last: FloatArray) -> bool:
     return bool(np.all(np.isfinite(d_last)) and np.all(np.abs(np.diff(d_last)) < 0.5))
 
 
-def _steps_at_gap(
-    d_edge: FloatArray, grid: FloatArray, a: int, b: int, steps: FloatArray
-) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], NDArray[np.bool_]]:
-    """Per seen edge step (``steps``, stations, metres): the edge's offset 2 m before and
-    after it (metres), and whether it lies within ``_GORE_AT_GAP_M`` before the gap
-    ``a:b`` begins / after it ends."""
-    n = grid.size
-    i_step = np.searchsorted(grid, steps)
-    before = d_edge[np.clip(i_step - 2, 0, n - 1)]
-    after = d_edge[np.clip(i_step + 2, 0, n - 1)]
-    near_start = (steps >= grid[a] - _GORE_AT_GAP_M) & (steps <= grid[a])
-    near_end = (steps >= grid[b - 1]) & (steps <= grid[b - 1] + _GORE_AT_GAP_M)
-    return before, after, near_start, near_end
+@dataclass(frozen=True)
+class _SeenSteps:
+    """Seen edge steps (``stations``, metres) with the edge's offset 2 m before and after
+    each (metres), once per edge; :meth:`beside` tells which lie at a gap's ends."""
+
+    stations: FloatArray
+    before: FloatArray
+    after: FloatArray
+
+    @classmethod
+    def of(cls, d_edge: FloatArray, grid: FloatArray, stations: FloatArray) -> _SeenSteps:
+        n = grid.size
+        i_step = np.searchsorted(grid, stations)
+        return cls(
+            stations,
+            d_edge[np.clip(i_step - 2, 0, n - 1)],
+            d_edge[np.clip(i_step + 2, 0, n - 1)],
+        )
+
+    def beside(
+        self, grid: FloatArray, a: int, b: int
+    ) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+        """Whether each step lies within ``_GORE_AT_GAP_M`` before the gap ``a:b`` begins
+        / after it ends."""
+        st = self.stations
+        near_start = (st >= grid[a] - _GORE_AT_GAP_M) & (st <= grid[a])
+        near_end = (st >= grid[b - 1]) & (st <= grid[b - 1] + _GORE_AT_GAP_M)
+        return near_start, near_end
 
 
 def _shoulder_at_gore(
@@ -249,7 +265,7 @@ def _shoulder_at_gore(
     grid: FloatArray,
     a: int,
     b: int,
-    steps: FloatArray,
+    seen: _SeenSteps,
     hw0: float,
     hw1: float,
     taper_length_m: float,
@@ -263,9 +279,9 @@ def _shoulder_at_gore(
     end may be an exit's whose lane opened in the gap: kotka-37952515-opp-s9 with a
     noisier sensor, where its edge had been right). Returns whether a gore was there
     (see :func:`_bridge_edge_gaps`)."""
-    before, after, near_start, near_end = _steps_at_gap(d_edge, grid, a, b, steps)
-    exits = steps[near_start & (before - d_edge[b] > _GORE_LEVEL_M)]
-    entries = steps[near_end & (after - d_edge[a - 1] > _GORE_LEVEL_M)]
+    near_start, near_end = seen.beside(grid, a, b)
+    exits = seen.stations[near_start & (seen.before - d_edge[b] > _GORE_LEVEL_M)]
+    entries = seen.stations[near_end & (seen.after - d_edge[a - 1] > _GORE_LEVEL_M)]
     if not exits.size and not entries.size:
         return False
     lo = int(np.searchsorted(grid, exits[-1], side="right")) if exits.size else a
@@ -285,13 +301,13 @@ def _shoulder_at_gore(
 
 def _nose_widths(
     d_edge: FloatArray,
+    d_last: FloatArray,
     grid: FloatArray,
     a: int,
     b: int,
-    steps: FloatArray,
+    seen: _SeenSteps,
     hw0: float,
     hw1: float,
-    d_last: FloatArray,
 ) -> tuple[float, float]:
     """The shoulder widths (metres) to bridge the gap ``a:b`` between: ``hw0`` and
     ``hw1`` seen at its ends, except where an exit's step down follows just after the
@@ -304,11 +320,11 @@ def _nose_widths(
     before the gap; bridged between the two, the shoulder held an invented lane). Where
     the outermost line stays, the wider edge is the opening lane's (its line unseen)."""
     moved = d_last[b] - d_last[a - 1]
-    before, after, at_start, at_end = _steps_at_gap(d_edge, grid, a, b, steps)
-    nose_at_end = np.any(at_end & (d_edge[b] - after > _GORE_LEVEL_M))
+    at_start, at_end = seen.beside(grid, a, b)
+    nose_at_end = np.any(at_end & (d_edge[b] - seen.after > _GORE_LEVEL_M))
     if nose_at_end and hw1 - hw0 > _GORE_LEVEL_M and moved > _GORE_LEVEL_M:
         hw1 = hw0
-    nose_at_start = np.any(at_start & (d_edge[a - 1] - before > _GORE_LEVEL_M))
+    nose_at_start = np.any(at_start & (d_edge[a - 1] - seen.before > _GORE_LEVEL_M))
     if nose_at_start and hw0 - hw1 > _GORE_LEVEL_M and -moved > _GORE_LEVEL_M:
         hw0 = hw1
     return hw0, hw1
@@ -343,6 +359,11 @@ def _bridge_edge_gaps(
     shoulder opened over the 85 m gap."""
     steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
     d_last = _last_marking(tracks, grid)
+    seen = (
+        None
+        if seen_steps is None
+        else _SeenSteps.of(d_edge, grid, np.asarray(seen_steps, dtype=float))
+    )
     out = d_edge.copy()
     for a, b in true_runs(~covered):
         if a == 0 or b >= grid.size or b - a < 5:
@@ -351,25 +372,14 @@ def _bridge_edge_gaps(
         if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
             continue
         hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
-        if seen_steps is not None:
-            hw0, hw1 = _nose_widths(
-                d_edge, grid, a, b, np.asarray(seen_steps, float), hw0, hw1, d_last
-            )
+        if seen is not None:
+            hw0, hw1 = _nose_widths(d_edge, d_last, grid, a, b, seen, hw0, hw1)
         x = (grid[a:b] - grid[i0]) / (grid[i1] - grid[i0])
         inner = d_last[a:b]
         ok = np.isfinite(inner)
         hw = (1 - x) * hw0 + x * hw1
-        if seen_steps is not None and _shoulder_at_gore(
-            out,
-            d_edge,
-            d_last,
-            grid,
-            a,
-            b,
-            np.asarray(seen_steps, dtype=float),
-            hw0,
-            hw1,
-            taper_length_m,
+        if seen is not None and _shoulder_at_gore(
+            out, d_edge, d_last, grid, a, b, seen, hw0, hw1, taper_length_m
         ):
             continue
         # a lane that starts/ends inside the gap (a gore): each side keeps its own width,

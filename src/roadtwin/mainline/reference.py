@@ -102,13 +102,15 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     # where the median-side edge is unseen it moves with the lines seen there (beside a
     # gore, along the inner shoulder's line): the lanes again, with the edge moved
     grid = np.minimum(_grid(0.0, length, cfg.grid_step_m), length)
-    move = _median_moves(frame, ref_pts, median, tracks, grid, sign, s_lane, -sign * t_lane)
+    s_ref, t_ref = frame.project(ref_pts)
+    move = _median_moves(s_ref, -sign * t_ref, median, tracks, grid, s_lane, -sign * t_lane)
     if move is not None:
         sections, events, tracks, used = lanes(lambda s: 1.0, move)
     timings["lanes"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    surface_pts = np.vstack([_on_median_edge(frame, ref_pts, median.steps, sign), outer_pts[used]])
+    on_edge = _on_median_edge(ref_pts, s_ref, t_ref, median.steps, sign)
+    surface_pts = np.vstack([on_edge, outer_pts[used]])
     elevation, superelevation = fit_elevation(frame, surface_pts, poses=poses, config=cfg)
     timings["elevation"] = time.perf_counter() - t0
     if superelevation is not None:
@@ -134,12 +136,11 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
 
 
 def _median_moves(
-    frame: PolylineFrame,
-    ref_pts: FloatArray,
+    s_edge: FloatArray,
+    d_edge: FloatArray,
     median: MedianEdge,
     tracks: tuple[BoundaryTrack, ...],
     grid: FloatArray,
-    sign: float,
     s_lane: FloatArray,
     d_lane: FloatArray,
 ) -> tuple[FloatArray, FloatArray] | None:
@@ -147,18 +148,18 @@ def _median_moves(
     fit (``tracks``) found (:mod:`.median_moves`): beside a gore, and across a stretch
     where the inner shoulder's line is seen through (away from gores and steps). The move
     on ``grid`` (metres towards the carriageway) and the gore stations where it begins or
-    ends at full size; None where it moves nowhere. ``s_lane``, ``d_lane``: the lane
-    samples in the lanes' frame (metres)."""
+    ends at full size; None where it moves nowhere. ``s_edge``, ``d_edge`` and ``s_lane``,
+    ``d_lane``: the median-side edge points and the lane samples in the lanes' frame
+    (metres)."""
     at_gores, gores = edge_moves(median.unseen_beside_gores, tracks, grid)
     d_median = -median.steps.at(grid) + at_gores
-    s_edge, t_edge = frame.project(ref_pts)
     step = float(grid[1] - grid[0])
     near_step = np.zeros(grid.size, dtype=bool)
     for st in median.steps.stations:
         near_step |= np.abs(grid - st) <= 10.0 * step
     gaps = [
         (a, b)
-        for a, b in unseen_stretches(s_edge, -sign * t_edge, grid, d_median)
+        for a, b in unseen_stretches(s_edge, d_edge, grid, d_median, _ON_EDGE_M)
         if not np.any(at_gores[a - 1 : b + 1]) and not np.any(near_step[a - 1 : b + 1])
     ]
     move = at_gores + shoulder_moves(gaps, tracks, s_lane, d_lane, grid, d_median)
@@ -169,7 +170,7 @@ _ON_EDGE_M = 0.8  # a median-side edge point this close to the fitted edge is th
 
 
 def _on_median_edge(
-    frame: PolylineFrame, points: FloatArray, steps: EdgeSteps, sign: float
+    points: FloatArray, s: FloatArray, t: FloatArray, steps: EdgeSteps, sign: float
 ) -> FloatArray:
     """The median-side edge points (mapping frame, ``(N, 3)``) that lie on the fitted
     median-side edge (within ``_ON_EDGE_M`` of it sideways, the reference line moved by
@@ -178,8 +179,8 @@ def _on_median_edge(
     may lie metres higher or lower: their heights made a 0.1 rad cross slope out of a
     flat road (melbourne-408-opp-s4: the median-side points 2.5 m beyond the edge lay
     0.8-2 m lower, where an inner ramp fell away beside it). ``sign``: +1 right-hand
-    traffic (the median on the left, t > 0), -1 left-hand traffic."""
-    s, t = frame.project(points)
+    traffic (the median on the left, t > 0), -1 left-hand traffic. ``s``, ``t``: the
+    points' stations and offsets on the road (metres)."""
     return points[np.abs(sign * t - steps.at(s)) < _ON_EDGE_M]
 
 
@@ -548,7 +549,6 @@ def fit_median_edge(
         # a ramp's edge peeling off on the median side is not the road's edge (in every
         # pass: the first one's bend would stay in the frames of the others)
         spans, bases = median_excursions(centres, level)
-        unseen = _unseen_beside_gores(centres, level, spans)
         if spans.size:
             k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
             inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
@@ -588,6 +588,7 @@ def fit_median_edge(
         if z is not None:
             pts = np.column_stack([pts, z])
         frame = PolylineFrame.from_points(resample_polyline(pts, step))
+    unseen = _unseen_beside_gores(centres, level, spans)  # of the last pass
     if not has_steps:
         return MedianEdge(frame.xy, EdgeSteps(np.zeros(0), np.zeros(1)), frame.z, unseen)
     # the steps in the final line's own stations
