@@ -86,6 +86,13 @@ def _hidden_lane_count(
         more = (smooth / n > _HIDDEN_LANE_MAX_M) & (smooth / (n + 1) >= _HIDDEN_LANE_MIN_M)
         n = n + more
     n[(smooth < lane_m + min_extra_m) | ~ok] = 0
+    if lanes_only:
+        # a strip nowhere as wide as a lane is a shoulder, however narrow the run's usual
+        # one (melbourne-18: no shoulder over most of the run, a 2.3 m one over 150 m);
+        # a lane opening by a taper is narrower only at its ends
+        for a, b, on in _runs_of((n > 0).astype(np.int64)):
+            if on and float(np.max(smooth[a:b])) < _HIDDEN_LANE_MIN_M:
+                n[a:b] = 0
     return n
 
 

@@ -537,6 +537,8 @@ def _short_ramp_line_meeting(
 
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
+_TAPER_TAIL_M = 0.8  # a neighbour at least this far from a line that ended may close onto it
+# (closer, the two are a double line or a shoulder split: the tracker separates lines from 0.8 m)
 _SETTLE_RUN_M = 50.0  # a neighbour whose gap shrinks by less than _SETTLE_DROP_M over this
 _SETTLE_DROP_M = 0.1  # ... (metres) has settled
 _EDGE_TAPER_MAX_M = 60.0  # the outer edge closes a lane over at most this (metres)
@@ -673,7 +675,10 @@ def _continue_to_convergence(
                 if j == k or nb.lo > s_end - 1.0 or nb.hi < s_end + 1.0:
                     continue
                 gap = abs(float(np.interp(s_end, nb.s, nb.d)) - d_end)
-                if 0.6 * lane_m <= gap <= 1.5 * lane_m:
+                # a neighbour already closer than a lane at the end is the taper's last
+                # metres (melbourne-18-s11+80: the line between a dropped lane and the
+                # one beside it lost 1.0 m from the converging line, 50 m before they met)
+                if _TAPER_TAIL_M <= gap <= 1.5 * lane_m:
                     beside.append((gap, j))
             for _, j in sorted(beside):
                 s_meet = _meeting_station(

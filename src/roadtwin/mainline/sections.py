@@ -35,8 +35,11 @@ FloatArray = NDArray[np.float64]
 
 _GORE_MATCH_M = 20.0  # a marking ending this close to an edge step ends at that gore
 
-_SHOULDER_LINE_M = 20.0  # shortest section in which an edge line can be a shoulder's line
-_SHOULDER_MIN_M = 1.8  # ... whose shoulder is at least this wide all through it (metres)
+_SHOULDER_LINE_M = 20.0  # an edge line is a shoulder's line over at least this length ...
+_SHOULDER_MIN_M = 1.8  # ... where its shoulder is at least this wide (metres)
+# the shoulder opens (closes) where its line is this far from the edge (metres): the truth's
+# shoulder tapers to zero, and at edge_line_m it ended 15 m early (melbourne-18-s11+80)
+_SHOULDER_MEET_M = 0.1
 
 
 def _lane_types(
@@ -117,6 +120,59 @@ def _steps_beside(
     if not any(d < d_k - 0.5 for d in others):
         parts.append(median_steps)
     return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def _shoulder_stretches(
+    dmat: FloatArray, d_edge: FloatArray, d_median: FloatArray, cfg: MainlineConfig
+) -> tuple[set[int], dict[int, NDArray[np.bool_]]]:
+    """The edge lines among the tracks and where each is a shoulder's line instead.
+
+    A marking within ``edge_line_m`` of a road edge (median over its length; ``dmat``
+    rows on the grid, ``d_edge`` / ``d_median`` the outer and median-side edges, all
+    metres from the reference edge towards the carriageway) is that edge's line, not the
+    border of a lane a few centimetres wide. Where it runs at least ``_SHOULDER_MIN_M``
+    inside that edge over ``_SHOULDER_LINE_M`` or more, a hard shoulder lies beside it:
+    the stretch, widened to where the line meets the edge again (within
+    ``_SHOULDER_MEET_M``), is a shoulder stretch (``True`` on the grid), and the shoulder opens
+    and closes at its ends. A hard shoulder beginning where a lane drops, or ending
+    beyond an exit, moves the edge away from its line within a section: judged over the
+    whole section, the line was dropped and the lane beside it took the shoulder
+    (melbourne-18-s11+80: a lane 5.5 m wide over 45 m, a shoulder 2.4 m wide missed over
+    60 m).
+    """
+    n_min = max(1, round(_SHOULDER_LINE_M / cfg.grid_step_m))
+    edge_lines: set[int] = set()
+    shoulder_of: dict[int, NDArray[np.bool_]] = {}
+    for k in range(dmat.shape[0]):
+        on = np.isfinite(dmat[k])
+        if np.count_nonzero(on) < 10:
+            continue
+        to_edge = d_edge - dmat[k]
+        to_median = dmat[k] - d_median
+        if min(float(np.median(to_edge[on])), float(np.median(to_median[on]))) >= cfg.edge_line_m:
+            continue
+        edge_lines.add(k)
+        side = to_edge if np.median(to_edge[on]) <= np.median(to_median[on]) else to_median
+        gap = np.where(on, side, np.nan)
+        wide = gap >= _SHOULDER_MIN_M
+        apart = gap > _SHOULDER_MEET_M
+        stretch = np.zeros(gap.size, dtype=bool)
+        for a, b in _true_runs(wide):
+            if b - a < n_min:
+                continue
+            while a > 0 and apart[a - 1]:
+                a -= 1
+            while b < gap.size and apart[b]:
+                b += 1
+            stretch[a:b] = True
+        shoulder_of[k] = stretch
+    return edge_lines, shoulder_of
+
+
+def _true_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """``(start, stop)`` of every run of ``True`` in ``mask``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def _sections_from_tracks(
@@ -217,6 +273,12 @@ def _sections_from_tracks(
     present = np.isfinite(dmat)
     change = np.flatnonzero(np.any(present[:, 1:] != present[:, :-1], axis=0)) + 1
     starts = [0, *change.tolist()]
+    edge_lines, shoulder_of = _shoulder_stretches(dmat, d_edge, d_median, cfg)
+    # a hard shoulder opening (closing) beside an edge line starts a section where the
+    # line leaves (meets) the edge
+    for k in edge_lines:
+        edges = np.flatnonzero(np.diff(shoulder_of[k].astype(np.int8))) + 1
+        starts.extend(int(i) for i in edges)
     # edge steps start a section too
     forced: set[int] = set()
     s0_at: dict[int, float] = {}  # a section that starts at an edge step starts exactly there
@@ -259,30 +321,17 @@ def _sections_from_tracks(
     sections: list[LaneSection] = []
     bounds_per: list[list[tuple[object, object]]] = []
     medians: list[tuple[float, float]] = []  # the median-side edge at section start, end
-    # an edge line painted along a road edge all its length (no shoulder there) is that
-    # edge, not the border of a lane a few centimetres wide (a shoulder opening from zero
-    # beside a gore separates from the edge: its line stays)
-    edge_lines = set()
-    for k in range(len(tracks)):
-        on = np.isfinite(dmat[k])
-        if np.count_nonzero(on) < 10:
-            continue
-        to_edge = float(np.median(d_edge[on] - dmat[k, on]))
-        to_median = float(np.median(dmat[k, on] - d_median[on]))
-        if min(to_edge, to_median) < cfg.edge_line_m:
-            edge_lines.add(k)
 
     def shoulder_line_in(k: int, lo: int, hi: int) -> bool:
-        """An edge line that runs a whole shoulder's width inside the outer edge all
-        through the section ``lo:hi`` (at least ``_SHOULDER_LINE_M`` long) is the
-        shoulder's line there: the same solid line is the edge line where the hard
-        shoulder is missing (melbourne-18-s11+80: dropped all along, the lane beside it
-        took a 2.4 m shoulder, 7.3 m wide)."""
+        """An edge line is the shoulder's line in the section ``lo:hi`` (at least
+        ``_SHOULDER_LINE_M`` long) where it lies in one of its shoulder stretches
+        (:func:`_shoulder_stretches`) over most of the section: the same solid line is
+        the edge line where the hard shoulder is missing (melbourne-18-s11+80: dropped
+        all along, the lane beside it took a 2.4 m shoulder, 7.3 m wide)."""
         on = np.isfinite(dmat[k, lo:hi])
         if (hi - lo) * cfg.grid_step_m < _SHOULDER_LINE_M or not on.all():
             return False
-        gap = d_edge[lo:hi] - dmat[k, lo:hi]
-        return bool(np.min(gap) >= _SHOULDER_MIN_M)
+        return bool(np.mean(shoulder_of[k][lo:hi]) >= 0.5)
 
     members_per: list[list[int]] = []
     for a, b in itertools.pairwise(starts):
@@ -373,7 +422,10 @@ def _drive_on_through_sections(
     (:func:`_lane_types`), and a short section of many lanes makes it a shoulder. Between
     two driving lanes it linked, that makes a lane stop and start again for 20 m:
     melbourne-921-s2 with a noisier sensor, where two lanes were added on the median side,
-    and esmini's car in the inner lane jumped 3.1 m to the next lane."""
+    and esmini's car in the inner lane jumped 3.1 m to the next lane.
+
+    A shoulder between two markings that goes on from a driving lane at its width and
+    narrows to less than half of it is that lane's taper (:func:`_closing_taper`)."""
     lanes = [{ln.id: ln for ln in _side_lanes(sc)} for sc in sections]
     ends = [
         np.array([0.0, max(nxt.s0 - sc.s0 - 1e-6, 0.0)]) for sc, nxt in itertools.pairwise(sections)
@@ -399,6 +451,8 @@ def _drive_on_through_sections(
                 k, cur = k + 1, lanes[k + 1].get(cur.successor)  # type: ignore[arg-type]
             if cur is not None and cur.type == "driving":
                 turn.update(chain)
+            elif not chain and _closing_taper(sections[n], lane, before, ends[n - 1], ends[n]):
+                turn.add((n, lane.id))
     if not turn:
         return list(sections)
     out = []
@@ -409,6 +463,24 @@ def _drive_on_through_sections(
         )
         out.append(replace(sc, **{side: new}) if new != _side_lanes(sc) else sc)
     return out
+
+
+def _closing_taper(
+    section: LaneSection, lane: Lane, before: Lane, ends_before: FloatArray, ends: FloatArray
+) -> bool:
+    """Whether ``lane``, a shoulder between two markings of ``section``, is the closing
+    taper of the driving lane ``before`` (its predecessor): it starts within 0.5 m of that
+    lane's width at its end and narrows to less than half its own start width
+    (``ends_before``, ``ends``: section-relative start and end stations, metres). A lane
+    dropped by a taper narrows below ``shoulder_max_m`` within a section of its own once
+    the hard shoulder beside it opens on its line (melbourne-18-s11+80: typed a shoulder
+    over 45 m, the lane count one short)."""
+    side = _side_lanes(section)
+    if lane.type != "shoulder" or lane.id in (side[0].id, side[-1].id):
+        return False
+    w_prev = float(before.width.value(ends_before[1:])[0])
+    w0, w1 = (float(w) for w in lane.width.value(ends))
+    return abs(w0 - w_prev) <= 0.5 and w1 < 0.5 * w0
 
 
 def _grid_index(s: float, grid: FloatArray, cfg: MainlineConfig) -> int:
