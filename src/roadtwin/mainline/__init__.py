@@ -40,7 +40,8 @@ self-consistency); ``reference`` (default method: median-side reference edge, it
 and excursions, elevation); ``median_moves`` (the median-side edge unseen beside a
 gore); ``edge_levels`` (level paths and steps of an edge); ``lanes`` (the lane fit's
 driver); ``markings`` (marking tracks: peaks, linking, ramp lines, collinear pieces);
-``hidden_lanes`` (lanes and lines beyond the sensor's reach); ``shift`` (the marking
+``hidden_lanes`` (lanes and lines beyond the sensor's reach); ``unpainted`` (the
+outermost line where it is not seen); ``shift`` (the marking
 pattern's sideways shift); ``outer_edge`` (the outer edge and its bridging across gaps);
 ``gores``, ``hidden_gores``, ``painted_gores`` (where gores are); ``edge_lines`` (lines
 painted on an edge); ``sections`` (lane sections, lane types, events); ``tapers`` (where

@@ -34,6 +34,7 @@ from .markings import _merge_collinear, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
+from .unpainted import follow_edge_across_unpainted
 
 FloatArray = NDArray[np.float64]
 
@@ -181,6 +182,7 @@ def fit_lanes(
             )
             for lo, hi in painted:  # the outer-edge points there are the ramp's
                 used = used & ~((s_outer > lo) & (s_outer < hi))
+        tracks = follow_edge_across_unpainted(tracks, grid, d_edge, covered, breaks)
     tracks = _add_hidden_lanes(tracks, grid, d_edge, d_median, cfg, _car_offset(car, grid))
     # an inferred line may go on where an observed one stopped a few tens of metres before
     # (lines unseen for 27 m before a median-side step: town06-auto-s3 with a noisier
