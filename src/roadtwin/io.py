@@ -138,6 +138,8 @@ class MappingRun:
         (:class:`~roadtwin.reduction.Reduction`: points read, rows, density, the spread
         of the points behind each row), or None for points that were never looked at
         (a run built in memory; :func:`reduce_run` reduces it).
+    heading_bias_removed : whether the lane samples were turned back by the poses'
+        heading error already (:func:`roadtwin.heading_bias.remove_heading_bias`).
     """
 
     root: Path
@@ -155,6 +157,7 @@ class MappingRun:
     input_files: tuple[Path, ...] = ()
     edge_reduction: Reduction | None = None
     lane_reduction: Reduction | None = None
+    heading_bias_removed: bool = False
 
     def __repr__(self) -> str:
         s = self.summary()

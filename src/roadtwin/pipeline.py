@@ -17,6 +17,7 @@ from threadpoolctl import threadpool_limits
 from . import __version__
 from .config import PipelineConfig
 from .evaluation import self_consistency
+from .heading_bias import remove_heading_bias
 from .io import MappingRun, reduce_run
 from .mainline import Mainline, build_mainline
 from .model import Header, Road, RoadNetwork
@@ -120,6 +121,8 @@ def _build_map(
     # which reduced while reading): every stage below sees the same kind of input at any
     # density
     run = reduce_run(run, config=cfg.load)
+    if cfg.mainline.method == "default" and cfg.mainline.heading_bias:
+        run = remove_heading_bias(run)
 
     t0 = time.perf_counter()
     with progress("mainline"):

@@ -34,6 +34,7 @@ from .._errors import FitError, InputError
 from ..config import PipelineConfig
 from ..evaluation import self_consistency
 from ..frames import MappingFrame
+from ..heading_bias import remove_heading_bias
 from ..io import MappingRun
 from ..model import Header, Junction, Road, RoadNetwork
 from ..osm_roads import (
@@ -349,6 +350,9 @@ def _build_highway(
         raise InputError("build: the runs have different [traffic] sides")
     side = runs[0].traffic_side
     runs = [run_in_frame(r, frame) for r in runs]
+    if cfg.mainline.method == "default" and cfg.mainline.heading_bias:
+        # each run's own poses: the fused run's poses are its carriageway's spine
+        runs = [remove_heading_bias(r) for r in runs]
     groups = group_runs(runs, config=hw)
     timings["group runs"] = time.perf_counter() - t0
 
