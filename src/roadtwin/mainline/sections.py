@@ -26,6 +26,7 @@ from ._common import (
     BoundaryTrack,
     LaneEvent,
     _fill_nan,
+    true_runs,
 )
 from .markings import _dashed, _mark_type, _Track
 from .section_links import _link_sections, _side_lanes
@@ -157,7 +158,7 @@ def _shoulder_stretches(
         wide = gap >= _SHOULDER_MIN_M
         apart = gap > _SHOULDER_MEET_M
         stretch = np.zeros(gap.size, dtype=bool)
-        for a, b in _true_runs(wide):
+        for a, b in true_runs(wide):
             if b - a < n_min:
                 continue
             while a > 0 and apart[a - 1]:
@@ -167,12 +168,6 @@ def _shoulder_stretches(
             stretch[a:b] = True
         shoulder_of[k] = stretch
     return edge_lines, shoulder_of
-
-
-def _true_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
-    """``(start, stop)`` of every run of ``True`` in ``mask``."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
 def _sections_from_tracks(
