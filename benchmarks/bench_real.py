@@ -22,7 +22,7 @@ develop on ``--split dev``, report on all.
 Run::
 
     python benchmarks/bench_real.py [--split dev|holdout|all] [--only NAME ...]
-        [--methods default paper] [--external] [--drive] [--jobs 2] [--json FILE]
+        [--methods default paper heading] [--external] [--drive] [--jobs 2] [--json FILE]
 
 Prints one row per run and method (lateral RMSE of edges and lane boundaries against truth,
 lane count right, ramps found / typed / spurious, check errors, drive result, build time)
@@ -254,12 +254,23 @@ def _drive(map_path: Path, out_dir: Path) -> dict | None:
     }
 
 
+def _config(method: str):
+    """The build settings of a benchmark method: ``default``, ``paper``, or ``heading``
+    (the default method with the poses' heading error removed from the lane samples,
+    ``MainlineConfig.heading_bias``)."""
+    from roadtwin.config import PipelineConfig
+
+    if method == "heading":
+        cfg = PipelineConfig().with_method("default")
+        return replace(cfg, mainline=replace(cfg.mainline, heading_bias=True))
+    return PipelineConfig().with_method(method)
+
+
 def build_and_judge(
     run_dir: Path, out_dir: Path, *, method: str, external: bool, drive: bool
 ) -> dict:
     """Build ``run_dir`` with ``method`` into ``out_dir``, check, evaluate, drive: a row."""
     from roadtwin.check import check_file
-    from roadtwin.config import PipelineConfig
     from roadtwin.evaluation import evaluate_paths
     from roadtwin.io import load_run
     from roadtwin.osm import load_osm
@@ -275,7 +286,7 @@ def build_and_judge(
             graph = None
             if run.osm_path is not None:
                 graph = load_osm(run.osm_path, frame=run.frame, around_xy=run.trajectory.xy)
-            result = build_map(run, graph, config=PipelineConfig().with_method(method))
+            result = build_map(run, graph, config=_config(method))
         row["build_s"] = time.perf_counter() - t0
         out_dir.mkdir(parents=True, exist_ok=True)
         map_path = out_dir / "map.xodr"
@@ -505,7 +516,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workdir", type=Path, default=Path("/tmp/roadtwin-bench-real"))
     ap.add_argument("--split", choices=("dev", "holdout", "all"), default="all")
     ap.add_argument("--only", nargs="*", default=None, help="run names (prefix match)")
-    ap.add_argument("--methods", nargs="+", default=["default", "paper"])
+    ap.add_argument(
+        "--methods",
+        nargs="+",
+        choices=("default", "paper", "heading"),
+        default=["default", "paper"],
+        help="heading: the default method with MainlineConfig.heading_bias",
+    )
     ap.add_argument("--external", action="store_true", help="also SUMO and the ASAM checker")
     ap.add_argument("--drive", action="store_true", help="drive every route in esmini")
     ap.add_argument("--fresh", action="store_true", help="simulate the runs again")
