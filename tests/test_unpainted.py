@@ -95,3 +95,19 @@ def test_a_shoulder_closing_onto_the_line_or_changing_leaves_the_line_bridged():
             [tr], GRID, edge, np.ones(GRID.size, dtype=bool), np.zeros(0)
         )
         assert out[0] is tr
+
+
+def test_a_sparse_end_inside_the_track_leaves_the_stretch_bridged():
+    """A broken line seen densely up to 90 m, then seven samples over 9 m (worn dashes),
+    nothing for 25 m, then densely again at a narrower shoulder (krems-46762523 before an
+    entry): the sparse end gives no width, and holding the other end's from there stepped
+    the line 0.8 m at 100 m. Only a track's own first few samples are passed over."""
+    s = np.concatenate(
+        [np.arange(0.0, 90.0, 0.5), np.linspace(91.0, 100.0, 7), np.arange(125.0, 300.0, 0.5)]
+    )
+    edge = np.interp(GRID, [0.0, 100.0, 125.0, 300.0], [22.4, 22.4, 21.7, 21.7])
+    tr = _track(s, np.full(s.size, 20.0))
+    out = follow_edge_across_unpainted(
+        [tr], GRID, edge, np.ones(GRID.size, dtype=bool), np.zeros(0)
+    )
+    assert out[0] is tr

@@ -65,13 +65,15 @@ def follow_edge_across_unpainted(
     line lies beyond it there, the outer edge was seen all along (``covered`` on ``grid``)
     and no edge step (``breaks``, stations in metres) lies inside it, the
     track across the stretch is the edge (``d_edge`` on ``grid``) less a shoulder width
-    linear between the widths measured from the samples beside its two ends. An end with
+    linear between the widths measured from the samples beside its two ends (if they
+    differ by ``_WIDTH_CHANGE_MAX_M`` or less: a shoulder that changes more says nothing
+    of the line's course). An end with
     fewer samples (a few of a ramp's line where the track begins at a gore) gives none:
-    the other end's width holds, and where that end is the track's start the track is
-    replaced from its start. An end whose width is no shoulder's (outside
-    ``_SHOULDER_RANGE_M``: the edge closing onto the line before an entry's gore,
-    melbourne-408-lane2-s22, where following it bent the line 0.5 m) leaves the stretch
-    bridged. Moves under ``_MOVE_MIN_M`` are left out.
+    where those are the track's first (last) samples, the other end's width holds and the
+    track is replaced from its start (to its end); elsewhere the stretch stays bridged.
+    An end whose width is no shoulder's (outside ``_SHOULDER_RANGE_M``: the edge closing
+    onto the line before an entry's gore, melbourne-408-lane2-s22, where following it bent
+    the line 0.5 m) leaves the stretch bridged. Moves under ``_MOVE_MIN_M`` are left out.
 
     Returns the tracks, the moved ones replaced (their samples kept).
     """
@@ -93,8 +95,18 @@ def follow_edge_across_unpainted(
                 continue  # the shoulder closes or opens a lane there: not one width
             if w_a is not None and w_b is not None and abs(w_a - w_b) > _WIDTH_CHANGE_MAX_M:
                 continue  # the shoulder changes: the edge does not say how the line goes
-            if w_a is None and float(ss[0]) >= a - _END_WINDOW_M:
+            # an end with few samples counts only where the track begins (ends) with them:
+            # elsewhere they are a sparse stretch of the line itself, and following the
+            # other end's width from there stepped the line 0.8 m (krems-46762523, a
+            # broken line's gap before an entry)
+            if w_a is None:
+                if float(ss[0]) < a - _END_WINDOW_M:
+                    continue
                 a = float(tr.lo)  # the few samples before are where the track begins
+            if w_b is None:
+                if float(ss[-1]) > b + _END_WINDOW_M:
+                    continue
+                b = float(tr.hi)
             span = (grid >= a) & (grid <= b)
             if not span.any() or not covered[span].all():
                 continue
