@@ -78,6 +78,11 @@ def _in_view(x: FloatArray, y: FloatArray) -> NDArray[np.bool_]:
     return (x > -_VIEW_M) & (x < _VIEW_M) & (np.abs(y) < _VIEW_M)
 
 
+def _too_few(run) -> bool:
+    """Too few lane samples or poses to read a heading error from."""
+    return run.lane_samples.shape[0] < 100 or run.trajectory.frame.size < 10
+
+
 def _pose_index(run) -> NDArray[np.int64]:
     """Index into the trajectory of every lane sample's frame."""
     frames = run.trajectory.frame
@@ -106,6 +111,23 @@ def _line_residuals(s: FloatArray, t: FloatArray) -> tuple[FloatArray, NDArray[n
     return t - median[group], group
 
 
+@dataclass(frozen=True)
+class _SampleView:
+    """Each lane sample's pose (index into the trajectory), its ego coordinates (metres:
+    forward, left) and whether its pose could have seen it (:func:`_in_view`)."""
+
+    pose: NDArray[np.int64]
+    x: FloatArray
+    y: FloatArray
+    near: NDArray[np.bool_]
+
+    @classmethod
+    def of(cls, run) -> _SampleView:
+        pose = _pose_index(run)
+        x, y = _ego(run, pose)
+        return cls(pose, x, y, _in_view(x, y))
+
+
 def estimate_heading_bias(run) -> HeadingBias | None:
     """The heading error of every pose of ``run`` (:class:`~roadtwin.io.MappingRun`) from
     its lane samples; None where the samples cannot tell (too few, or too little spread
@@ -115,12 +137,13 @@ def estimate_heading_bias(run) -> HeadingBias | None:
     local medians against their forward range (each line's mean range subtracted), shrunk
     towards 0 by ``_PRIOR_M2``, then smoothed along time.
     """
+    return None if _too_few(run) else _estimate(run, _SampleView.of(run))
+
+
+def _estimate(run, view: _SampleView) -> HeadingBias | None:
+    """:func:`estimate_heading_bias` with the samples' poses and ego coordinates given."""
     tr = run.trajectory
-    if run.lane_samples.shape[0] < 100 or tr.frame.size < 10:
-        return None
-    pose = _pose_index(run)
-    x, y = _ego(run, pose)
-    near = _in_view(x, y)
+    pose, x, near = view.pose, view.x, view.near
     if np.mean(near) < _IN_VIEW_SHARE:
         # samples placed by frames that did not see them (a run made in memory with one
         # frame for all): no lever arm to read
@@ -167,13 +190,15 @@ def remove_heading_bias(run, bias: HeadingBias | None = None):
     back one by one before). Heights are kept."""
     if run.heading_bias_removed:
         return run
-    bias = estimate_heading_bias(run) if bias is None else bias
+    if bias is None and _too_few(run):
+        return replace(run, heading_bias_removed=True)
+    view = _SampleView.of(run)
+    bias = _estimate(run, view) if bias is None else bias
     if bias is None:
         return replace(run, heading_bias_removed=True)
-    pose = _pose_index(run)
-    x, y = _ego(run, pose)
+    pose, x, y = view.pose, view.x, view.y
     tr = run.trajectory
-    yaw = tr.yaw[pose] - np.where(_in_view(x, y), bias.rad[pose], 0.0)
+    yaw = tr.yaw[pose] - np.where(view.near, bias.rad[pose], 0.0)
     c, s = np.cos(yaw), np.sin(yaw)
     out = run.lane_samples.copy()
     out[:, 0] = tr.xy[pose, 0] + x * c - y * s

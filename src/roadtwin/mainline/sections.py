@@ -150,10 +150,11 @@ def _shoulder_stretches(
             continue
         to_edge = d_edge - dmat[k]
         to_median = dmat[k] - d_median
-        if min(float(np.median(to_edge[on])), float(np.median(to_median[on]))) >= cfg.edge_line_m:
+        m_edge, m_median = float(np.median(to_edge[on])), float(np.median(to_median[on]))
+        if min(m_edge, m_median) >= cfg.edge_line_m:
             continue
         edge_lines.add(k)
-        side = to_edge if np.median(to_edge[on]) <= np.median(to_median[on]) else to_median
+        side = to_edge if m_edge <= m_median else to_median
         gap = np.where(on, side, np.nan)
         wide = gap >= _SHOULDER_MIN_M
         apart = gap > _SHOULDER_MEET_M
