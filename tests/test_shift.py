@@ -14,6 +14,7 @@ from roadtwin.mainline.markings import (
     _shift_frame,
     _tracks_from_samples,
 )
+from roadtwin.mainline.shift import OuterEdge
 
 LENGTH = 700.0
 LANE = 3.5
@@ -56,9 +57,60 @@ def _median_side_lanes_added(rng, lanes=1, s0=300.0, s1=380.0):
     return _samples(lines), move
 
 
-def _frame(s, d, cfg):
+def _frame(s, d, cfg, edge=None):
     centres, peaks = _find_track_peaks(s, d, LENGTH, cfg)
-    return _shift_frame(s, d, LENGTH, centres, _link_tracks(peaks, cfg), cfg)
+    return _shift_frame(s, d, LENGTH, centres, _link_tracks(peaks, cfg), cfg, edge)
+
+
+def _outer_edge(rng, offset, unseen=None):
+    """The outer edge as the shift sees it: a smooth fit on a 1 m grid (2 cm noise),
+    NaN over ``unseen`` (s0, s1)."""
+    grid = np.arange(0.0, LENGTH + 0.5, 1.0)
+    d = offset(grid) + rng.normal(0.0, 0.02, grid.size)
+    if unseen is not None:
+        d[(grid >= unseen[0]) & (grid <= unseen[1])] = np.nan
+    return OuterEdge(grid, d)
+
+
+def _fast_swing(rng, dash, period, s0=300.0, s1=345.0):
+    """Every line but the innermost swings out by a lane over 45 m (town06-auto-s1 after
+    its inner exit: broken lines sampled every metre, a few dashes through the swing);
+    a new line leaves the innermost one (a lane added beside the median)."""
+    move = lambda s: LANE * _smoothstep(s, s0, s1)  # noqa: E731
+
+    def line(offset, start=0.0, phase=0.0):
+        s = np.arange(start, LENGTH, 1.0)
+        s = s[((s + phase) % period) < dash]
+        return s, offset(s) + rng.normal(0.0, 0.05, s.size)
+
+    lines = [_line(rng, lambda s: np.full(s.size, 1.0), dashed=False)]
+    lines += [line(lambda s, k=k: 1.0 + k * LANE + move(s), phase=5.0 * k) for k in (1, 2, 3)]
+    lines.append(line(lambda s: 1.0 + move(s), start=s0 + 10.0))
+    edge = _outer_edge(rng, lambda s: 1.0 + 3 * LANE + 1.0 + move(s))
+    return _samples(lines), edge, move
+
+
+@pytest.mark.parametrize(("dash", "period"), [(3.0, 12.0), (6.0, 18.0)])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_fast_swing_of_broken_lines_is_found_with_the_outer_edge_as_witness(dash, period, seed):
+    """A broken line has a dash or two in a 20 m window: sheared, its samples pile up
+    little better than straight, and the rates caught none or part of a 45 m swing
+    (town06-auto-s1: 0.5 of 3.5 m with the heading bias removed, 4 routes lost; the same
+    run without it 2.2 m, snapped). The outer edge is seen all through and moves with
+    the lines: the whole swing is found, shaped like the edge's move."""
+    cfg = MainlineConfig()
+    (s, d), edge, move = _fast_swing(np.random.default_rng(seed), dash, period)
+    frame = _frame(s, d, cfg, edge)
+    assert frame is not None
+    at = np.array([100.0, 290.0, 310.0, 322.5, 335.0, 355.0, 600.0])
+    err = np.abs(frame.offset(at) - move(at))
+    # none before the swing, the lane after it (the lines' pattern says how far, within
+    # a bin or two); within 0.6 m halfway (the rates the few dashes show refine the
+    # edge's shape, and a dash or two sway it)
+    mid = (at > 300.0) & (at < 345.0)
+    assert float(np.max(err[~mid])) < 0.2, err
+    assert float(np.max(err[mid])) < 0.6, err
+    assert frame.deepest_m == pytest.approx(LANE, abs=0.15)
 
 
 @pytest.mark.parametrize("lanes", [1, 2])
@@ -81,6 +133,35 @@ def test_the_shift_of_lines_moving_out_by_lanes_is_found_where_and_how_far_it_go
     assert frame.deepest_m == pytest.approx(lanes * LANE, abs=0.15)
 
 
+def test_an_edge_moved_a_lane_farther_than_the_lines_does_not_set_the_shift():
+    """melbourne-408-opp-s4: two lanes are added beside the median (the lines move 7 m)
+    where an entry joins at the outer edge (the edge moves 10.5 m). The lines matched
+    best within half a metre of the edge's move at 10.4 m, a lane too far (lanes 0.33 m,
+    one 13 m wide); the lines' own best match is 7 m: the edge tells no lane there, and
+    the shift is the one the rates and patterns find without it."""
+    cfg = MainlineConfig()
+    rng = np.random.default_rng(4)
+    (s, d), move = _median_side_lanes_added(rng, lanes=2)
+    edge = _outer_edge(rng, lambda x: 2.0 + 3 * LANE + 1.5 * move(x))
+    frame = _frame(s, d, cfg, edge)
+    assert frame is not None
+    assert float(frame.shift[-1]) == pytest.approx(2 * LANE, abs=0.15)
+    # the patterns alone: before the stretch four lines, after it the same moved by two
+    # lanes and the innermost's two new ones; near the edge's 10.5 m the pattern matches
+    # three lines, at 7 m four
+    from roadtwin.mainline.shift import _pattern_shift
+
+    before = [1.0 + k * LANE for k in range(4)]
+    after = [1.0, 1.0 + LANE, *(1.0 + (k + 2) * LANE for k in range(4))]
+    st = np.arange(0.0, 30.0, 0.5)
+    s2 = np.concatenate([st for _ in before] + [st + 130.0 for _ in after])
+    d2 = np.concatenate([np.full(st.size, v) for v in before + after])
+    owner = np.repeat(np.arange(len(before) + len(after)), st.size)
+    near = {"near_m": 0.5}
+    assert _pattern_shift(s2, d2, owner, 30.0, 130.0, 10.5, **near) is None
+    assert _pattern_shift(s2, d2, owner, 30.0, 130.0, 7.1, **near) == pytest.approx(7.0)
+
+
 @pytest.mark.parametrize(
     "what",
     [
@@ -89,12 +170,14 @@ def test_the_shift_of_lines_moving_out_by_lanes_is_found_where_and_how_far_it_go
         "an exit's lines leaving",
         "an outer lane opening",
         "an outer lane opening fast beside a double edge line",
+        "an outer lane closing",
     ],
 )
 def test_no_shift_where_the_pattern_does_not_move_as_a_whole(what):
     """Straight lines; every line swinging out by 1 m and back (the linking follows
-    that itself); a ramp's two lines leaving the others; the edge line moving out by a
-    lane where a lane opens on the outside: the frame stays the reference line's."""
+    that itself); a ramp's two lines leaving the others; the edge line moving out (in)
+    by a lane where a lane opens (closes) on the outside: the frame stays the reference
+    line's, with or without the outer edge as a witness."""
     rng = np.random.default_rng(2)
     flat = [
         _line(rng, lambda s, k=k: np.full(s.size, 1.0 + k * LANE), dashed=0 < k < 3)
@@ -115,6 +198,10 @@ def test_no_shift_where_the_pattern_does_not_move_as_a_whole(what):
     elif what == "an outer lane opening":
         opening = lambda s: 1.0 + 3 * LANE + LANE * _smoothstep(s, 300.0, 380.0)  # noqa: E731
         lines = [*flat[:3], _line(rng, opening, dashed=False)]
+    elif what == "an outer lane closing":
+        # soderleden-s7: the solid edge line moves in onto the broken line beside it
+        opening = lambda s: 1.0 + 3 * LANE - LANE * _smoothstep(s, 300.0, 345.0)  # noqa: E731
+        lines = [*flat[:3], _line(rng, opening, dashed=False)]
     else:
         # Town06's entries: the edge line and the shoulder's split line 0.5 m beyond it
         # swing out by a lane over 45 m, a broken line goes on where the edge line was
@@ -127,6 +214,14 @@ def test_no_shift_where_the_pattern_does_not_move_as_a_whole(what):
         ]
     s, d = _samples(lines)
     assert _frame(s, d, MainlineConfig()) is None
+    # the outer edge 1 m beyond the outermost line, moving with it where a lane opens:
+    # it moves alone, or not at all, and witnesses no shift
+    if what in ("straight", "a bump of a metre", "an exit's lines leaving"):
+        d_edge = lambda s: np.full(s.size, 2.0 + 3 * LANE)  # noqa: E731
+    else:
+        d_edge = lambda s: opening(s) + 1.0  # noqa: E731
+    edge = _outer_edge(rng, d_edge)
+    assert _frame(s, d, MainlineConfig(), edge) is None
 
 
 def test_lines_that_move_out_by_two_lanes_are_whole_tracks_that_follow_them():

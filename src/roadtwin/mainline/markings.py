@@ -20,7 +20,7 @@ from ..config import MainlineConfig
 from ._common import (
     robust_offset_fit,
 )
-from .shift import ShiftFrame, common_shift
+from .shift import OuterEdge, ShiftFrame, common_shift
 
 log = logging.getLogger(__name__)
 
@@ -315,7 +315,10 @@ def _tracks_from_samples(
         return [], []
     centres, peaks = _find_track_peaks(s, d, length, cfg, below_m)
     raw = _link_tracks(peaks, cfg)
-    frame = _shift_frame(s, d, length, centres, raw, cfg)
+    witness = None
+    if d_edge is not None:
+        witness = OuterEdge(grid, d_edge if covered is None else np.where(covered, d_edge, np.nan))
+    frame = _shift_frame(s, d, length, centres, raw, cfg, witness)
     if frame is None:
         tracks, evidence = _tracks_in_frame(s, d, grid, length, cfg, d_edge, centres, raw)
     else:
@@ -351,9 +354,11 @@ def _shift_frame(
     centres: FloatArray,
     raw: list[_RawTrack],
     cfg: MainlineConfig,
+    edge: OuterEdge | None = None,
 ) -> ShiftFrame | None:
     """The marking pattern's sideways shift (:func:`.shift.common_shift`) from the linked
-    column peaks ``raw`` (tracks of two columns or more)."""
+    column peaks ``raw`` (tracks of two columns or more), with the outer edge ``edge`` as
+    a witness where it was seen."""
     raw = [tr for tr in raw if len(tr.cols) >= 2]
     if not raw:
         return None
@@ -365,6 +370,7 @@ def _shift_frame(
         np.concatenate([np.asarray(tr.d) for tr in raw]),
         np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw]),
         cfg.lane_column_m,
+        edge,
     )
 
 

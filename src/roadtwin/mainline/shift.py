@@ -15,6 +15,12 @@ penalty for a rate off 0 and for changing it); each stretch of the path off 0 is
 so that the line pattern after it matches the one before it, and kept only where it moves
 the lines by half a lane or more.
 
+Broken lines give a window a dash or two, and the rates may catch little of a fast swing.
+The outer edge, seen all through, moves with the whole pattern: where it moves by half a
+lane or more, the line patterns either side match near its move and the lines a lane or
+more inside it follow it rather than stay, the shift has the edge's shape
+(:func:`_along_edge`).
+
 Stations ``s`` and offsets ``d`` are metres in the reference line's frame (``d`` from the
 reference edge towards the carriageway); rates are metres per metre.
 """
@@ -22,6 +28,7 @@ reference edge towards the carriageway); rates are metres per metre.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +39,7 @@ from ._common import true_runs
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-__all__ = ["ShiftFrame", "common_shift"]
+__all__ = ["OuterEdge", "ShiftFrame", "common_shift"]
 
 WINDOW_M = 20.0
 """Lines are straightened over windows this long (metres) ..."""
@@ -70,6 +77,43 @@ STAY_INNER_M = 2.0
 OWNER_M = 0.6
 """A sample belongs to the line whose peak track lies this close (metres, with a column's
 spacing counted as 0.5 m)."""
+EDGE_BASE_M = 10.0
+"""The outer edge's slope is taken over this length (metres) ..."""
+EDGE_SLOPE = 0.01
+"""... and it moves where the slope is at least this (m/m) the stretch's way."""
+EDGE_STEP_SLOPE = 0.3
+"""Steeper than this (m/m) the edge steps (a gore), it does not swing with the lines."""
+EDGE_REACH_M = 100.0
+"""A stretch is widened along the edge's move by at most this (metres) either way."""
+EDGE_SEEN = 0.8
+"""The edge must have been seen at this share of the stations of a widened stretch and of
+the patterns either side to witness it."""
+INSIDE_EDGE_M = 2.5
+"""Only lines this far (metres) or more inside the outer edge tell a shift of the whole
+pattern from a lane opening or closing at the edge, which moves the lines beside it."""
+FOLLOW_M = 0.25
+"""A sample lies on a line this close (metres) when lines moved and stayed are counted;
+a line votes for the way it is found in more than ``FOLLOW_CLEAR`` times as many steps."""
+FOLLOW_CLEAR = 2.0
+EDGE_SPAN_M = 150.0
+"""A lane's shift of the whole pattern happens over at most this (metres); an edge that
+moves over a longer stretch opens or closes a lane (a gore's taper), it witnesses none."""
+EDGE_AGREE_M = 0.5
+"""Where the outer edge witnesses a stretch, its shift is the one within this (metres) of
+the edge's own move that best maps the line pattern before it onto the one after it (the
+edge tells the lane, the lines the shift) ..."""
+EDGE_MATCH_SHARE = 0.8
+"""... if that matches at least this share as well as any shift by half a lane or more
+that way, up to ``SNAP_M`` past the edge's move."""
+
+
+@dataclass(frozen=True)
+class OuterEdge:
+    """The outer road edge as a witness of the shift: offsets ``d`` (metres, reference
+    frame, NaN where no edge point was seen) at ``stations`` (metres, increasing)."""
+
+    stations: FloatArray
+    d: FloatArray
 
 
 @dataclass(frozen=True)
@@ -105,9 +149,18 @@ def common_shift(
     peak_d: FloatArray,
     peak_track: IntArray,
     column_m: float,
+    edge: OuterEdge | None = None,
 ) -> ShiftFrame | None:
     """The shift of the marking pattern along the run; None where it never shifts by
     ``MIN_TOTAL_M`` or more.
+
+    The rates the lines show catch only part of a shift where they are broken lines with
+    few dashes in a window (town06-auto-s1: 0.5 of 3.5 m). The outer edge is seen all
+    through and moves with the whole pattern (a swing after an inner exit, lanes added
+    beside the median): where it moves the stretch's way, the stretch is widened to where
+    the edge starts and stops moving, the line patterns either side are matched near the
+    edge's move (the edge tells which lane the pattern shifted by, the lines by how much),
+    and where the lines inside follow the edge the shift has the edge's shape.
 
     Parameters
     ----------
@@ -122,6 +175,8 @@ def common_shift(
         broken one): its samples are those nearest to its peaks.
     column_m
         Spacing of the histogram columns along the station (metres).
+    edge
+        The outer road edge (same frame); None: the rates and patterns alone.
     """
     starts = np.arange(0.0, max(length - WINDOW_M, 0.0) + STEP_M, STEP_M)
     mids = starts + 0.5 * WINDOW_M
@@ -132,7 +187,26 @@ def common_shift(
     if sharp is None:
         return None
     rate = _rate_path(sharp, RATES)
+    shaped = np.zeros(mids.size)  # the rates of stretches the edge shapes
+    # the edge's own moves first (the rates may have caught none of a fast swing), then
+    # the rate path's stretches where the edge moves too
+    seeds = [] if edge is None else _edge_runs(edge)
+    seeds += [
+        (mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M, float(np.sum(rate[a:b])))
+        for a, b in true_runs(rate != 0.0)
+    ]
+    for s_a, s_b, way in seeds:
+        inside = (mids >= s_a) & (mids <= s_b)
+        if edge is None or np.any(shaped[inside] != 0.0):
+            continue
+        along = _along_edge(s, d, owner, mids, s_a, s_b, way, edge)
+        if along is not None and not np.any((along != 0.0) & (shaped != 0.0)):
+            shaped += along
+    rate[shaped != 0.0] = 0.0
     for a, b in true_runs(rate != 0.0):
+        if np.any(shaped[max(a - 1, 0) : b + 1] != 0.0):
+            rate[a:b] = 0.0  # the rest of a stretch the edge shaped
+            continue
         total = float(np.sum(rate[a:b])) * STEP_M
         matched = _pattern_shift(
             s, d, owner, mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M, total
@@ -143,12 +217,12 @@ def common_shift(
         s_a, s_b = mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M
         if abs(total) < MIN_TOTAL_M or _a_line_stays(peak_s, peak_d, peak_track, s_a, s_b):
             rate[a:b] = 0.0
-    if not np.any(rate != 0.0):
+    if not np.any(rate != 0.0) and not np.any(shaped != 0.0):
         return None
     # the path leaves 0 late and comes back early (the gentle ends of a shift gain too
     # little sharpness), and is steeper in between: spread it as far as it is short
     kernel = np.bartlett(2 * SPREAD_WINDOWS + 3)[1:-1]
-    rate = np.convolve(rate, kernel / kernel.sum(), mode="same")
+    rate = np.convolve(rate, kernel / kernel.sum(), mode="same") + shaped
     # what the lines still do in that frame, found the same way at finer rates
     first_pass = ShiftFrame(mids, _integrate(rate))
     residual = _sharpness(s, d - first_pass.offset(s), owner, mids, FINE_RATES)
@@ -156,11 +230,176 @@ def common_shift(
         fine = _rate_path(residual, FINE_RATES)
         for a, b in true_runs(rate != 0.0):
             # the refined shape, with the total the line patterns either side agree on
+            # (the edge's shape too: a smoothed fit, it leads or trails the lines a little)
             total = float(np.sum(rate[a:b]))
             refined = rate[a:b] + fine[a:b]
             if abs(float(np.sum(refined))) > 1e-9:
                 rate[a:b] = refined * (total / float(np.sum(refined)))
     return ShiftFrame(mids, _integrate(rate))
+
+
+def _edge_runs(edge: OuterEdge) -> list[tuple[float, float, float]]:
+    """``(s_a, s_b, way)`` of every stretch (metres) where the outer edge moves one way
+    (``EDGE_SLOPE``, ``way`` +-1) by ``MIN_TOTAL_M`` or more from its start to its end."""
+    g, e = edge.stations, edge.d
+    seen = np.isfinite(e)
+    if np.count_nonzero(seen) < 2:
+        return []
+    slope = _edge_slope(edge)
+    out = []
+    for way in (1.0, -1.0):
+        for i, j in true_runs(way * slope >= EDGE_SLOPE):
+            ends = np.interp(g[[i, j - 1]], g[seen], e[seen])
+            if way * float(ends[1] - ends[0]) >= MIN_TOTAL_M:
+                out.append((float(g[i]), float(g[j - 1]), way))
+    return sorted(out)
+
+
+def _edge_slope(edge: OuterEdge) -> FloatArray:
+    """The outer edge's slope (m/m) at its stations over ``EDGE_BASE_M``, across the
+    stretches where it was not seen (linear)."""
+    g, e = edge.stations, edge.d
+    seen = np.isfinite(e)
+    half = 0.5 * EDGE_BASE_M
+    ahead = np.interp(g + half, g[seen], e[seen])
+    behind = np.interp(g - half, g[seen], e[seen])
+    return (ahead - behind) / EDGE_BASE_M
+
+
+def _along_edge(
+    s: FloatArray,
+    d: FloatArray,
+    owner: IntArray,
+    mids: FloatArray,
+    s_a: float,
+    s_b: float,
+    way: float,
+    edge: OuterEdge,
+) -> FloatArray | None:
+    """The rates (m/m, one per window of ``mids``) of a stretch ``[s_a, s_b]`` (metres)
+    that moves the lines ``way`` (its sign) where the outer edge witnesses it: the edge
+    moves that way there, the stretch is widened to where it starts and stops moving, the
+    line patterns either side match near the edge's move (``EDGE_AGREE_M``,
+    ``EDGE_MATCH_SHARE``), by ``MIN_TOTAL_M`` or more, and the lines inside it follow the
+    edge rather than stay (:func:`_lines_follow`). The rates follow the edge's shape,
+    scaled to the patterns' shift. None where the edge does not witness the stretch."""
+    if way == 0.0:
+        return None
+    moved = _edge_move(edge, s_a, s_b, way)
+    if moved is None:
+        return None
+    e_a, e_b, e_total = moved
+    if abs(e_total) < MIN_TOTAL_M - EDGE_AGREE_M:
+        return None
+    matched = _pattern_shift(s, d, owner, e_a, e_b, e_total, near_m=EDGE_AGREE_M)
+    if matched is None or abs(matched) < MIN_TOTAL_M:
+        return None
+    seen = np.isfinite(edge.d)
+    e_at = lambda x: np.interp(x, edge.stations[seen], edge.d[seen])  # noqa: E731
+    e_made = float(e_at(e_b) - e_at(e_a))
+    if way * e_made <= 0.0:
+        return None
+    move = lambda x: (e_at(np.clip(x, e_a, e_b)) - e_at(e_a)) * (matched / e_made)  # noqa: E731
+    before = (edge.stations >= e_a - PATTERN_M) & (edge.stations < e_a) & seen
+    inner = float(np.median(edge.d[before])) - INSIDE_EDGE_M
+    if not _lines_follow(s, d, owner, e_a, e_b, move, inner):
+        return None
+    lo = mids - 0.5 * STEP_M
+    return (move(mids + 0.5 * STEP_M) - move(lo)) / STEP_M
+
+
+def _lines_follow(
+    s: FloatArray,
+    d: FloatArray,
+    owner: IntArray,
+    s_a: float,
+    s_b: float,
+    move: Callable[[FloatArray], FloatArray],
+    inside_of: float,
+) -> bool:
+    """Whether the lines seen before a stretch ``[s_a, s_b]`` (metres; over twice
+    ``PATTERN_M``, broken lines are sparse) and lying inside ``inside_of`` (metres, a lane
+    inside the outer edge) are found inside it moved by ``move(s)`` (metres) rather than
+    where they were. Counted where the moved lines lie ``2 * FOLLOW_M`` or more from where
+    they were and from where they end (a lane's shift brings each line to the next one's
+    place): a line is found in a step of ``STEP_M`` where a sample lies within
+    ``FOLLOW_M`` of it, and votes for where it is found ``FOLLOW_CLEAR`` times as often;
+    more lines must vote for the move than against it, and more than half of them. A lane
+    opening or closing at the outer edge moves the edge and the lines beside it alone
+    (the edge line and a shoulder's split, soderleden-s7, Town06's entries) while the lane
+    lines stay; a swing or a lane added beside the median moves all lines but the
+    innermost (which does not vote). Lines vote, not samples: a solid line must not
+    outweigh broken ones."""
+    before = (s >= s_a - 2.0 * PATTERN_M) & (s < s_a) & (owner >= 0)
+    if not before.any():
+        return False
+    tracks, inverse, counts = np.unique(owner[before], return_inverse=True, return_counts=True)
+    lines = np.sort(
+        [np.median(d[before][inverse == k]) for k in range(tracks.size) if counts[k] >= 3]
+    )
+    # one line seen as two tracks votes once; the lines beside the edge do not vote
+    lines = (
+        lines[np.concatenate([[True], np.diff(lines) >= 2.0 * FOLLOW_M])] if lines.size else lines
+    )
+    # nor does the innermost: it stays in every case
+    lines = lines[1:][lines[1:] <= inside_of]
+    # only where the moved lines lie apart from where they were and from the next line's
+    # place (a shift by a lane brings each line to the next one's)
+    made = move(s)
+    total = float(move(np.array([s_b]))[0])
+    apart = (np.abs(made) >= 2.0 * FOLLOW_M) & (np.abs(total - made) >= 2.0 * FOLLOW_M)
+    inside = (s >= s_a) & (s <= s_b) & apart
+    if lines.size == 0 or not inside.any():
+        return False
+    s_in, d_in = s[inside], d[inside]
+    step = np.floor((s_in - s_a) / STEP_M).astype(np.int64)
+
+    def found(shift: FloatArray) -> IntArray:
+        """Per line: in how many steps of ``STEP_M`` a sample lies on it."""
+        near = np.abs(d_in[:, None] - (lines[None, :] + shift[:, None])) < FOLLOW_M
+        hit_step, hit_line = np.nonzero(near)
+        pairs = np.unique(step[hit_step] * lines.size + hit_line)
+        return np.bincount(pairs % lines.size, minlength=lines.size)
+
+    moved, stayed = found(made[inside]), found(np.zeros(s_in.size))
+    # a line votes where it is found clearly more often one way; most lines must vote
+    # for the move (a line seen on one side only, or as often either way, does not)
+    for_move = int(np.sum(moved > FOLLOW_CLEAR * stayed))
+    return for_move > int(np.sum(stayed > FOLLOW_CLEAR * moved)) and 2 * for_move > lines.size
+
+
+def _edge_move(
+    edge: OuterEdge, s_a: float, s_b: float, total: float
+) -> tuple[float, float, float] | None:
+    """``(s_a', s_b', move)``: the stretch ``[s_a, s_b]`` (metres) widened to where the
+    outer edge starts and stops moving the way of ``total`` through it, and how far
+    (metres) the edge moved (median over ``PATTERN_M`` after less before). None where the
+    edge does not move that way inside the stretch, moves on beyond ``EDGE_REACH_M``,
+    steps (``EDGE_STEP_SLOPE``) or was seen too little (``EDGE_SEEN``)."""
+    g, e = edge.stations, edge.d
+    seen = np.isfinite(e)
+    if np.count_nonzero(seen) < 2:
+        return None
+    slope = _edge_slope(edge)
+    moving = np.sign(total) * slope >= EDGE_SLOPE
+    runs = [(g[i], g[j - 1]) for i, j in true_runs(moving) if g[j - 1] >= s_a and g[i] <= s_b]
+    if not runs:
+        return None
+    new_a, new_b = min(s_a, runs[0][0]), max(s_b, runs[-1][1])
+    if new_a < s_a - EDGE_REACH_M or new_b > s_b + EDGE_REACH_M or new_b - new_a > EDGE_SPAN_M:
+        return None
+    inside = (g >= new_a) & (g <= new_b)
+    if float(np.max(np.abs(slope[inside]))) > EDGE_STEP_SLOPE:
+        return None
+    before = (g >= new_a - PATTERN_M) & (g < new_a)
+    after = (g > new_b) & (g <= new_b + PATTERN_M)
+    around = before | inside | after
+    if not before.any() or not after.any():
+        return None
+    if min(float(np.mean(seen[m])) for m in (before, after, around)) < EDGE_SEEN:
+        return None
+    move = float(np.median(e[after & seen]) - np.median(e[before & seen]))
+    return new_a, new_b, move
 
 
 def _a_line_stays(
@@ -282,12 +521,21 @@ def _rate_path(sharp: FloatArray, rates: FloatArray) -> FloatArray:
 
 
 def _pattern_shift(
-    s: FloatArray, d: FloatArray, owner: IntArray, s_a: float, s_b: float, total: float
+    s: FloatArray,
+    d: FloatArray,
+    owner: IntArray,
+    s_a: float,
+    s_b: float,
+    total: float,
+    near_m: float | None = None,
 ) -> float | None:
     """The shift (metres) that best maps the line pattern over ``PATTERN_M`` before
     ``s_a`` onto the one after ``s_b``, within ``SNAP_M`` of ``total``; None without lines
     on either side. The rates integrate to a total a few tenths short or long (a window's
-    sharpest rate averages over the window); the patterns say it to a bin."""
+    sharpest rate averages over the window); the patterns say it to a bin. With
+    ``near_m`` (metres): the best shift within that of ``total`` (the outer edge's move,
+    which tells the lane), None where it matches less than ``EDGE_MATCH_SHARE`` as well
+    as the best shift by ``MIN_TOTAL_M`` up to ``SNAP_M`` past ``total`` that way."""
     from scipy.ndimage import gaussian_filter1d
 
     lo_d = float(np.min(d)) - 10.0
@@ -301,13 +549,19 @@ def _pattern_shift(
         b = np.clip(((d[sel] - lo_d) / BIN_M).astype(np.int64), 0, n_bin - 1)
         return gaussian_filter1d(np.bincount(b, 1.0 / counts[inverse], minlength=n_bin), 2.0)
 
-    before = pattern(s_a - PATTERN_M, s_a)
-    after = pattern(s_b, s_b + PATTERN_M)
+    # near the edge's move the patterns are compared over twice the length: no other
+    # lane's shift competes, and broken lines give few dashes over one
+    reach = PATTERN_M if near_m is None else 2.0 * PATTERN_M
+    before = pattern(s_a - reach, s_a)
+    after = pattern(s_b, s_b + reach)
     if before is None or after is None:
         return None
-    shifts = np.round(np.arange(total - SNAP_M, total + SNAP_M + 1e-9, BIN_M) / BIN_M).astype(
-        np.int64
-    )
+    lo, hi = total - SNAP_M, total + SNAP_M
+    if near_m is not None:
+        # every shift by half a lane or more the edge's way up to past its move competes
+        # (an entry beside the edge moved it a lane farther than the lines went)
+        lo, hi = (MIN_TOTAL_M, hi) if total > 0.0 else (lo, -MIN_TOTAL_M)
+    shifts = np.round(np.arange(lo, hi + 1e-9, BIN_M) / BIN_M).astype(np.int64)
     score = np.array(
         [
             float(
@@ -320,4 +574,9 @@ def _pattern_shift(
     )
     if score.max() <= 0.0:
         return None
-    return float(shifts[int(np.argmax(score))] * BIN_M)
+    if near_m is None:
+        return float(shifts[int(np.argmax(score))] * BIN_M)
+    close = np.abs(shifts * BIN_M - total) <= near_m + 1e-9
+    if not close.any() or float(np.max(score[close])) < EDGE_MATCH_SHARE * float(score.max()):
+        return None
+    return float(shifts[close][int(np.argmax(score[close]))] * BIN_M)
