@@ -102,7 +102,7 @@ EDGE_AGREE_M = 0.5
 """Where the outer edge witnesses a stretch, its shift is the one within this (metres) of
 the edge's own move that best maps the line pattern before it onto the one after it (the
 edge tells the lane, the lines the shift) ..."""
-EDGE_MATCH_SHARE = 0.8
+EDGE_MATCH_SHARE = 0.95
 """... if that matches at least this share as well as any shift by half a lane or more
 that way, up to ``SNAP_M`` past the edge's move."""
 
