@@ -127,9 +127,11 @@ class MainlineConfig:
     """Default method: turn the lane samples back by the poses' heading error that near
     and far samples of the same line show (:mod:`roadtwin.heading_bias`). Off by default:
     on the real-layout benchmark it moves lane borders 1-3 cm closer to the truth on most
-    runs (median lane RMSE 0.026 -> 0.024 m, noisier sensor 0.058 -> 0.053 m), but the
-    sideways-shift and hidden-lane decisions of a few runs flip with it (a Town06 run lost
-    four routes), so fewer runs stay within 0.10 m (benchmarks/RESULTS.md, session 23)."""
+    runs (median lane RMSE 0.026 -> 0.024 m, the lane count right at 99 % of the stations
+    on every run; noisier sensor 0.057 -> 0.052 and 0.062 -> 0.056 m), but with the
+    noisier sensor the lane-structure decisions (tapers, sideways shifts) of more runs
+    flip for the worse than for the better: 9 of 160 maps with a lane over 6 m, a failed
+    route or a missed ramp, against 3 (benchmarks/RESULTS.md, session 24)."""
     fit_tolerance_m: float = 0.02
     """Max deviation of the ParamPoly3 pieces from the smooth fitted edge (metres)."""
     paper_window_m: float = 100.0
