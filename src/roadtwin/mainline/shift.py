@@ -190,14 +190,14 @@ def common_shift(
     shaped = np.zeros(mids.size)  # the rates of stretches the edge shapes
     # the edge's own moves first (the rates may have caught none of a fast swing), then
     # the rate path's stretches where the edge moves too
-    seeds = [] if edge is None else _edge_runs(edge)
-    seeds += [
-        (mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M, float(np.sum(rate[a:b])))
-        for a, b in true_runs(rate != 0.0)
-    ]
+    seeds: list[tuple[float, float, float]] = []
+    if edge is not None:
+        seeds = _edge_runs(edge) + [
+            (mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M, float(np.sum(rate[a:b])))
+            for a, b in true_runs(rate != 0.0)
+        ]
     for s_a, s_b, way in seeds:
-        inside = (mids >= s_a) & (mids <= s_b)
-        if edge is None or np.any(shaped[inside] != 0.0):
+        if edge is None or np.any(shaped[(mids >= s_a) & (mids <= s_b)] != 0.0):
             continue
         along = _along_edge(s, d, owner, mids, s_a, s_b, way, edge)
         if along is not None and not np.any((along != 0.0) & (shaped != 0.0)):
