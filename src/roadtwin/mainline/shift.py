@@ -337,11 +337,11 @@ def _lines_follow(
     lines = np.sort(
         [np.median(d[before][inverse == k]) for k in range(tracks.size) if counts[k] >= 3]
     )
-    # one line seen as two tracks votes once; the lines beside the edge do not vote
+    # one line seen as two tracks votes once
     lines = (
         lines[np.concatenate([[True], np.diff(lines) >= 2.0 * FOLLOW_M])] if lines.size else lines
     )
-    # nor does the innermost: it stays in every case
+    # neither the innermost (it stays in every case) nor the lines beside the edge vote
     lines = lines[1:][lines[1:] <= inside_of]
     # only where the moved lines lie apart from where they were and from the next line's
     # place (a shift by a lane brings each line to the next one's)
