@@ -191,6 +191,11 @@ def _taper(
     s50 = (0.5 * w_full - icpt) / slope
     taper = float(min(1.5 * w_full / abs(slope), cfg.lane_taper_max_m))
     s_edge = float(grid[i_edge])
+    if abs(s50 - s_edge) > cfg.lane_taper_max_m:
+        # the separation hardly changes where it was seen, and its trend meets the
+        # neighbour farther off than any taper: no taper of this line (an unseen line
+        # found again after a sideways shift got one 700 m long, outside the edge)
+        return None
     if end == "start":
         s_zero = float(np.clip(s50 - 0.5 * taper, grid[0], s_edge))
     else:
