@@ -1,5 +1,4 @@
-"""A track's taper (roadtwin.mainline.tapers._taper) stays within a taper's length of
-where the track was seen."""
+"""A track's taper (roadtwin.mainline.tapers._taper) reaches where the track was seen."""
 
 from __future__ import annotations
 
@@ -15,7 +14,7 @@ def test_a_line_seen_at_a_steady_separation_gets_no_taper_from_far_off():
     Its separation near where it starts lies just under 0.7 of the 90th percentile, so
     the flat stretch was fitted as a taper's middle: the line met its neighbour 700 m
     back, at the run's start, and was drawn outside the road edge all that way. A taper
-    whose middle lies farther from the line's start than the longest taper is none."""
+    that would have ended before the line was first seen is none."""
     cfg = MainlineConfig()
     grid = np.arange(0.0, 1500.0, cfg.grid_step_m)
     # the separation drifts by 2 cm over the first 57 m, then the neighbour swings 1.75 m

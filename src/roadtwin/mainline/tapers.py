@@ -191,15 +191,16 @@ def _taper(
     s50 = (0.5 * w_full - icpt) / slope
     taper = float(min(1.5 * w_full / abs(slope), cfg.lane_taper_max_m))
     s_edge = float(grid[i_edge])
-    if abs(s50 - s_edge) > cfg.lane_taper_max_m:
-        # the separation hardly changes where it was seen, and its trend meets the
-        # neighbour farther off than any taper: no taper of this line (an unseen line
-        # found again after a sideways shift got one 700 m long, outside the edge)
-        return None
     if end == "start":
         s_zero = float(np.clip(s50 - 0.5 * taper, grid[0], s_edge))
     else:
         s_zero = float(np.clip(s50 + 0.5 * taper, s_edge, grid[-1]))
+    if abs(s_edge - s_zero) > taper:
+        # the taper would have ended before the line was first seen (begun after it was
+        # last seen): the line runs at full width there, it does not open or close (a
+        # line seen at a steady separation from 703 m got a taper from the run's start,
+        # outside the edge, town06-auto-lane1-s21+80)
+        return None
     refined = _fit_taper(samples, dmat[jn], grid, s_zero, taper, w_full, end, cfg)
     if refined is not None:
         # the taper model replaces the smoothed track over the whole taper: the smoother
