@@ -131,7 +131,8 @@ class MainlineConfig:
     on every run; noisier sensor 0.057 -> 0.052 and 0.062 -> 0.056 m), but with the
     noisier sensor the lane-structure decisions (tapers, sideways shifts) of more runs
     flip for the worse than for the better: 9 of 160 maps with a lane over 6 m, a failed
-    route or a missed ramp, against 2-3 (benchmarks/RESULTS.md, session 24)."""
+    route or a missed ramp, against 3 at the same commit (benchmarks/RESULTS.md,
+    session 24)."""
     fit_tolerance_m: float = 0.02
     """Max deviation of the ParamPoly3 pieces from the smooth fitted edge (metres)."""
     paper_window_m: float = 100.0
