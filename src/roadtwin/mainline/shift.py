@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -115,6 +116,22 @@ class OuterEdge:
     stations: FloatArray
     d: FloatArray
 
+    @cached_property
+    def seen(self) -> NDArray[np.bool_]:
+        """Where an edge point was seen."""
+        return np.isfinite(self.d)
+
+    def at(self, s: FloatArray) -> FloatArray:
+        """The edge's offset (metres) at stations ``s``, linear across where it was not
+        seen."""
+        return np.interp(s, self.stations[self.seen], self.d[self.seen])
+
+    @cached_property
+    def slope(self) -> FloatArray:
+        """The edge's slope (m/m) at its stations over ``EDGE_BASE_M``."""
+        half = 0.5 * EDGE_BASE_M
+        return (self.at(self.stations + half) - self.at(self.stations - half)) / EDGE_BASE_M
+
 
 @dataclass(frozen=True)
 class ShiftFrame:
@@ -190,18 +207,17 @@ def common_shift(
     shaped = np.zeros(mids.size)  # the rates of stretches the edge shapes
     # the edge's own moves first (the rates may have caught none of a fast swing), then
     # the rate path's stretches where the edge moves too
-    seeds: list[tuple[float, float, float]] = []
-    if edge is not None:
+    if edge is not None and np.count_nonzero(edge.seen) >= 2:
         seeds = _edge_runs(edge) + [
             (mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M, float(np.sum(rate[a:b])))
             for a, b in true_runs(rate != 0.0)
         ]
-    for s_a, s_b, way in seeds:
-        if edge is None or np.any(shaped[(mids >= s_a) & (mids <= s_b)] != 0.0):
-            continue
-        along = _along_edge(s, d, owner, mids, s_a, s_b, way, edge)
-        if along is not None and not np.any((along != 0.0) & (shaped != 0.0)):
-            shaped += along
+        for s_a, s_b, way in seeds:
+            if np.any(shaped[(mids >= s_a) & (mids <= s_b)] != 0.0):
+                continue
+            along = _along_edge(s, d, owner, mids, s_a, s_b, way, edge)
+            if along is not None and not np.any((along != 0.0) & (shaped != 0.0)):
+                shaped += along
     rate[shaped != 0.0] = 0.0
     for a, b in true_runs(rate != 0.0):
         if np.any(shaped[max(a - 1, 0) : b + 1] != 0.0):
@@ -241,29 +257,14 @@ def common_shift(
 def _edge_runs(edge: OuterEdge) -> list[tuple[float, float, float]]:
     """``(s_a, s_b, way)`` of every stretch (metres) where the outer edge moves one way
     (``EDGE_SLOPE``, ``way`` +-1) by ``MIN_TOTAL_M`` or more from its start to its end."""
-    g, e = edge.stations, edge.d
-    seen = np.isfinite(e)
-    if np.count_nonzero(seen) < 2:
-        return []
-    slope = _edge_slope(edge)
+    g = edge.stations
     out = []
     for way in (1.0, -1.0):
-        for i, j in true_runs(way * slope >= EDGE_SLOPE):
-            ends = np.interp(g[[i, j - 1]], g[seen], e[seen])
+        for i, j in true_runs(way * edge.slope >= EDGE_SLOPE):
+            ends = edge.at(g[[i, j - 1]])
             if way * float(ends[1] - ends[0]) >= MIN_TOTAL_M:
                 out.append((float(g[i]), float(g[j - 1]), way))
     return sorted(out)
-
-
-def _edge_slope(edge: OuterEdge) -> FloatArray:
-    """The outer edge's slope (m/m) at its stations over ``EDGE_BASE_M``, across the
-    stretches where it was not seen (linear)."""
-    g, e = edge.stations, edge.d
-    seen = np.isfinite(e)
-    half = 0.5 * EDGE_BASE_M
-    ahead = np.interp(g + half, g[seen], e[seen])
-    behind = np.interp(g - half, g[seen], e[seen])
-    return (ahead - behind) / EDGE_BASE_M
 
 
 def _along_edge(
@@ -288,21 +289,18 @@ def _along_edge(
     moved = _edge_move(edge, s_a, s_b, way)
     if moved is None:
         return None
-    e_a, e_b, e_total = moved
+    e_a, e_b, e_total, level = moved
     if abs(e_total) < MIN_TOTAL_M - EDGE_AGREE_M:
         return None
     matched = _pattern_shift(s, d, owner, e_a, e_b, e_total, near_m=EDGE_AGREE_M)
     if matched is None or abs(matched) < MIN_TOTAL_M:
         return None
-    seen = np.isfinite(edge.d)
-    e_at = lambda x: np.interp(x, edge.stations[seen], edge.d[seen])  # noqa: E731
-    e_made = float(e_at(e_b) - e_at(e_a))
+    start = float(edge.at(e_a))
+    e_made = float(edge.at(e_b)) - start
     if way * e_made <= 0.0:
         return None
-    move = lambda x: (e_at(np.clip(x, e_a, e_b)) - e_at(e_a)) * (matched / e_made)  # noqa: E731
-    before = (edge.stations >= e_a - PATTERN_M) & (edge.stations < e_a) & seen
-    inner = float(np.median(edge.d[before])) - INSIDE_EDGE_M
-    if not _lines_follow(s, d, owner, e_a, e_b, move, inner):
+    move = lambda x: (edge.at(np.clip(x, e_a, e_b)) - start) * (matched / e_made)  # noqa: E731
+    if not _lines_follow(s, d, owner, e_a, e_b, move, level - INSIDE_EDGE_M):
         return None
     lo = mids - 0.5 * STEP_M
     return (move(mids + 0.5 * STEP_M) - move(lo)) / STEP_M
@@ -345,13 +343,13 @@ def _lines_follow(
     lines = lines[1:][lines[1:] <= inside_of]
     # only where the moved lines lie apart from where they were and from the next line's
     # place (a shift by a lane brings each line to the next one's)
-    made = move(s)
+    s_in, d_in = s[(s >= s_a) & (s <= s_b)], d[(s >= s_a) & (s <= s_b)]
+    made = move(s_in)
     total = float(move(np.array([s_b]))[0])
     apart = (np.abs(made) >= 2.0 * FOLLOW_M) & (np.abs(total - made) >= 2.0 * FOLLOW_M)
-    inside = (s >= s_a) & (s <= s_b) & apart
-    if lines.size == 0 or not inside.any():
+    if lines.size == 0 or not apart.any():
         return False
-    s_in, d_in = s[inside], d[inside]
+    s_in, d_in, made = s_in[apart], d_in[apart], made[apart]
     step = np.floor((s_in - s_a) / STEP_M).astype(np.int64)
 
     def found(shift: FloatArray) -> IntArray:
@@ -361,7 +359,7 @@ def _lines_follow(
         pairs = np.unique(step[hit_step] * lines.size + hit_line)
         return np.bincount(pairs % lines.size, minlength=lines.size)
 
-    moved, stayed = found(made[inside]), found(np.zeros(s_in.size))
+    moved, stayed = found(made), found(np.zeros(s_in.size))
     # a line votes where it is found clearly more often one way; most lines must vote
     # for the move (a line seen on one side only, or as often either way, does not)
     for_move = int(np.sum(moved > FOLLOW_CLEAR * stayed))
@@ -370,17 +368,14 @@ def _lines_follow(
 
 def _edge_move(
     edge: OuterEdge, s_a: float, s_b: float, total: float
-) -> tuple[float, float, float] | None:
-    """``(s_a', s_b', move)``: the stretch ``[s_a, s_b]`` (metres) widened to where the
-    outer edge starts and stops moving the way of ``total`` through it, and how far
-    (metres) the edge moved (median over ``PATTERN_M`` after less before). None where the
-    edge does not move that way inside the stretch, moves on beyond ``EDGE_REACH_M``,
-    steps (``EDGE_STEP_SLOPE``) or was seen too little (``EDGE_SEEN``)."""
-    g, e = edge.stations, edge.d
-    seen = np.isfinite(e)
-    if np.count_nonzero(seen) < 2:
-        return None
-    slope = _edge_slope(edge)
+) -> tuple[float, float, float, float] | None:
+    """``(s_a', s_b', move, level)``: the stretch ``[s_a, s_b]`` (metres) widened to where
+    the outer edge starts and stops moving the way of ``total`` through it, how far
+    (metres) the edge moved (median over ``PATTERN_M`` after less before) and its level
+    before (that median, metres). None where the edge does not move that way inside the
+    stretch, moves on beyond ``EDGE_REACH_M``, steps (``EDGE_STEP_SLOPE``) or was seen too
+    little (``EDGE_SEEN``)."""
+    g, e, seen, slope = edge.stations, edge.d, edge.seen, edge.slope
     moving = np.sign(total) * slope >= EDGE_SLOPE
     runs = [(g[i], g[j - 1]) for i, j in true_runs(moving) if g[j - 1] >= s_a and g[i] <= s_b]
     if not runs:
@@ -398,8 +393,8 @@ def _edge_move(
         return None
     if min(float(np.mean(seen[m])) for m in (before, after, around)) < EDGE_SEEN:
         return None
-    move = float(np.median(e[after & seen]) - np.median(e[before & seen]))
-    return new_a, new_b, move
+    level = float(np.median(e[before & seen]))
+    return new_a, new_b, float(np.median(e[after & seen])) - level, level
 
 
 def _a_line_stays(
