@@ -175,6 +175,7 @@ def fit_lanes(
             np.asarray(hidden),
             breaks,
             taper_length,
+            (s_outer[used], d_outer[used]),
         )
         if cfg.painted_gore_max_m > 0.0:
             tracks, d_edge, breaks, painted = move_gores_to_paint(

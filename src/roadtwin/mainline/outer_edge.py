@@ -21,6 +21,7 @@ from ._common import (
     true_runs,
 )
 from .edge_levels import edge_level_path, refine_step
+from .gap_tapers import fitted_gap_taper, taper_widths
 from .gores import (
     ShoulderTaper,
     taper_width,
@@ -339,6 +340,7 @@ def _bridge_edge_gaps(
     hidden_steps: FloatArray | None = None,
     seen_steps: FloatArray | None = None,
     taper_length_m: float = 60.0,
+    points: tuple[FloatArray, FloatArray] | None = None,
 ) -> FloatArray:
     """Across occlusion gaps of the outer edge, keep the outer-shoulder width (edge minus
     outermost marking) linear between the gap ends instead of the edge offset itself, so
@@ -349,6 +351,12 @@ def _bridge_edge_gaps(
     gap (krems-30799129-s11, noisier sensor: the acceleration lane's outer line was first
     seen 4 m past the gap, and the edge widened linearly over the 146 m gap, 2.9 m off at
     its end).
+
+    A lane opening or closing at the edge inside a gap with no gore there (the outermost
+    marking goes on) is fitted to the seen part of its taper when ``points`` (stations and
+    offsets of the mainline edge points, metres) show the edge still moving next to the
+    gap (:mod:`.gap_tapers`; a9-239192816-lane1-s21 with a noisier sensor: an auxiliary
+    lane closing over 50 m inside a 106 m gap was bridged as a 106 m taper, 1.2 m off).
 
     A gap that begins at an exit's seen step (ends at an entry's; ``seen_steps``:
     stations, metres, within ``_GORE_AT_GAP_M``) hides the hard
@@ -420,5 +428,28 @@ def _bridge_edge_gaps(
                     x = (n_after - (k[after] - j - 1)) / (n_after + 1)  # 1 at the gore
                     m1 = -widening / 20.0 * (grid[i1] - grid[a + j + 1])
                     hw[after] = np.maximum(_hermite01(x, hw1, m1), 0.0)
+        elif points is not None:
+            taper = _seen_taper(points, d_last, grid, a, b, hw0, hw1)
+            if taper is not None:
+                hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
+
+
+def _seen_taper(
+    points: tuple[FloatArray, FloatArray],
+    d_last: FloatArray,
+    grid: FloatArray,
+    a: int,
+    b: int,
+    hw0: float,
+    hw1: float,
+) -> tuple[float, float, float, float] | None:
+    """:func:`.gap_tapers.fitted_gap_taper` for the gap ``grid[a:b]``: the shoulder widths
+    of the edge points against the outermost marking (``d_last``, metres on ``grid``)."""
+    s_pts, d_pts = points
+    have = np.isfinite(d_last)
+    if np.count_nonzero(have) < 2:
+        return None
+    width = d_pts - np.interp(s_pts, grid[have], d_last[have])
+    return fitted_gap_taper(s_pts, width, (float(grid[a]), float(grid[b - 1])), (hw0, hw1))

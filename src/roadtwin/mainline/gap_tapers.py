@@ -1,0 +1,129 @@
+"""A lane that opens or closes at the outer edge while the edge is hidden: its taper
+fitted to the part of it the sensor saw next to the gap.
+
+Where the outer edge is occluded over a lane's taper, the shoulder width (edge minus
+outermost marking) differs by a lane across the gap. Bridged linearly, the lane opens or
+closes over the whole gap. When the taper's head or tail was seen (the edge still moving
+where it comes out of the gap), a cubic taper fitted to the seen shoulder widths places
+it; when nothing of it was seen, the linear bridge stays (with the taper anywhere in the
+gap equally likely, it is the least-squares guess).
+
+Stations ``s`` and offsets are metres in the reference line's frame (offsets from the
+reference edge towards the outer edge).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .gores import smoothstep
+
+FloatArray = NDArray[np.float64]
+
+TAPER_MIN_WIDTH_M = 1.0  # the shoulder changes by at least this across the gap: a lane
+SIDE_M = 60.0  # seen samples this far either side of the gap are fitted
+START_STEP_M = 1.0  # taper starts tried this far apart (metres)
+LENGTHS_M = np.arange(10.0, 251.0, 5.0)  # taper lengths tried (metres)
+RESIDUAL_CAP_M = 0.3  # a sample this far off counts as an outlier (truncated squares)
+GAIN_M2 = 0.05  # the seen taper explains the samples better than any hidden one by this
+LEVEL_SLACK_M = 1.0  # the fitted levels lie this close to the gap ends' widths (metres)
+END_AGREE_M = 0.3  # the taper passes this close to the widths seen at the gap's ends
+
+
+def fitted_gap_taper(
+    s_seen: FloatArray,
+    width_seen: FloatArray,
+    gap: tuple[float, float],
+    widths: tuple[float, float],
+) -> tuple[float, float, float, float] | None:
+    """A cubic taper of the shoulder width across an occlusion gap of the outer edge.
+
+    Every taper start (``START_STEP_M`` apart, from ``SIDE_M`` before the gap to its end)
+    and length (``LENGTHS_M``) is tried, its two levels solved by least squares, and
+    scored by truncated squares (``RESIDUAL_CAP_M``). The best taper is taken when it
+    explains the seen widths better by ``GAIN_M2`` (square metres) than the best taper
+    lying wholly inside the gap, which any linear-like bridge is: the seen samples then
+    hold part of the taper. Only tapers that pass within ``END_AGREE_M`` of the widths
+    seen at the gap's ends are tried.
+
+    Parameters
+    ----------
+    s_seen, width_seen
+        Stations (metres) and shoulder widths (metres, outer edge minus outermost marking)
+        of the edge points seen on both sides of the gap.
+    gap
+        First and last station of the gap (metres).
+    widths
+        Shoulder width (metres) at the seen station before and after the gap.
+
+    Returns
+    -------
+    ``(s_start, length, width_before, width_after)`` (metres) of the taper
+    ``width_before + (width_after - width_before) * smoothstep((s - s_start) / length)``,
+    or None where the widths do not differ by a lane or the taper was not seen.
+    """
+    lo, hi = gap
+    w0, w1 = widths
+    if abs(w1 - w0) < TAPER_MIN_WIDTH_M or hi <= lo:
+        return None
+    near = (s_seen >= lo - SIDE_M) & (s_seen <= hi + SIDE_M)
+    near &= (s_seen < lo) | (s_seen > hi)
+    s, w = _bin_medians(s_seen[near], width_seen[near])
+    if min(np.count_nonzero(s < lo), np.count_nonzero(s > hi)) < _MIN_SIDE_SAMPLES:
+        return None
+    starts = np.arange(lo - SIDE_M, hi + 0.5 * START_STEP_M, START_STEP_M)
+    s0, length = (m.ravel() for m in np.meshgrid(starts, LENGTHS_M, indexing="ij"))
+    ramp = smoothstep((s[None, :] - s0[:, None]) / length[:, None])  # (combos, samples)
+    # levels by least squares: w = wa (1 - r) + wb r
+    n = s.size
+    sr, srr = ramp.sum(axis=1), (ramp * ramp).sum(axis=1)
+    sw, swr = w.sum(), ramp @ w
+    # normal equations of [1, r] x [wa, wb - wa]
+    det = n * srr - sr * sr
+    ok = det > 1e-9
+    det = np.where(ok, det, 1.0)
+    wa = (srr * sw - sr * swr) / det
+    dw = (n * swr - sr * sw) / det
+    wb = wa + dw
+    plausible = ok & (np.abs(wa - w0) <= LEVEL_SLACK_M) & (np.abs(wb - w1) <= LEVEL_SLACK_M)
+    plausible &= np.abs(dw) >= TAPER_MIN_WIDTH_M
+    # the taper meets what was seen where the gap begins and ends (a shoulder already
+    # widening before the gap is no flat level there: a9-239192816-s11, noisier sensor)
+    for s_end, w_end in ((lo, w0), (hi, w1)):
+        at_end = wa + dw * smoothstep((s_end - s0) / length)
+        plausible &= np.abs(at_end - w_end) <= END_AGREE_M
+    resid = wa[:, None] + dw[:, None] * ramp - w[None, :]
+    cost = np.minimum(resid**2, RESIDUAL_CAP_M**2).sum(axis=1)
+    cost = np.where(plausible, cost, np.inf)
+    hidden = (s0 >= lo) & (s0 + length <= hi)
+    best = int(np.argmin(cost))
+    if not np.isfinite(cost[best]) or hidden[best]:
+        return None
+    best_hidden = float(np.min(np.where(hidden, cost, np.inf)))
+    if np.isfinite(best_hidden) and best_hidden - cost[best] < GAIN_M2:
+        return None
+    return float(s0[best]), float(length[best]), float(wa[best]), float(wb[best])
+
+
+_MIN_SIDE_SAMPLES = 5  # seen metres of edge needed on each side of the gap
+_BIN_M = 1.0  # the samples are reduced to medians per this many metres
+
+
+def _bin_medians(s: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Bin centre and median width per ``_BIN_M`` bin of stations ``s`` (metres): the
+    fit's cost does not grow with the point density."""
+    if s.size == 0:
+        return s, w
+    key = np.floor(s / _BIN_M).astype(np.int64)
+    order = np.lexsort((w, key))
+    key, w_o = key[order], w[order]
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    last = np.r_[first[1:], key.size]
+    return (key[first] + 0.5) * _BIN_M, w_o[(first + last - 1) // 2]
+
+
+def taper_widths(taper: tuple[float, float, float, float], s: FloatArray) -> FloatArray:
+    """Shoulder width (metres) of a :func:`fitted_gap_taper` result at stations ``s``."""
+    s_start, length, wa, wb = taper
+    return wa + (wb - wa) * smoothstep((np.asarray(s, dtype=float) - s_start) / length)
