@@ -97,3 +97,23 @@ def test_the_fit_places_a_seen_head_or_tail_and_ignores_outliers():
     # a shoulder that changes by less than a lane is no lane's taper
     w = 0.5 + 0.4 * _smoothstep((s - 1300.0) / 40.0)
     assert fitted_gap_taper(s, w, gap, (0.5, 0.7)) is None
+
+
+def test_widths_of_another_road_beyond_the_taper_do_not_pull_its_levels():
+    """oakland-11197879-s3 (seed 80): an acceleration lane closing over 840-905 m, the edge
+    hidden from 801 to 879 m; 45 m after the gap a ramp's edge takes over the outer points
+    (widths of 6-10 m). Solved with them, no taper's levels stayed near the gap's widths
+    and the lane closed linearly over the gap (edge 0.110 m); they are left out."""
+    rng = np.random.default_rng(4)
+    gap = (801.0, 879.0)
+    s = np.arange(740.0, 940.0, 2.5)
+    s = s[(s < gap[0]) | (s > gap[1])]
+    true = 3.1 - 2.8 * _smoothstep((s - 840.0) / 65.0)
+    w = true + rng.normal(0.0, 0.05, s.size)
+    w[s > 925.0] = rng.uniform(6.0, 10.0, np.count_nonzero(s > 925.0))
+    ends = tuple(3.1 - 2.8 * _smoothstep((np.array(gap) - 840.0) / 65.0))
+    found = fitted_gap_taper(s, w, gap, ends)
+    assert found is not None
+    stations = np.arange(gap[0], gap[1])
+    expected = 3.1 - 2.8 * _smoothstep((stations - 840.0) / 65.0)
+    assert np.max(np.abs(taper_widths(found, stations) - expected)) < 0.25

@@ -69,6 +69,10 @@ def fitted_gap_taper(
         return None
     near = (s_seen >= lo - SIDE_M) & (s_seen <= hi + SIDE_M)
     near &= (s_seen < lo) | (s_seen > hi)
+    # widths beyond both levels are no part of this taper (a ramp's edge at a gore, a
+    # guardrail): left out before the levels are solved by least squares
+    low, high = min(w0, w1) - LEVEL_SLACK_M, max(w0, w1) + LEVEL_SLACK_M
+    near &= (width_seen >= low) & (width_seen <= high)
     s, w = _bin_medians(s_seen[near], width_seen[near])
     if min(np.count_nonzero(s < lo), np.count_nonzero(s > hi)) < _MIN_SIDE_SAMPLES:
         return None
