@@ -21,14 +21,16 @@ from .gores import smoothstep
 
 FloatArray = NDArray[np.float64]
 
-TAPER_MIN_WIDTH_M = 1.0  # the shoulder changes by at least this across the gap: a lane
-SIDE_M = 60.0  # seen samples this far either side of the gap are fitted
-START_STEP_M = 1.0  # taper starts tried this far apart (metres)
-LENGTHS_M = np.arange(10.0, 251.0, 5.0)  # taper lengths tried (metres)
-RESIDUAL_CAP_M = 0.3  # a sample this far off counts as an outlier (truncated squares)
-GAIN_M2 = 0.05  # the seen taper explains the samples better than any hidden one by this
-LEVEL_SLACK_M = 1.0  # the fitted levels lie this close to the gap ends' widths (metres)
-END_AGREE_M = 0.3  # the taper passes this close to the widths seen at the gap's ends
+_TAPER_MIN_WIDTH_M = 1.0  # the shoulder changes by at least this across the gap: a lane
+_SIDE_M = 60.0  # seen samples this far either side of the gap are fitted (metres)
+_STEP_M = 1.0  # taper starts (ends) tried this far apart (metres)
+_LENGTHS_M = np.arange(10.0, 251.0, 5.0)  # taper lengths tried (metres)
+_RESIDUAL_CAP_M = 0.3  # a sample this far off counts as an outlier (truncated squares)
+_GAIN_M2 = 0.05  # a seen taper explains the samples better than a hidden one by this
+_LEVEL_SLACK_M = 1.0  # the fitted levels lie this close to the gap ends' widths (metres)
+_END_AGREE_M = 0.3  # the taper passes this close to the widths seen at the gap's ends
+_MIN_SIDE_SAMPLES = 5  # seen metres of edge needed on each side of the gap
+_BIN_M = 1.0  # the samples are reduced to medians per this many metres
 
 
 def fitted_gap_taper(
@@ -39,13 +41,14 @@ def fitted_gap_taper(
 ) -> tuple[float, float, float, float] | None:
     """A cubic taper of the shoulder width across an occlusion gap of the outer edge.
 
-    Every taper start (``START_STEP_M`` apart, from ``SIDE_M`` before the gap to its end)
-    and length (``LENGTHS_M``) is tried, its two levels solved by least squares, and
-    scored by truncated squares (``RESIDUAL_CAP_M``). The best taper is taken when it
-    explains the seen widths better by ``GAIN_M2`` (square metres) than the best taper
-    lying wholly inside the gap, which any linear-like bridge is: the seen samples then
-    hold part of the taper. Only tapers that pass within ``END_AGREE_M`` of the widths
-    seen at the gap's ends are tried.
+    Every taper whose head lies in the ``_SIDE_M`` before the gap or whose tail lies in
+    the ``_SIDE_M`` after it (starts or ends ``_STEP_M`` apart, lengths ``_LENGTHS_M``)
+    is tried, its two levels solved by least squares and scored by truncated squares
+    (``_RESIDUAL_CAP_M``); only tapers that pass within ``_END_AGREE_M`` of the widths
+    seen at the gap's ends count. The best is taken when it explains the seen widths
+    better by ``_GAIN_M2`` (square metres) than a taper wholly inside the gap (a step
+    anywhere in it: to the samples every such taper is the same, and a linear bridge is
+    one of them): the seen samples then hold part of the taper.
 
     Parameters
     ----------
@@ -65,53 +68,58 @@ def fitted_gap_taper(
     """
     lo, hi = gap
     w0, w1 = widths
-    if abs(w1 - w0) < TAPER_MIN_WIDTH_M or hi <= lo:
+    if abs(w1 - w0) < _TAPER_MIN_WIDTH_M or hi <= lo:
         return None
-    near = (s_seen >= lo - SIDE_M) & (s_seen <= hi + SIDE_M)
+    near = (s_seen >= lo - _SIDE_M) & (s_seen <= hi + _SIDE_M)
     near &= (s_seen < lo) | (s_seen > hi)
     # widths beyond both levels are no part of this taper (a ramp's edge at a gore, a
     # guardrail): left out before the levels are solved by least squares
-    low, high = min(w0, w1) - LEVEL_SLACK_M, max(w0, w1) + LEVEL_SLACK_M
+    low, high = min(w0, w1) - _LEVEL_SLACK_M, max(w0, w1) + _LEVEL_SLACK_M
     near &= (width_seen >= low) & (width_seen <= high)
     s, w = _bin_medians(s_seen[near], width_seen[near])
     if min(np.count_nonzero(s < lo), np.count_nonzero(s > hi)) < _MIN_SIDE_SAMPLES:
         return None
-    starts = np.arange(lo - SIDE_M, hi + 0.5 * START_STEP_M, START_STEP_M)
-    s0, length = (m.ravel() for m in np.meshgrid(starts, LENGTHS_M, indexing="ij"))
-    ramp = smoothstep((s[None, :] - s0[:, None]) / length[:, None])  # (combos, samples)
-    # levels by least squares: w = wa (1 - r) + wb r
-    n = s.size
-    sr, srr = ramp.sum(axis=1), (ramp * ramp).sum(axis=1)
-    sw, swr = w.sum(), ramp @ w
-    # normal equations of [1, r] x [wa, wb - wa]
-    det = n * srr - sr * sr
-    ok = det > 1e-9
-    det = np.where(ok, det, 1.0)
-    wa = (srr * sw - sr * swr) / det
-    dw = (n * swr - sr * sw) / det
-    wb = wa + dw
-    plausible = ok & (np.abs(wa - w0) <= LEVEL_SLACK_M) & (np.abs(wb - w1) <= LEVEL_SLACK_M)
-    plausible &= np.abs(dw) >= TAPER_MIN_WIDTH_M
+    # heads seen before the gap, tails seen after it (the number of tapers tried does not
+    # grow with the gap's length)
+    offsets = np.arange(_STEP_M, _SIDE_M + 0.5 * _STEP_M, _STEP_M)
+    heads, lengths = np.meshgrid(lo - offsets, _LENGTHS_M, indexing="ij")
+    tails, lengths_t = np.meshgrid(hi + offsets, _LENGTHS_M, indexing="ij")
+    s0 = np.concatenate([heads.ravel(), (tails - lengths_t).ravel()])
+    length = np.concatenate([lengths.ravel(), lengths_t.ravel()])
+    ramp = smoothstep((s[None, :] - s0[:, None]) / length[:, None])  # (tapers, samples)
+    cost, wa, dw = _levels_and_cost(ramp, w)
+    plausible = (np.abs(wa - w0) <= _LEVEL_SLACK_M) & (np.abs(wa + dw - w1) <= _LEVEL_SLACK_M)
+    plausible &= np.abs(dw) >= _TAPER_MIN_WIDTH_M
     # the taper meets what was seen where the gap begins and ends (a shoulder already
     # widening before the gap is no flat level there: a9-239192816-s11, noisier sensor)
     for s_end, w_end in ((lo, w0), (hi, w1)):
         at_end = wa + dw * smoothstep((s_end - s0) / length)
-        plausible &= np.abs(at_end - w_end) <= END_AGREE_M
-    resid = wa[:, None] + dw[:, None] * ramp - w[None, :]
-    cost = np.minimum(resid**2, RESIDUAL_CAP_M**2).sum(axis=1)
+        plausible &= np.abs(at_end - w_end) <= _END_AGREE_M
     cost = np.where(plausible, cost, np.inf)
-    hidden = (s0 >= lo) & (s0 + length <= hi)
     best = int(np.argmin(cost))
-    if not np.isfinite(cost[best]) or hidden[best]:
+    if not np.isfinite(cost[best]):
         return None
-    best_hidden = float(np.min(np.where(hidden, cost, np.inf)))
-    if np.isfinite(best_hidden) and best_hidden - cost[best] < GAIN_M2:
+    hidden_cost, _, _ = _levels_and_cost((s > hi).astype(float)[None, :], w)
+    if float(hidden_cost[0]) - float(cost[best]) < _GAIN_M2:
         return None
-    return float(s0[best]), float(length[best]), float(wa[best]), float(wb[best])
+    return float(s0[best]), float(length[best]), float(wa[best]), float(wa[best] + dw[best])
 
 
-_MIN_SIDE_SAMPLES = 5  # seen metres of edge needed on each side of the gap
-_BIN_M = 1.0  # the samples are reduced to medians per this many metres
+def _levels_and_cost(ramp: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per row of ``ramp`` (tapers x samples, 0 -> 1): the levels ``wa`` and ``dw`` of
+    ``w = wa + dw * ramp`` by least squares and the truncated squares left (square
+    metres; infinite where the levels are undetermined)."""
+    n = w.size
+    sr, srr = ramp.sum(axis=1), (ramp * ramp).sum(axis=1)
+    sw, swr = w.sum(), ramp @ w
+    det = n * srr - sr * sr  # normal equations of [1, ramp] x [wa, dw]
+    ok = det > 1e-9
+    det = np.where(ok, det, 1.0)
+    wa = (srr * sw - sr * swr) / det
+    dw = (n * swr - sr * sw) / det
+    resid = wa[:, None] + dw[:, None] * ramp - w[None, :]
+    cost = np.minimum(resid**2, _RESIDUAL_CAP_M**2).sum(axis=1)
+    return np.where(ok, cost, np.inf), wa, dw
 
 
 def _bin_medians(s: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
