@@ -117,3 +117,32 @@ def test_widths_of_another_road_beyond_the_taper_do_not_pull_its_levels():
     stations = np.arange(gap[0], gap[1])
     expected = 3.1 - 2.8 * _smoothstep((stations - 840.0) / 65.0)
     assert np.max(np.abs(taper_widths(found, stations) - expected)) < 0.25
+
+
+def test_a_lane_gained_in_a_gap_widens_the_edge_with_its_line_seen_late():
+    """oakland-28393854-s7 (seed 80): a lane gained beside the edge over 580-670 m, the
+    edge hidden over 565-748 m and the new lane's line first seen at 626 m, 1.9 m out
+    from the line it left. The outermost marking stepped there and the gap was bridged
+    as at a gore: the edge kept its width to 626 m and jumped (1.8 m off over 40 m). The
+    line is carried back along its slope to where it left its neighbour."""
+    rng = np.random.default_rng(11)
+
+    def move(s):
+        return 3.5 * _smoothstep((np.asarray(s) - 580.0) / 90.0)
+
+    s_l = np.arange(0.0, 1000.0, 0.5)
+    lines = [(s_l, np.full(s_l.size, d)) for d in (1.0, 4.5, 8.0)]
+    s_new = s_l[s_l >= 626.0]
+    lines.append((s_new, 8.0 + move(s_new)))
+    s_lane = np.concatenate([a for a, _ in lines])
+    d_lane = np.concatenate([b for _, b in lines]) + rng.normal(0.0, 0.02, s_lane.size)
+    s_out = np.arange(0.0, 1000.0, 0.2)
+    s_out = s_out[(s_out < 565.0) | (s_out > 748.0)]
+    d_out = 11.0 + move(s_out) + rng.normal(0.0, 0.05, s_out.size)
+    sections, _, _, _ = fit_lanes(
+        s_lane, d_lane, s_out, d_out, length=1000.0, sign=1.0, config=MainlineConfig()
+    )
+    for station in (570.0, 600.0, 615.0, 625.0, 640.0, 660.0, 700.0, 740.0):
+        built, true = _edge_at(sections, station), 11.0 + float(move(station))
+        # bridged as at a gore: 0.42 m off at 600 m, 1.75 m at 625 m
+        assert abs(built - true) < 0.25, (station, built, true)

@@ -8,6 +8,10 @@ where it comes out of the gap), a cubic taper fitted to the seen shoulder widths
 it; when nothing of it was seen, the linear bridge stays (with the taper anywhere in the
 gap equally likely, it is the least-squares guess).
 
+A line of such a lane first seen inside the gap, part of a lane from the line before it,
+is carried back along its slope to where it left that line (:func:`taper_lines_back`), so
+the outermost marking the edge is bridged along does not step there as at a gore.
+
 Stations ``s`` and offsets are metres in the reference line's frame (offsets from the
 reference edge towards the outer edge).
 """
@@ -18,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .gores import smoothstep
+from .markings import _Track, typical_lane_width
 
 FloatArray = NDArray[np.float64]
 
@@ -139,3 +144,66 @@ def taper_widths(taper: tuple[float, float, float, float], s: FloatArray) -> Flo
     """Shoulder width (metres) of a :func:`fitted_gap_taper` result at stations ``s``."""
     s_start, length, wa, wb = taper
     return wa + (wb - wa) * smoothstep((np.asarray(s, dtype=float) - s_start) / length)
+
+
+def seen_gap_taper(
+    points: tuple[FloatArray, FloatArray],
+    d_last: FloatArray,
+    grid: FloatArray,
+    gap: tuple[int, int],
+    widths: tuple[float, float],
+) -> tuple[float, float, float, float] | None:
+    """:func:`fitted_gap_taper` for the gap ``grid[a:b]`` (``gap = (a, b)``): the shoulder
+    widths of the edge points (``points``: stations and offsets, metres) against the
+    outermost marking (``d_last``, metres on ``grid``); ``widths`` at the gap's ends."""
+    s_pts, d_pts = points
+    a, b = gap
+    have = np.isfinite(d_last)
+    if np.count_nonzero(have) < 2:
+        return None
+    width = d_pts - np.interp(s_pts, grid[have], d_last[have])
+    return fitted_gap_taper(s_pts, width, (float(grid[a]), float(grid[b - 1])), widths)
+
+
+_TAPER_SLOPE = 0.01  # a line first seen moving away from its neighbour this fast (m/m) ...
+_TAPER_SHARE = (0.2, 0.8)  # ... this share of a lane from it is a taper's line, seen late
+_TAPER_SLOPE_M = 10.0  # its slope is measured over this many metres (metres)
+
+
+def taper_lines_back(
+    d_last: FloatArray, tracks: list[_Track], grid: FloatArray, covered: NDArray[np.bool_]
+) -> FloatArray:
+    """The outermost marking (``d_last``, metres on ``grid``) with every line that is
+    first seen in an occlusion gap of the edge as the outermost one, part of a lane from
+    the line before it and moving away from it (a lane's taper line, its start unseen),
+    carried back along its slope to where it left that line.
+
+    The outermost marking stepped at such a line's first station and the gap was bridged
+    as a gore there: the edge kept its width to that station and jumped by the line's
+    separation (oakland-28393854-s7 with a noisier sensor: a lane gained beside the edge
+    over 580-670 m, the edge hidden 565-748 m and its line first seen at 626 m, 1.9 m
+    out: the edge 1.8 m off over 40 m). The sections later fit the line's taper itself.
+    (A line last seen closing in on the next one is continued to where it meets it when
+    the tracks are found already: :func:`.markings._continue_to_convergence`.)"""
+    out = d_last.copy()
+    if grid.size < 2:
+        return out
+    step = float(grid[1] - grid[0])
+    lane = typical_lane_width(tracks, grid)
+    n_slope = max(round(_TAPER_SLOPE_M / step), 2)
+    for tr in tracks:
+        i = min(max(int(np.searchsorted(grid, tr.lo)), 1), grid.size - 2)  # first station
+        if covered[i] or not np.isfinite(out[i - 1]):
+            continue
+        at = grid[i : i + n_slope]
+        d_tr = np.interp(at, tr.s, tr.d)
+        if abs(float(out[i]) - float(d_tr[0])) > 1e-6:
+            continue  # not the outermost line there
+        sep = float(d_tr[0] - out[i - 1])
+        slope = float(np.polyfit(at, d_tr, 1)[0]) if at.size >= 2 else 0.0
+        if not (_TAPER_SHARE[0] * lane <= sep <= _TAPER_SHARE[1] * lane) or slope < _TAPER_SLOPE:
+            continue
+        k = np.arange(max(i - int(np.ceil(sep / slope / step)), 0), i)
+        k = k[~covered[k]]
+        out[k] = np.maximum(out[k], float(d_tr[0]) + slope * (grid[k] - grid[i]))
+    return out

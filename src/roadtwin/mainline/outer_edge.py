@@ -21,7 +21,7 @@ from ._common import (
     true_runs,
 )
 from .edge_levels import edge_level_path, refine_step
-from .gap_tapers import fitted_gap_taper, taper_widths
+from .gap_tapers import seen_gap_taper, taper_lines_back, taper_widths
 from .gores import (
     ShoulderTaper,
     taper_width,
@@ -366,7 +366,7 @@ def _bridge_edge_gaps(
     kept a 1.5-2.7 m shoulder from the gore on and lay 2.5 m off the truth's, whose
     shoulder opened over the 85 m gap."""
     steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
-    d_last = _last_marking(tracks, grid)
+    d_last = taper_lines_back(_last_marking(tracks, grid), tracks, grid, covered)
     seen = (
         None
         if seen_steps is None
@@ -429,27 +429,8 @@ def _bridge_edge_gaps(
                     m1 = -widening / 20.0 * (grid[i1] - grid[a + j + 1])
                     hw[after] = np.maximum(_hermite01(x, hw1, m1), 0.0)
         elif points is not None:
-            taper = _seen_taper(points, d_last, grid, a, b, hw0, hw1)
+            taper = seen_gap_taper(points, d_last, grid, (a, b), (hw0, hw1))
             if taper is not None:
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
-
-
-def _seen_taper(
-    points: tuple[FloatArray, FloatArray],
-    d_last: FloatArray,
-    grid: FloatArray,
-    a: int,
-    b: int,
-    hw0: float,
-    hw1: float,
-) -> tuple[float, float, float, float] | None:
-    """:func:`.gap_tapers.fitted_gap_taper` for the gap ``grid[a:b]``: the shoulder widths
-    of the edge points against the outermost marking (``d_last``, metres on ``grid``)."""
-    s_pts, d_pts = points
-    have = np.isfinite(d_last)
-    if np.count_nonzero(have) < 2:
-        return None
-    width = d_pts - np.interp(s_pts, grid[have], d_last[have])
-    return fitted_gap_taper(s_pts, width, (float(grid[a]), float(grid[b - 1])), (hw0, hw1))
