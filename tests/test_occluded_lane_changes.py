@@ -19,7 +19,8 @@ import pytest
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline import fit_lanes
 from roadtwin.mainline.lanes import _edge_bound
-from roadtwin.mainline.markings import _link_tracks
+from roadtwin.mainline.markings import _link_tracks, _Track
+from roadtwin.mainline.outer_edge import _bridge_edge_gaps
 from roadtwin.model import constant_lane
 
 
@@ -538,3 +539,28 @@ def test_a_line_ended_beside_a_closing_lane_meets_its_neighbour_where_that_settl
     s_meet = _meeting_station(ended, near, grid, cfg, forward=True, lane_m=3.5)
     assert s_meet is not None
     assert 680.0 <= s_meet <= 720.0
+
+
+def test_an_edge_gap_at_the_runs_start_follows_the_marking_seen_from_just_after_it():
+    """melbourne-1226-s11 with a noisier sensor: the lines begin 6 m into the run, the
+    edge is seen to 5 m and hidden to 81 m while the outer line swings out. With no
+    marking at the gap's seen end the gap was not bridged along the markings and the
+    edge went straight across (0.8 m off); the nearest marking holds over such a hole."""
+    grid = np.arange(0.0, 600.0, 1.0)
+
+    def swing(s):
+        return 1.5 * _smoothstep(np.asarray(s, dtype=float), 30.0, 60.0)
+
+    tracks = []
+    for k, d in enumerate((1.0, 4.5, 8.0)):
+        s = grid[grid >= 6.0]
+        d_k = d + (swing(s) if d == 8.0 else np.zeros(s.size))
+        tracks.append(_Track(k, 6.0, 599.0, s, d_k, "solid", s.size, s, d_k))
+    hidden = (grid > 5.0) & (grid < 81.0)
+    true = 11.0 + swing(grid)
+    # the fit goes straight across a split gap
+    d_edge = np.where(hidden, np.interp(grid, grid[~hidden], true[~hidden]), true)
+    out = _bridge_edge_gaps(d_edge, ~hidden, tracks, grid)
+    inside = (grid > 10.0) & (grid < 80.0)
+    # straight across: 0.54 m off
+    assert float(np.max(np.abs(out[inside] - true[inside]))) < 0.1

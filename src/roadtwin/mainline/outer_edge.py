@@ -367,6 +367,7 @@ def _bridge_edge_gaps(
     shoulder opened over the 85 m gap."""
     steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
     d_last = taper_lines_back(_last_marking(tracks, grid), tracks, grid, covered)
+    d_last = _held_over_short_holes(d_last, grid)
     seen = (
         None
         if seen_steps is None
@@ -433,4 +434,30 @@ def _bridge_edge_gaps(
             if taper is not None:
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
+    return out
+
+
+_HOLD_MARKING_M = 10.0  # no marking at all over at most this: the nearest one holds (m)
+
+
+def _held_over_short_holes(d_last: FloatArray, grid: FloatArray) -> FloatArray:
+    """The outermost marking (``d_last``, metres on ``grid``, -inf where there is none)
+    held at the nearest seen offset over stretches of at most ``_HOLD_MARKING_M`` with no
+    marking at all (the first metres of a run, before its first lines begin).
+
+    A gap of the outer edge that begins (ends) there had no shoulder width at its seen
+    end and was not bridged: the edge went straight across it (melbourne-1226-s11 with a
+    noisier sensor: lines from 6 m, the edge seen to 5 m and hidden to 81 m while a lane
+    opened beside it over 30-105 m, 0.8 m off)."""
+    out = d_last.copy()
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    for a, b in true_runs(~np.isfinite(d_last)):
+        if (b - a) * step > _HOLD_MARKING_M:
+            continue
+        if a > 0 and b < grid.size:
+            out[a:b] = np.where(np.arange(a, b) - a < b - np.arange(a, b), out[a - 1], out[b])
+        elif b < grid.size:
+            out[a:b] = out[b]
+        elif a > 0:
+            out[a:b] = out[a - 1]
     return out
