@@ -854,6 +854,29 @@ def test_a_driving_lane_ending_at_full_width_where_the_road_narrows_closes_by_a_
     assert PipelineConfig().with_method("default").topology.lane_drop_taper_m == 60.0
 
 
+def test_a_dropped_lane_closes_after_the_outer_edge_was_last_seen_at_full_width():
+    """soderleden-s9 with a noisier sensor: the outer edge was seen at full width up to
+    25 m before the lane's end, then hidden; closed over the last 60 m, the lane narrowed
+    35 m where it was seen wide (edge 2 m off). The taper begins where the edge was last
+    seen, and is 10 m long at least where it was seen to the end."""
+    from roadtwin.lane_drops import taper_lane_drops
+
+    road = _drop_road([1.0, 3.5, 2.5])
+    out, closed = taper_lane_drops(road, "right", edge_seen_until=lambda s: min(s, 175.0))
+    assert closed == [(200.0, -3)]
+    w = out.lane_sections[0].right[2].width.value(np.array([150.0, 175.0, 187.5, 200.0]))
+    assert w[:2] == pytest.approx([3.5, 3.5], abs=1e-9)
+    assert w[2] == pytest.approx(1.75, abs=1e-9)
+    assert w[3] == pytest.approx(0.0, abs=1e-9)
+    out, _ = taper_lane_drops(road, "right", edge_seen_until=lambda s: s)
+    w = out.lane_sections[0].right[2].width.value(np.array([189.9, 195.0, 200.0]))
+    assert w == pytest.approx([3.5, 1.75, 0.0], abs=1e-9)
+    # seen last before the longest taper: the longest taper
+    out, _ = taper_lane_drops(road, "right", edge_seen_until=lambda s: 100.0)
+    w = out.lane_sections[0].right[2].width.value(np.array([139.9, 170.0]))
+    assert w == pytest.approx([3.5, 1.75], abs=1e-9)
+
+
 def _road_with_median_side_lane_opening() -> Road:
     """1000 m straight; a lane opens beside the median shoulder at s=500 (a taper from
     zero width over 60 m): every driving lane beyond it goes on under the next id."""

@@ -17,6 +17,7 @@ otherwise, and the outer edge stays where it was measured.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 from .config import TopologyConfig
@@ -29,6 +30,7 @@ _SHORTER_TAPERS_M = (40.0, 20.0, 10.0, 5.0)  # tried where the longest would go 
 _MIN_DROP_WIDTH_M = 1.0  # a narrower lane ending is a taper already
 _ROOM_SHARE = 0.5  # the side must narrow by at least this share of the lane's width
 _SAME_WIDTH_M = 0.3  # a linked outer lane this close to the closed lane's room takes it
+_MIN_SEEN_TAPER_M = 10.0  # shortest taper where the edge was seen up to the lane's end (m)
 
 
 def taper_lane_drops(
@@ -36,6 +38,7 @@ def taper_lane_drops(
     traffic_side: TrafficSide,
     *,
     max_taper_m: float = TopologyConfig.lane_drop_taper_m,
+    edge_seen_until: Callable[[float], float] | None = None,
 ) -> tuple[Road, list[tuple[float, int]]]:
     """Close the driving lanes of ``road`` that end unlinked at full width where the road
     narrows (see the module docstring).
@@ -49,6 +52,11 @@ def taper_lane_drops(
     max_taper_m
         Longest taper (metres): the lane closes over this, or its section if shorter, or a
         shorter one where that would make its width negative. 0: nothing is closed.
+    edge_seen_until
+        The last station of ``road`` (metres) before a given one where the outer edge was
+        seen: the taper begins no earlier (the lane was seen at full width there; at least
+        ``_MIN_SEEN_TAPER_M`` long). None: no bound (soderleden-s9 with a noisier sensor:
+        a lane seen at full width to 25 m before its end was closed over 60 m, 2 m off).
 
     Returns
     -------
@@ -68,7 +76,10 @@ def taper_lane_drops(
         lanes_b = list(_traffic_lanes(b, traffic_side))
         # the room the side loses at the border: what lanes ending there leave behind
         room = sum(widths_a) - sum(_width_at(ln, 0.0) for ln in lanes_b)
-        fades = tuple(min(f, len_a) for f in tapers)
+        room_m = len_a
+        if edge_seen_until is not None:
+            room_m = min(room_m, max(b.s0 - edge_seen_until(b.s0), _MIN_SEEN_TAPER_M))
+        fades = tuple(min(f, room_m) for f in tapers)
         for i in reversed(range(len(lanes_a))):
             lane, w = lanes_a[i], widths_a[i]
             if lane.type != "driving" or lane.successor is not None:

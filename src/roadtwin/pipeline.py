@@ -154,7 +154,11 @@ def _build_map(
     t0 = time.perf_counter()
     with progress("topology"):
         topology = build_topology(
-            mainline.road, ramp_set.ramps, traffic_side=run.traffic_side, config=cfg.topology
+            mainline.road,
+            ramp_set.ramps,
+            traffic_side=run.traffic_side,
+            config=cfg.topology,
+            outer_edge_seen=mainline.outer_edge_seen,
         )
     warnings.extend(f"skipped {what}: {why}" for what, why in topology.skipped)
     timings["topology"] = time.perf_counter() - t0

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import itertools
 import logging
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Literal
 
@@ -549,9 +549,39 @@ def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
     return parts
 
 
-def _closing_drops(road: Road, traffic_side: TrafficSide, max_taper_m: float) -> Road:
+def _seen_before(
+    spans: dict[str, tuple[float, float]],
+    road: Road,
+    outer_edge_seen: Sequence[tuple[float, float]],
+) -> Callable[[float], float] | None:
+    """For a piece ``road`` of the mainline (``spans``: its start on the mainline and its
+    length, metres): the last station of the piece (metres) before a given one where the
+    outer edge was seen (``outer_edge_seen``: stretches in mainline stations), -inf where
+    none; None where the piece is not one cut from the mainline as it is."""
+    span = spans.get(road.id)
+    if not outer_edge_seen or span is None or abs(span[1] - road.length) > 0.01:
+        return None
+    start = span[0]
+    firsts = np.array([a for a, _ in outer_edge_seen]) - start
+    lasts = np.array([b for _, b in outer_edge_seen]) - start
+
+    def last_seen(station: float) -> float:
+        began = firsts < station
+        return float(np.max(np.minimum(lasts[began], station))) if np.any(began) else -np.inf
+
+    return last_seen
+
+
+def _closing_drops(
+    road: Road,
+    traffic_side: TrafficSide,
+    max_taper_m: float,
+    last_seen: Callable[[float], float] | None = None,
+) -> Road:
     """``road`` with its dropped lanes closed by a taper (:mod:`roadtwin.lane_drops`)."""
-    out, closed = taper_lane_drops(road, traffic_side, max_taper_m=max_taper_m)
+    out, closed = taper_lane_drops(
+        road, traffic_side, max_taper_m=max_taper_m, edge_seen_until=last_seen
+    )
     for station, lane_id in closed:
         log.info(
             "road %s: driving lane %d ends at full width at s=%.0f m where the road narrows: "
@@ -777,6 +807,7 @@ def build_topology(
     *,
     traffic_side: TrafficSide = "right",
     config: TopologyConfig | None = None,
+    outer_edge_seen: Sequence[tuple[float, float]] = (),
 ) -> Topology:
     """Cut the mainline at the ramps and connect everything with junctions and lane links.
 
@@ -790,6 +821,10 @@ def build_topology(
         ``"right"`` or ``"left"``-hand traffic.
     config
         ``junctions``: ``"default"`` (connecting roads) or ``"direct"``.
+    outer_edge_seen
+        Stretches of ``mainline_road`` (stations, metres) where its outer edge was seen
+        (:attr:`roadtwin.mainline.Mainline.outer_edge_seen`): a dropped lane's taper
+        begins after the last of them before the lane's end.
 
     Returns
     -------
@@ -859,6 +894,8 @@ def build_topology(
         )
         for i in range(n_main)
     ]
+    # where each piece of the mainline starts on it, and how long it is (metres)
+    spans = {road.id: (cuts[2 * i], road.length) for i, road in enumerate(main_roads)}
     ramp_roads: list[Road] = []
     connectors: list[Road] = []
     junctions: list[Junction] = []
@@ -887,6 +924,7 @@ def build_topology(
             )
             for j, (lo, hi) in enumerate(itertools.pairwise(ends))
         ]
+        spans.update({part.id: (lo, part.length) for part, lo in zip(parts, ends, strict=False)})
         main_roads[i] = parts[0]
         tails.append(parts[1:])
 
@@ -1020,7 +1058,12 @@ def build_topology(
         for i, road in enumerate(main_roads)
         for r in _chain_roads([road, *tails[i]], traffic_side)
     ]
-    main_roads = [_closing_drops(r, traffic_side, cfg.lane_drop_taper_m) for r in main_roads]
+    main_roads = [
+        _closing_drops(
+            r, traffic_side, cfg.lane_drop_taper_m, _seen_before(spans, r, outer_edge_seen)
+        )
+        for r in main_roads
+    ]
     # the cuts, fades and tapers above re-fit widths: none may dip below zero (a lane
     # closing at a cut ended at -1.7 mm, an error for ASAM and roadtwin check)
     roads, junctions_out = prune_zero_width_links(

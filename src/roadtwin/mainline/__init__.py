@@ -143,4 +143,5 @@ def build_mainline(run: MappingRun, *, config: MainlineConfig | None = None) -> 
         timings_s=timings,
         residuals=residuals,
         stretches=stretches,
+        outer_edge_seen=result.outer_edge_seen,
     )

@@ -96,6 +96,10 @@ class Mainline:
     residuals: dict[str, float] = field(default_factory=dict)
     stretches: tuple = ()
     """Stretches whose evidence disagrees with the road (:mod:`.quality` ``Stretch``)."""
+    outer_edge_seen: tuple[tuple[float, float], ...] = ()
+    """Stretches of the road (stations, metres) where the outer edge was seen: a lane that
+    ends at full width there did not close before (:mod:`roadtwin.lane_drops`); empty for
+    the paper method."""
 
 
 @dataclass(frozen=True)
@@ -104,6 +108,7 @@ class _Partial:
     lane_events: tuple[LaneEvent, ...]
     method: str
     tracks: tuple[BoundaryTrack, ...] = ()
+    outer_edge_seen: tuple[tuple[float, float], ...] = ()
 
 
 def _sign(run: MappingRun) -> float:

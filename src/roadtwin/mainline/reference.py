@@ -132,7 +132,22 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         offset = with_edge_moves(road.lane_offset, grid, move[0], sign, move[1])
         road = replace(road, lane_offset=offset)
     road = nonnegative_widths(seal_lane_borders(road))
-    return _Partial(road, events, "default", tracks)
+    return _Partial(road, events, "default", tracks, _seen_stretches(np.sort(s_out[used])))
+
+
+_SEEN_SPACING_M = 6.0  # edge points closer than this along the road are one seen stretch
+
+
+def _seen_stretches(s_sorted: FloatArray) -> tuple[tuple[float, float], ...]:
+    """Stretches (first and last station, metres) of sorted stations ``s_sorted`` of the
+    outer-edge points used, split where consecutive points lie ``_SEEN_SPACING_M`` or
+    more apart (an occlusion gap)."""
+    if s_sorted.size == 0:
+        return ()
+    cut = np.flatnonzero(np.diff(s_sorted) >= _SEEN_SPACING_M)
+    first = np.r_[0, cut + 1]
+    last = np.r_[cut, s_sorted.size - 1]
+    return tuple((float(s_sorted[a]), float(s_sorted[b])) for a, b in zip(first, last, strict=True))
 
 
 def _median_moves(
