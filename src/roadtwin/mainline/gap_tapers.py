@@ -58,8 +58,8 @@ def fitted_gap_taper(
     Parameters
     ----------
     s_seen, width_seen
-        Stations (metres) and shoulder widths (metres, outer edge minus outermost marking)
-        of the edge points seen on both sides of the gap.
+        Stations (metres, sorted) and shoulder widths (metres, outer edge minus outermost
+        marking) of the edge points seen (:func:`shoulder_widths`).
     gap
         First and last station of the gap (metres).
     widths
@@ -75,8 +75,11 @@ def fitted_gap_taper(
     w0, w1 = widths
     if abs(w1 - w0) < _TAPER_MIN_WIDTH_M or hi <= lo:
         return None
-    near = (s_seen >= lo - _SIDE_M) & (s_seen <= hi + _SIDE_M)
-    near &= (s_seen < lo) | (s_seen > hi)
+    # the points within _SIDE_M of the gap (stations sorted: a slice, not a mask per gap)
+    i0 = int(np.searchsorted(s_seen, lo - _SIDE_M, side="left"))
+    i1 = int(np.searchsorted(s_seen, hi + _SIDE_M, side="right"))
+    s_seen, width_seen = s_seen[i0:i1], width_seen[i0:i1]
+    near = (s_seen < lo) | (s_seen > hi)
     # widths beyond both levels are no part of this taper (a ramp's edge at a gore, a
     # guardrail): left out before the levels are solved by least squares
     low, high = min(w0, w1) - _LEVEL_SLACK_M, max(w0, w1) + _LEVEL_SLACK_M
@@ -146,23 +149,20 @@ def taper_widths(taper: tuple[float, float, float, float], s: FloatArray) -> Flo
     return wa + (wb - wa) * smoothstep((np.asarray(s, dtype=float) - s_start) / length)
 
 
-def seen_gap_taper(
-    points: tuple[FloatArray, FloatArray],
-    d_last: FloatArray,
-    grid: FloatArray,
-    gap: tuple[int, int],
-    widths: tuple[float, float],
-) -> tuple[float, float, float, float] | None:
-    """:func:`fitted_gap_taper` for the gap ``grid[a:b]`` (``gap = (a, b)``): the shoulder
-    widths of the edge points (``points``: stations and offsets, metres) against the
-    outermost marking (``d_last``, metres on ``grid``); ``widths`` at the gap's ends."""
-    s_pts, d_pts = points
-    a, b = gap
+def shoulder_widths(
+    points: tuple[FloatArray, FloatArray], d_last: FloatArray, grid: FloatArray
+) -> tuple[FloatArray, FloatArray] | None:
+    """Stations (metres, sorted) and shoulder widths (metres) of the edge points
+    (``points``: stations and offsets) against the outermost marking (``d_last``, metres on
+    ``grid``), once for every gap of a run (:func:`fitted_gap_taper`); None without a
+    marking."""
     have = np.isfinite(d_last)
     if np.count_nonzero(have) < 2:
         return None
-    width = d_pts - np.interp(s_pts, grid[have], d_last[have])
-    return fitted_gap_taper(s_pts, width, (float(grid[a]), float(grid[b - 1])), widths)
+    s_pts, d_pts = points
+    order = np.argsort(s_pts, kind="stable")
+    s_sorted = s_pts[order]
+    return s_sorted, d_pts[order] - np.interp(s_sorted, grid[have], d_last[have])
 
 
 _TAPER_SLOPE = 0.01  # a line first seen moving away from its neighbour this fast (m/m) ...

@@ -21,7 +21,7 @@ from ._common import (
     true_runs,
 )
 from .edge_levels import edge_level_path, refine_step
-from .gap_tapers import seen_gap_taper, taper_lines_back, taper_widths
+from .gap_tapers import fitted_gap_taper, shoulder_widths, taper_lines_back, taper_widths
 from .gores import (
     ShoulderTaper,
     taper_width,
@@ -368,6 +368,7 @@ def _bridge_edge_gaps(
     steps = np.sort(np.asarray(hidden_steps if hidden_steps is not None else [], dtype=float))
     d_last = taper_lines_back(_last_marking(tracks, grid), tracks, grid, covered)
     d_last = _held_over_short_holes(d_last, grid)
+    widths = None if points is None else shoulder_widths(points, d_last, grid)
     seen = (
         None
         if seen_steps is None
@@ -429,8 +430,8 @@ def _bridge_edge_gaps(
                     x = (n_after - (k[after] - j - 1)) / (n_after + 1)  # 1 at the gore
                     m1 = -widening / 20.0 * (grid[i1] - grid[a + j + 1])
                     hw[after] = np.maximum(_hermite01(x, hw1, m1), 0.0)
-        elif points is not None:
-            taper = seen_gap_taper(points, d_last, grid, (a, b), (hw0, hw1))
+        elif widths is not None:
+            taper = fitted_gap_taper(*widths, (float(grid[a]), float(grid[b - 1])), (hw0, hw1))
             if taper is not None:
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
