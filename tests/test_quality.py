@@ -66,3 +66,73 @@ def test_missed_marking_gives_a_wide_lane_and_unexplained_samples():
     assert abs(missed.value_m - t_line) < 0.3
     assert missed.s0_m < 100.0
     assert 800.0 < missed.s1_m <= 925.0
+
+
+def _unseen(stretches, kind):
+    return [st for st in stretches if st.kind == kind]
+
+
+def test_short_occlusion_beside_a_measured_line_is_not_reported():
+    road = truth_road()
+    # both edges hidden over 80 m of the curve: the lines beside them were measured, the
+    # edges keep their distance to them, and the bridge is as good as a measurement
+    run = sample_run(road, gap=(420.0, 500.0))
+    found = poorly_determined(road, run)
+    assert _unseen(found, "outer edge unseen") == []
+    assert _unseen(found, "reference edge unseen") == []
+
+
+def test_unseen_reference_edge_is_reported_where_the_line_next_to_it_was_not_measured():
+    road = truth_road()
+    run = sample_run(road, gap=(420.0, 560.0))
+    # 140 m unseen, the shoulder line 0.75 m from it measured all along: not reported
+    assert _unseen(poorly_determined(road, run), "reference edge unseen") == []
+    # without that line (out of reach from the outer lanes) a lane could hide there
+    s, t = road.project(run.lane_samples[:, :2])
+    shoulder_line = (s > 400.0) & (s < 600.0) & (np.abs(t) < 2.0)
+    blind = replace(run, lane_samples=run.lane_samples[~shoulder_line])
+    (st,) = _unseen(poorly_determined(road, blind), "reference edge unseen")
+    assert 415.0 <= st.s0_m <= 425.0
+    assert 555.0 <= st.s1_m <= 565.0
+    assert np.isnan(st.value_m)
+    assert "s=42" in st.message()
+    assert "not measured either" in st.message()
+
+
+def test_lane_opening_unseen_at_the_edge_is_reported():
+    road = truth_road()
+    run = sample_run(road, gap=(880.0, 1000.0))
+    # the deceleration lane opens 900-980 m inside the gap; with its line seen the line
+    # next to the outer edge keeps its distance to it: not reported
+    assert _unseen(poorly_determined(road, run), "outer edge unseen") == []
+    # without its line (worn, out of reach) nothing measured where the lane opens
+    s, t = road.project(run.lane_samples[:, :2])
+    aux_line = (s > 880.0) & (s < 1000.0) & (np.abs(t) > 12.08)
+    blind = replace(run, lane_samples=run.lane_samples[~aux_line])
+    (st,) = _unseen(poorly_determined(road, blind), "outer edge unseen")
+    assert 875.0 <= st.s0_m <= 885.0
+    assert 995.0 <= st.s1_m <= 1005.0
+    assert "a lane there may be missed" in st.message()
+
+
+def test_edge_moving_away_from_its_measured_line_over_a_gap_is_reported():
+    road = truth_road()
+    run = sample_run(road, gap=(200.0, 300.0))
+    # a map whose shoulder widens by 1.5 m inside the gap, the line beside it measured
+    sec = road.lane_sections[0]
+    lanes = list(sec.right)
+    p0 = lanes[-1].width.pieces[0]
+    wider = CubicProfile(
+        (
+            CubicPiece(0.0, p0.a),
+            CubicPiece(220.0, p0.a, 0.0, 3 * 1.5 / 60.0**2, -2 * 1.5 / 60.0**3),
+            CubicPiece(280.0, p0.a + 1.5),
+        )
+    )
+    lanes[-1] = replace(lanes[-1], width=wider)
+    bad = replace(road, lane_sections=(replace(sec, right=tuple(lanes)), *road.lane_sections[1:]))
+    (st,) = _unseen(poorly_determined(bad, run), "outer edge unseen")
+    assert 195.0 <= st.s0_m <= 205.0
+    assert 295.0 <= st.s1_m <= 305.0
+    assert st.value_m == np.clip(st.value_m, 1.4, 1.6)
+    assert "changes by 1.5 m" in st.message()

@@ -11,14 +11,16 @@ a lane can be, so that the build warns with the station instead of saying "OK".
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..config import MainlineConfig
 from ..io import MappingRun
 from ..model import Road
-from ._common import FloatArray, point_residuals, true_runs
+from ._common import FloatArray, PointResiduals, _border_matrix, point_residuals, true_runs
 
 
 @dataclass(frozen=True)
@@ -28,11 +30,15 @@ class Stretch:
     Attributes
     ----------
     s0_m, s1_m : station range (metres along the mainline road).
-    kind : ``"reference edge"``, ``"outer edge"``, ``"lane markings"``, ``"lane width"`` or
-        ``"reference edge unseen"`` (no median-side edge point over 100 m or more).
+    kind : ``"reference edge"``, ``"outer edge"``, ``"lane markings"``, ``"lane width"``,
+        ``"reference edge unseen"`` or ``"outer edge unseen"`` (an edge not seen over 50 m
+        or more where the line next to it was not measured or its distance to the edge
+        changes by 1 m or more).
     value_m : the worst bin's figure: median signed edge offset of the points from the
         built edge (edges), lateral offset t where unexplained lane samples line up
-        (markings) or the widest lane (lane width), metres.
+        (markings), the widest lane (lane width) or how much the distance from an unseen
+        edge to the line next to it changes (unseen edges; NaN: that line not measured),
+        metres.
     fraction : share of the points in the worst bin that the map does not explain.
     """
 
@@ -49,6 +55,12 @@ class Stretch:
                 f"{where}: the median-side road edge was not seen (out of the sensor's "
                 "reach or hidden); the road's place there is bridged from where it was seen, "
                 "or at a run's end held at the offset from the trajectory it had there"
+                + self._width_note()
+            )
+        if self.kind == "outer edge unseen":
+            return (
+                f"{where}: the outer road edge was not seen (out of the sensor's reach or "
+                "hidden); it is bridged from where it was seen" + self._width_note()
             )
         if self.kind == "lane width":
             return f"{where}: a driving lane is {self.value_m:.1f} m wide (a lane missed?)"
@@ -63,8 +75,29 @@ class Stretch:
             f"{self.value_m:+.2f} m from it)"
         )
 
+    def _width_note(self) -> str:
+        if np.isnan(self.value_m):
+            return (
+                "; the marking next to it was not measured either: a lane there may be "
+                "missed or the road's width there is a guess"
+            )
+        if self.value_m < _UNSEEN_WIDTH_M:
+            return ""
+        return (
+            f"; its distance to the marking next to it changes by {self.value_m:.1f} m "
+            "there, so where the lanes begin, end or taper is inferred, not measured"
+        )
 
-_UNSEEN_M = 100.0  # a stretch this long without median-side edge points is reported
+
+_UNSEEN_CHANGE_M = 50.0  # an edge not seen over this long (metres) is reported where
+_UNSEEN_WIDTH_M = 1.0  # its distance to the line next to it changes by this much (metres)
+_SHOULDER_BIN_M = 10.0  # or that line was not measured (this many lane samples on it in
+_SHOULDER_NTH = 3  # a bin this long within this many bins either side: a dash cycle and
+_SHOULDER_REACH = 3  # more)
+_SAME_LINE_M = 0.05  # a boundary this near the edge is the edge (a lane of zero width)
+_ADJACENT_MEASURED = 0.9  # share of a stretch's stations with the line next to it measured
+_SEEN_RADIUS_M = 2.5  # a station is seen with this many edge points this near it:
+_SEEN_POINTS = 3  # stray points (outliers, a ramp's edge crossing) do not end a gap
 
 
 def _bins(length: float, step: float) -> FloatArray:
@@ -111,14 +144,7 @@ def poorly_determined(
             med[j] = float(np.median(e))
             frac[j] = float(np.mean(np.abs(e) > cfg.quality_edge_bias_m))
         add(np.abs(np.nan_to_num(med)) > cfg.quality_edge_bias_m, med, frac, kind)
-        if row == 0:
-            # the reference line is the median-side edge: where none of it was seen over
-            # 100 m or more, nothing but the trajectory placed the road
-            unseen = np.bincount(idx, minlength=n_bins) == 0
-            long = np.zeros(n_bins, dtype=bool)
-            for a, b in true_runs(unseen):
-                long[a:b] = (b - a) * cfg.quality_bin_m >= _UNSEEN_M
-            add(long, np.full(n_bins, np.nan), np.ones(n_bins), "reference edge unseen")
+    out += unseen_edges(road, edge, res["lane_boundary"], marking_m=cfg.quality_marking_m)
     lane = res["lane_boundary"]
     if lane.s.size:
         conc, share = _unexplained_markings(lane, edges, cfg)
@@ -133,6 +159,112 @@ def poorly_determined(
     widest = _widest_driving_lane(road, edges)
     add(widest > cfg.quality_max_lane_m, widest, np.zeros(n_bins), "lane width")
     return tuple(sorted(out, key=lambda x: (x.s0_m, x.kind)))
+
+
+def unseen_edges(
+    road: Road,
+    edge_points: PointResiduals,
+    lane_samples: PointResiduals,
+    *,
+    marking_m: float = 0.3,
+) -> list[Stretch]:
+    """Stretches where a road edge was not seen and the map there is a guess.
+
+    Over such a stretch nothing measured the edge: the reference line is bridged from
+    where the median-side edge was seen (placed by the trajectory alone), the outer edge
+    from its seen ends. Where the lane boundary next to the edge was measured and the edge
+    keeps its distance to it (a shoulder of steady width beside its line; a lane opening
+    at the edge with its line seen) the bridge follows a measured line. Reported are the
+    stretches of 50 m or more where that distance changes by 1 m or more (a lane ending
+    or beginning at the edge, a gore, unseen) or the line next to the edge was not
+    measured either (out of reach: a lane may hide between the edge and the nearest line
+    that was).
+
+    Parameters
+    ----------
+    road
+        The built mainline road.
+    edge_points, lane_samples
+        Residuals of the road-edge points and the lane samples inside the corridor
+        (:func:`~._common.point_residuals`): stations, offsets t (metres, road frame),
+        and for edge points the edge each is nearest to (0 reference, 1 outer).
+    marking_m
+        Lane samples nearer than this (metres) to a built lane boundary are measurements
+        of it.
+
+    Returns
+    -------
+    Stretches of kind ``"reference edge unseen"`` / ``"outer edge unseen"``, their value
+    the change (metres) of the distance from the edge to the line next to it over the
+    stretch (NaN where that line was not measured).
+    """
+    grid = np.arange(0.0, road.length + 1.0, 1.0)
+    grid[-1] = min(grid[-1], road.length)
+    both = _border_matrix(road, grid, edges=True)[:2]
+    lines = _border_matrix(road, grid, edges=False)
+    measured = np.abs(lane_samples.error) < marking_m
+    s_lane, row_lane = lane_samples.s[measured], lane_samples.boundary[measured]
+    out: list[Stretch] = []
+    for k, kind in ((0, "reference edge unseen"), (1, "outer edge unseen")):
+        s_k = np.sort(edge_points.s[edge_points.boundary == k])
+        near = np.searchsorted(s_k, grid + _SEEN_RADIUS_M, side="right") - np.searchsorted(
+            s_k, grid - _SEEN_RADIUS_M, side="left"
+        )
+        for a, b in true_runs(near < _SEEN_POINTS):
+            s0, s1 = float(grid[a]), float(grid[b - 1])
+            if s1 - s0 < _UNSEEN_CHANGE_M:
+                continue
+            change = _adjacent_line_change(both[k, a:b], lines[:, a:b], s_lane, row_lane, (s0, s1))
+            if not change < _UNSEEN_WIDTH_M:  # NaN: the line next to it was not measured
+                out.append(Stretch(s0, s1, kind, change, 1.0))
+    return out
+
+
+def _adjacent_line_change(
+    edge_t: FloatArray,
+    lines_t: FloatArray,
+    s_lane: FloatArray,
+    row_lane: NDArray[np.int64],
+    span: tuple[float, float],
+) -> float:
+    """Over an unseen stretch of an edge: how much (metres) the distance from the edge to
+    the lane boundary next to it changes where that boundary was measured; NaN where it
+    was not measured at ``_ADJACENT_MEASURED`` of the stretch's stations (then a lane may
+    hide between the edge and the nearest line that was).
+
+    A boundary is measured near a station with ``_SHOULDER_NTH`` lane samples on it in a
+    bin of ``_SHOULDER_BIN_M`` within ``_SHOULDER_REACH`` bins of the station's (a lane
+    opening at the edge with its line seen hands the adjacent line over to the new one
+    without a jump). ``edge_t`` are the edge's offsets (metres) on the stretch's 1 m
+    grid, ``lines_t`` every boundary's (rows of :func:`~._common._border_matrix`, NaN
+    where a row is no lane's); ``s_lane``, ``row_lane`` the stations and nearest rows of
+    the measured lane samples.
+    """
+    s0, s1 = span
+    n_bins = max(round((s1 - s0) / _SHOULDER_BIN_M), 1)
+
+    def bin_of(s: FloatArray) -> NDArray[np.int64]:
+        return np.clip(((s - s0) / (s1 - s0 + 1e-9) * n_bins).astype(int), 0, n_bins - 1)
+
+    inside = (s_lane >= s0) & (s_lane <= s1)
+    counts = np.zeros((lines_t.shape[0], n_bins))
+    np.add.at(counts, (row_lane[inside], bin_of(s_lane[inside])), 1.0)
+    # a line measured within _SHOULDER_REACH bins of a station (its dashes, a worn
+    # stretch) is followed there
+    on = counts >= _SHOULDER_NTH
+    reach = np.ones(2 * _SHOULDER_REACH + 1)
+    on = np.stack([np.convolve(row, reach, mode="same") > 0 for row in on.astype(float)])
+    on = on[:, bin_of(np.linspace(s0, s1, edge_t.size))]
+    # the line next to the edge (a lane of zero width, the edge's own row left out): with
+    # it measured nothing can hide between it and the edge
+    apart = np.abs(edge_t[None, :] - lines_t)
+    apart[~(apart > _SAME_LINE_M)] = np.inf
+    adjacent = np.argmin(apart, axis=0)
+    cols = np.arange(edge_t.size)
+    ok = np.isfinite(apart[adjacent, cols]) & on[adjacent, cols]
+    if np.mean(ok) < _ADJACENT_MEASURED:
+        return math.nan
+    return float(np.ptp(apart[adjacent, cols][ok]))
 
 
 def _unexplained_markings(lane, edges: FloatArray, cfg: MainlineConfig):
