@@ -264,8 +264,9 @@ def test_an_entry_line_converging_in_an_occlusion_gap_places_the_gore_where_it_m
 def test_a_gore_placed_in_an_occlusion_gap_is_where_the_bridged_edge_steps():
     """The outer edge is hidden from 200 to 346 m; a ramp line placed the entry's gore at
     330 m, and the acceleration lane's outer line is first seen at 350 m, past the gap. The
-    edge keeps the shoulder width up to the gore and steps there; it had widened linearly
-    across the whole gap (krems-30799129-s11, noisier sensor: 2.9 m off at its end)."""
+    shoulder closes to zero at the gore over 60 m and the edge steps there; it had widened
+    linearly across the whole gap (krems-30799129-s11, noisier sensor: 2.9 m off at its
+    end)."""
     from roadtwin.mainline.outer_edge import _bridge_edge_gaps
 
     cfg = MainlineConfig()
@@ -276,7 +277,8 @@ def test_a_gore_placed_in_an_occlusion_gap_is_where_the_bridged_edge_steps():
     linear = _bridge_edge_gaps(d_edge, covered, tracks, grid)
     stepped = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, np.array([330.0]))
     at = np.array([250.0, 320.0, 335.0, 345.0])
-    assert np.allclose(np.interp(at, grid, stepped), [14.5, 14.5, 17.9, 17.9], atol=0.05)
+    closing = 11.8 + 2.7 * _smoothstep(-320.0, -330.0, 60.0)
+    assert np.allclose(np.interp(at, grid, stepped), [14.5, closing, 17.9, 17.9], atol=0.05)
     assert float(np.interp(320.0, grid, linear)) > 16.0  # what it was
 
 
@@ -564,3 +566,38 @@ def test_an_edge_gap_at_the_runs_start_follows_the_marking_seen_from_just_after_
     inside = (grid > 10.0) & (grid < 80.0)
     # straight across: 0.54 m off
     assert float(np.max(np.abs(out[inside] - true[inside]))) < 0.1
+
+
+def test_an_entry_gore_hidden_in_a_gap_closes_the_shoulder_to_it():
+    """kotka-37952515-s4 with a noisier sensor: the outer edge (2 m outside the outermost
+    line at 7.6 m) is hidden from 522 to 605 m; the entry's lane line (11.2 m) is first
+    seen at 600 m, where the gore is placed. The mainline's edge is the gore's inner side
+    and meets the ramp's at the nose: the shoulder closes to zero at the gore over the
+    default taper (60 m). It was held at 2 m up to the gore and stepped there (1.3 m off
+    the truth's edge over 60 m; edge RMSE 0.121 m). A strip as wide as a lane is no
+    shoulder: it stays (soderleden-s2 with a noisier sensor, beside an edge line)."""
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 7.6), _track(1, grid, 600.0, 11.2)]
+    d_edge = np.where(grid < 560.0, 9.6, 13.6)
+    covered = (grid < 522.0) | (grid > 605.0)
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    at = np.array([530.0, 570.0, 590.0, 602.0])
+    shoulder = 2.0 * _smoothstep(-at[:3], -599.5, 60.0)
+    expected = [*(7.6 + shoulder), 13.6]
+    np.testing.assert_allclose(np.interp(at, grid, out), expected, atol=0.03)
+    # the strip beyond the outermost line 3.4 m wide (the run's lanes 3.6 m): a lane
+    d_lane = np.where(grid < 560.0, 11.0, 13.6)
+    tracks = [_track(0, grid, 0.0, 4.0), _track(1, grid, 0.0, 7.6), _track(2, grid, 600.0, 11.2)]
+    out = _bridge_edge_gaps(d_lane, covered, tracks, grid)
+    np.testing.assert_allclose(np.interp([530.0, 590.0], grid, out), [11.0, 11.0], atol=0.03)
+    # an exit's lanes diverging with the edge, still on the mainline at the gap's end
+    # (town06-auto-lane2-s22 with a noisier sensor): the lines moved out with the edge, no
+    # lane appeared beyond them; no entry, the shoulder is not closed
+    diverging = 7.6 + 3.0 * _smoothstep(grid, 560.0, 80.0)
+    g = grid.copy()
+    tracks = [_Track(0, 0.0, 800.0, g, diverging, "solid", g.size, g)]
+    d_exit = diverging + 2.0
+    out = _bridge_edge_gaps(d_exit, covered, tracks, grid, None, np.array([585.5]))
+    inside = (grid > 530.0) & (grid < 580.0)
+    np.testing.assert_allclose(out[inside], d_exit[inside], atol=0.05)

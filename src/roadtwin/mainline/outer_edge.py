@@ -27,7 +27,7 @@ from .gores import (
     taper_width,
 )
 from .hidden_gores import _hermite01
-from .markings import _last_marking, _Track
+from .markings import _last_marking, _Track, typical_lane_width
 
 FloatArray = NDArray[np.float64]
 
@@ -375,6 +375,7 @@ def _bridge_edge_gaps(
         else _SeenSteps.of(d_edge, grid, np.asarray(seen_steps, dtype=float))
     )
     out = d_edge.copy()
+    lane_m = typical_lane_width(tracks, grid)
     for a, b in true_runs(~covered):
         if a == 0 or b >= grid.size or b - a < 5:
             continue
@@ -394,7 +395,11 @@ def _bridge_edge_gaps(
             continue
         # a lane that starts/ends inside the gap (a gore): each side keeps its own width,
         # unless the shoulder was seen narrowing towards the gore (entry) / widening from
-        # it (exit): then it tapers linearly from / to zero width at the gore
+        # it (exit): then it tapers from / to zero width at the gore. Before an entry's
+        # gore a shoulder (narrower than a lane) closes to zero at it unseen too: the edge
+        # is the gore's inner side (kotka-37952515-s4 with a noisier sensor: held at 2 m
+        # up to the gore, 1.3 m off over 60 m; a strip a lane wide beside an edge line
+        # the tracks left out is the lane, soderleden-s2)
         jump = np.flatnonzero(np.abs(np.diff(d_last[i0 : i1 + 1])) > 1.5)
         inside = steps[(steps > grid[a]) & (steps < grid[b - 1])]
         if jump.size != 1 and inside.size == 1:
@@ -413,7 +418,9 @@ def _bridge_edge_gaps(
                 continue
             # the trend over 20 m, 5 m away from the gap (the fit bends at its ends); the
             # taper continues with the observed slope and reaches zero width flat (cubic)
+            entry = _entry_in_gap(d_edge, d_last, i0, i1, hw0, hw1, lane_m)
             i_a, i_b = i0 - 25, i0 - 5
+            narrowed = False
             if i_a >= 0 and _one_line(d_last[i_a : i_b + 1]) and j > 0:
                 narrowing = (d_edge[i_a] - d_last[i_a]) - (d_edge[i_b] - d_last[i_b])
                 if narrowing > 0.5:
@@ -421,6 +428,9 @@ def _bridge_edge_gaps(
                     x = (k[before] + 1) / (j + 1)
                     m0 = -narrowing / 20.0 * (grid[a + j] - grid[i0])
                     hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
+                    narrowed = True
+            if entry and not narrowed and j > 0 and hw0 < lane_m - 0.4:
+                hw[:j] = _closing_at_gore(grid[a : a + j], hw0, grid, i0, s_jump, taper_length_m)
             i_a, i_b = i1 + 5, i1 + 25
             n_after = b - a - (j + 1)
             if i_b < grid.size and _one_line(d_last[i_a : i_b + 1]) and n_after > 0:
@@ -436,6 +446,40 @@ def _bridge_edge_gaps(
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
+
+
+def _entry_in_gap(
+    d_edge: FloatArray,
+    d_last: FloatArray,
+    i0: int,
+    i1: int,
+    hw0: float,
+    hw1: float,
+    lane_m: float,
+) -> bool:
+    """Whether the gore placed in the gap ``i0 + 1 .. i1 - 1`` is an entry's: the edge is
+    half a lane (``lane_m``, metres) or more farther out after the gap, and beyond the gore
+    a lane appeared outside the mainline's outermost marking, its line seen (the outermost
+    marking jumps out by half a lane) or not yet (the strip beyond the marking, ``hw0`` /
+    ``hw1``, widens by half a lane). Where the lines moved out with the edge (an exit's
+    lanes diverging, still on the mainline at the gap's end: Town06) it is no entry."""
+    if d_edge[i1] - d_edge[i0] < 0.5 * lane_m:
+        return False
+    moves = np.diff(d_last[i0 : i1 + 1])
+    line_appears = bool(np.any(np.isfinite(moves) & (moves > 0.5 * lane_m)))
+    return line_appears or hw1 - hw0 >= 0.5 * lane_m
+
+
+def _closing_at_gore(
+    g: FloatArray, width: float, grid: FloatArray, i0: int, s_gore: float, length_m: float
+) -> FloatArray:
+    """Shoulder width (metres) at stations ``g`` of a gap before an entry's gore placed in
+    it (``s_gore``, metres): it closes to zero at the gore over ``length_m`` or from the
+    gap's start (``grid[i0]``, its last seen station), whichever is shorter. The mainline's
+    edge is the gore's inner side and meets the ramp's at the nose, as at an entry whose
+    step was seen just past the gap (:func:`_shoulder_at_gore`)."""
+    length = max(min(length_m, s_gore - float(grid[i0])), 1.0)
+    return taper_width(g, width, s_gore, length, entry=True)
 
 
 _HOLD_MARKING_M = 10.0  # no marking at all over at most this: the nearest one holds (m)
