@@ -601,3 +601,66 @@ def test_an_entry_gore_hidden_in_a_gap_closes_the_shoulder_to_it():
     out = _bridge_edge_gaps(d_exit, covered, tracks, grid, None, np.array([585.5]))
     inside = (grid > 530.0) & (grid < 580.0)
     np.testing.assert_allclose(out[inside], d_exit[inside], atol=0.05)
+
+
+def test_a_ramp_lines_tip_short_of_the_line_it_meets_still_places_the_gore():
+    """a9-206615404-opp-s9 with a noisier sensor: the outer edge is hidden from 7861 to
+    7912 m; an entry's ramp line, converging onto the outermost line (8.1 m) at 0.12 m/m,
+    was last kept at 7908.5 m, 1.3 m short of it. Its tip is the gore's evidence; taken
+    only within 1.0 m of the line, no gore was placed and the edge widened linearly over
+    the gap (5 m off, edge RMSE 0.173 m). A tip 2 m from every line meets none."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+
+    cfg = MainlineConfig()
+    grid = np.arange(7000.0, 9000.5, cfg.grid_step_m)
+    lines = [_track(k, grid, 7000.0, d) for k, d in enumerate((0.7, 4.3, 8.1))]
+    covered = (grid < 7861.0) | (grid > 7912.0)
+    _, gores = _snap_to_hidden_gores(lines, [(7908.5, 9.38)], covered, grid, cfg)
+    np.testing.assert_allclose(gores, [7908.0], atol=1.0)
+    _, gores = _snap_to_hidden_gores(lines, [(7908.5, 10.1)], covered, grid, cfg)
+    assert gores.size == 0
+
+
+def test_an_entry_line_converging_while_the_lines_shift_places_its_gore():
+    """melbourne-921-s9 with a noisier sensor: the lines shift 5.9 m outwards over
+    380-450 m (a lane gained on the median side) while an entry's line, first seen at
+    410 m in a gap of the outer edge (410-460 m), converges onto the outermost line and
+    meets it at 443 m; the entry's outer line is first seen at 411 m. Its offsets moved out
+    with the shift: read as diverging, no gore was placed, the ramp's lane became the
+    mainline's before its nose and the edge lay 4 m off (edge RMSE 0.548 m). Converging is
+    measured against the line inward; the ramp's other line begins at the gore too."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+    from roadtwin.mainline.markings import _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 1000.5, cfg.grid_step_m)
+    shift = 5.9 * _smoothstep(grid, 380.0, 70.0)
+
+    def track(k, lo, hi, d):
+        sel = (grid >= lo) & (grid <= hi)
+        return _Track(k, lo, hi, grid[sel], d[sel], "solid", int(sel.sum()), grid[sel])
+
+    outer = 12.4 + shift
+    ramp = outer + np.clip(2.2 * (443.0 - grid) / 33.0, 0.0, None)
+    lines = [
+        track(0, 0.0, 1000.0, 2.1 + shift),
+        track(1, 283.0, 444.0, outer),
+        track(2, 410.0, 504.0, ramp),
+        track(3, 411.0, 708.0, outer + 4.2),
+    ]
+    covered = (grid < 410.0) | (grid > 460.0)
+    out, gores = _snap_to_hidden_gores(lines, [], covered, grid, cfg)
+    np.testing.assert_allclose(gores, [440.0], atol=3.0)  # within 0.3 m of the line
+    assert out[2].lo == pytest.approx(gores[0])
+    assert out[3].lo == pytest.approx(gores[0])
+    assert out[1].lo == 283.0
+    # an acceleration lane's line, beginning at a nose in a gap (1400-1430 m) and closing
+    # onto the line inward 100 m on where the edge was seen (a9-10959882-opp-s7, noisier
+    # sensor): no hidden gore, the line stays (it was cut back to 1518 m)
+    grid = np.arange(0.0, 3000.5, cfg.grid_step_m)
+    closing = 8.2 + 3.7 * np.clip((1520.0 - grid) / 100.0, 0.0, 1.0)
+    lines = [track(0, 0.0, 3000.0, np.full(grid.size, 8.2)), track(1, 1420.0, 1528.0, closing)]
+    covered = (grid < 1400.0) | (grid > 1430.0)
+    out, gores = _snap_to_hidden_gores(lines, [], covered, grid, cfg)
+    assert gores.size == 0
+    assert out[1].lo == 1420.0

@@ -48,6 +48,31 @@ def _outermost_at(tracks: list[_Track], k: int, station: float) -> bool:
     )
 
 
+def _beside_inner_line(tracks: list[_Track], k: int, tr: _Track) -> FloatArray:
+    """Offsets (metres) of ``tr`` (track ``k`` of ``tracks``, maybe cut already) from the
+    nearest line inward at each of its stations (lines of ``tracks`` nearer the median),
+    or its own offsets where some station has none: a ramp line converges onto (diverges
+    from) the mainline's lines, which may shift sideways as a whole meanwhile (a lane
+    gained on the median side: melbourne-921-s9 with a noisier sensor, an entry's line
+    moving out with the shift read as diverging, its gore hidden in a gap not placed and
+    the edge 4 m off)."""
+    others = [t for j, t in enumerate(tracks) if j != k]
+    if not others:
+        return tr.d
+    d = np.stack(
+        [
+            np.where((tr.s >= t.lo) & (tr.s <= t.hi), np.interp(tr.s, t.s, t.d), np.nan)
+            for t in others
+        ]
+    )
+    d[~(d < tr.d)] = -np.inf
+    inner = d.max(axis=0)
+    if not np.isfinite(inner).all():
+        return tr.d
+    return tr.d - inner
+
+
+_MET_M = 0.3  # a ramp line this near the line inward has met it (metres)
 _RAMP_LINE_TURN_M = 0.3
 """A ramp line converges (diverges) by at least this much (metres) over the stretch cut
 from it; a line whose offset drifts by centimetres there is the mainline's (a noisier
@@ -70,6 +95,7 @@ def _snap_to_hidden_gores(
     otherwise make the lane start early). Returns the tracks and the gore stations.
     """
     gores: list[float] = []
+    at_lines: list[tuple[float, float]] = []  # (gore, offset) of the ramp lines cut
     out = list(tracks)
     step = cfg.grid_step_m
     # gaps inside the run only: where the edge is not seen again up to the run's end (its
@@ -86,38 +112,51 @@ def _snap_to_hidden_gores(
         return bool(gap[max(i - 10, 0) : i + 11].any())
 
     # a marking that starts (ends) inside such a gap while still converging (diverging)
-    # is a ramp line until it runs parallel: the gore is where it does. Only the outermost
-    # line there can be an outer ramp's: a line with lines farther out is the mainline's
-    # (melbourne-1019-lane1-s21: the inner shoulder's line, bending towards an inner exit
-    # where the outer edge was hidden, was cut back 11 m and made a "gore" 22 m before it)
+    # is a ramp line until it runs parallel or meets the line inward: the gore is where it
+    # does, hidden too (a9-10959882-opp-s7 with a noisier sensor: an acceleration lane's
+    # line beginning at a nose in a gap and closing onto the line inward 100 m on, where
+    # the edge was seen, was cut back to that meeting, its lane 6.3 m wide). Only the
+    # outermost line there can be an outer ramp's: a line with lines farther out is the
+    # mainline's (melbourne-1019-lane1-s21: the inner shoulder's line, bending towards an
+    # inner exit where the outer edge was hidden, was cut back 11 m and made a "gore" 22 m
+    # before it)
     for k, tr in enumerate(out):
         if tr.s.size < 20:
             continue
-        slope = np.gradient(tr.d, tr.s)
         if tr.lo > grid[0] + step and hidden(tr.lo) and _outermost_at(out, k, tr.lo):
-            par = np.flatnonzero(slope > -cfg.hidden_gore_slope)
+            rel = _beside_inner_line(tracks, k, tr)
+            par = np.flatnonzero((np.gradient(rel, tr.s) > -cfg.hidden_gore_slope) | (rel < _MET_M))
             if (
                 par.size
                 and par[0] > 0
                 and tr.s[par[0]] - tr.lo >= 5.0
-                and tr.d[0] - tr.d[par[0]] >= _RAMP_LINE_TURN_M
+                and rel[0] - rel[par[0]] >= _RAMP_LINE_TURN_M
+                and hidden(float(tr.s[par[0]]))
             ):
                 i0 = par[0]
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
                 gores.append(tr.lo)
+                at_lines.append((tr.lo, float(tr.d[0])))
         if tr.hi < grid[-1] - step and hidden(tr.hi) and _outermost_at(out, k, tr.hi):
-            slope = np.gradient(tr.d, tr.s)
-            par = np.flatnonzero(slope < cfg.hidden_gore_slope)
+            rel = _beside_inner_line(tracks, k, tr)
+            par = np.flatnonzero((np.gradient(rel, tr.s) < cfg.hidden_gore_slope) | (rel < _MET_M))
             if (
                 par.size
                 and par[-1] < tr.s.size - 1
                 and tr.hi - tr.s[par[-1]] >= 5.0
-                and tr.d[-1] - tr.d[par[-1]] >= _RAMP_LINE_TURN_M
+                and rel[-1] - rel[par[-1]] >= _RAMP_LINE_TURN_M
+                and hidden(float(tr.s[par[-1]]))
             ):
                 i1 = par[-1] + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
                 gores.append(tr.hi)
+                at_lines.append((tr.hi, float(tr.d[-1])))
         out[k] = tr
+    # the ramp's other lines beside such a gore begin (end) there too (melbourne-921-s9
+    # with a noisier sensor: an entry's outer line, first seen 32 m before its gore, made
+    # the ramp's lane the mainline's there and the edge 4 m off)
+    for s_gore, d_g in at_lines:
+        out = _cut_beside_gore(out, s_gore, d_g, step)
     for s_g, d_g in evidence:
         i_g = int(np.clip(np.rint((s_g - grid[0]) / step), 0, grid.size - 1))
         # inside (or within 10 m of) a gap of the outer-edge points
@@ -126,12 +165,14 @@ def _snap_to_hidden_gores(
             continue
         # it must touch the outermost mainline marking there (a line meeting one with
         # through lines farther out is an inner ramp's, whose gore does not step the outer
-        # edge)
+        # edge); its tip is where it was last kept, up to 1.5 m short of the line it meets
+        # as it still converges (a9-206615404-opp-s9 with a noisier sensor: 1.3 m, the gore
+        # was not placed and the edge widened linearly across its gap, 5 m off)
         near = [
             tr
             for j, tr in enumerate(out)
             if tr.lo - 1 <= s_g <= tr.hi + 1
-            and abs(np.interp(s_g, tr.s, tr.d) - d_g) < 1.0
+            and abs(np.interp(s_g, tr.s, tr.d) - d_g) < _TIP_NEAR_M
             and _outermost_at(out, j, s_g)
         ]
         if not near:
@@ -140,22 +181,34 @@ def _snap_to_hidden_gores(
         if any(abs(g - s_gore) < 30.0 for g in gores):
             continue
         gores.append(s_gore)
-        for k, tr in enumerate(out):
-            # only the lines beside the gore: a through line nearer the median that
-            # happens to begin within 60 m (after an inner exit) has nothing to do with it
-            # (melbourne-921-s2: the inner shoulder's line was cut back 51 m to an outer
-            # lane drop's gore, the shoulder became part of a lane 3.9 m wide)
-            if float(np.interp(s_gore, tr.s, tr.d)) < d_g - _BESIDE_GORE_M:
-                continue
-            if abs(tr.lo - s_gore) < 60.0 and tr.lo < s_gore - step and tr.hi > s_gore + 60.0:
-                sel = tr.s >= s_gore
-                out[k] = replace(tr, lo=s_gore, s=tr.s[sel], d=tr.d[sel])
-            elif abs(tr.hi - s_gore) < 60.0 and tr.hi > s_gore + step and tr.lo < s_gore - 60.0:
-                sel = tr.s <= s_gore
-                out[k] = replace(tr, hi=s_gore, s=tr.s[sel], d=tr.d[sel])
+        out = _cut_beside_gore(out, s_gore, d_g, step)
     return out, np.asarray(gores, dtype=float)
 
 
+def _cut_beside_gore(
+    tracks: list[_Track], s_gore: float, d_gore: float, step: float
+) -> list[_Track]:
+    """Lines beside a gore at ``s_gore`` (metres; its ramp line at ``d_gore`` metres) that
+    begin less than 60 m before it (end less than 60 m after it) and run on 60 m beyond
+    it, cut to begin (end) at the gore: the ramp's lines. Only the lines beside the gore:
+    a through line nearer the median that happens to begin within 60 m (after an inner
+    exit) has nothing to do with it (melbourne-921-s2: the inner shoulder's line was cut
+    back 51 m to an outer lane drop's gore, the shoulder became part of a lane 3.9 m
+    wide)."""
+    out = list(tracks)
+    for k, tr in enumerate(out):
+        if float(np.interp(s_gore, tr.s, tr.d)) < d_gore - _BESIDE_GORE_M:
+            continue
+        if abs(tr.lo - s_gore) < 60.0 and tr.lo < s_gore - step and tr.hi > s_gore + 60.0:
+            sel = tr.s >= s_gore
+            out[k] = replace(tr, lo=s_gore, s=tr.s[sel], d=tr.d[sel])
+        elif abs(tr.hi - s_gore) < 60.0 and tr.hi > s_gore + step and tr.lo < s_gore - 60.0:
+            sel = tr.s <= s_gore
+            out[k] = replace(tr, hi=s_gore, s=tr.s[sel], d=tr.d[sel])
+    return out
+
+
+_TIP_NEAR_M = 1.5  # a ramp line's tip this near the outermost line meets it (metres)
 _SEEN_STEP_M = 100.0  # a lane whose edge was seen to begin (end) this close after (before)
 # its marking's tip in an occlusion gap has its gore there, not in the gap (metres)
 
