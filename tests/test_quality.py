@@ -136,3 +136,16 @@ def test_edge_moving_away_from_its_measured_line_over_a_gap_is_reported():
     assert 295.0 <= st.s1_m <= 305.0
     assert st.value_m == np.clip(st.value_m, 1.4, 1.6)
     assert "changes by 1.5 m" in st.message()
+
+
+def test_reference_edge_unseen_at_the_runs_start_is_reported_though_its_line_was_seen():
+    road = truth_road()
+    # the first 150 m: the reference line is held at the trajectory's offset there, not
+    # bridged between two seen ends, whatever the shoulder line beside it shows
+    run = sample_run(road, gap=(-1.0, 150.0))
+    (st,) = _unseen(poorly_determined(road, run), "reference edge unseen")
+    assert st.s0_m == 0.0
+    assert 145.0 <= st.s1_m <= 155.0
+    # 80 m at the start: shorter than 100 m, and the line beside it was measured
+    run = sample_run(road, gap=(-1.0, 80.0))
+    assert _unseen(poorly_determined(road, run), "reference edge unseen") == []

@@ -89,6 +89,7 @@ class Stretch:
         )
 
 
+_UNSEEN_END_M = 100.0  # a median-side edge unseen this long at a run's end is reported
 _UNSEEN_CHANGE_M = 50.0  # an edge not seen over this long (metres) is reported where
 _UNSEEN_WIDTH_M = 1.0  # its distance to the line next to it changes by this much (metres)
 _SHOULDER_BIN_M = 10.0  # or that line was not measured (this many lane samples on it in
@@ -178,7 +179,8 @@ def unseen_edges(
     stretches of 50 m or more where that distance changes by 1 m or more (a lane ending
     or beginning at the edge, a gore, unseen) or the line next to the edge was not
     measured either (out of reach: a lane may hide between the edge and the nearest line
-    that was).
+    that was); and a median-side edge unseen over 100 m or more at a run's end, where the
+    reference line is held at the trajectory's offset, not bridged.
 
     Parameters
     ----------
@@ -215,7 +217,10 @@ def unseen_edges(
             if s1 - s0 < _UNSEEN_CHANGE_M:
                 continue
             change = _adjacent_line_change(both[k, a:b], lines[:, a:b], s_lane, row_lane, (s0, s1))
-            if not change < _UNSEEN_WIDTH_M:  # NaN: the line next to it was not measured
+            # at a run's end the reference line is held at the offset from the trajectory
+            # it had where the edge was last seen, not bridged between two seen ends
+            held = k == 0 and (a == 0 or b == grid.size) and s1 - s0 >= _UNSEEN_END_M
+            if held or not change < _UNSEEN_WIDTH_M:  # NaN: the line next to it unmeasured
                 out.append(Stretch(s0, s1, kind, change, 1.0))
     return out
 
