@@ -149,3 +149,16 @@ def test_reference_edge_unseen_at_the_runs_start_is_reported_though_its_line_was
     # 80 m at the start: shorter than 100 m, and the line beside it was measured
     run = sample_run(road, gap=(-1.0, 80.0))
     assert _unseen(poorly_determined(road, run), "reference edge unseen") == []
+
+
+def test_a_short_unseen_stretch_is_judged_by_its_own_stations():
+    road = truth_road()
+    # 60 m unseen where the deceleration lane opens (900-960 m), its line worn away there:
+    # reported; with its line seen: not (a stretch shorter than the lines' reach window)
+    run = sample_run(road, gap=(900.0, 960.0))
+    assert _unseen(poorly_determined(road, run), "outer edge unseen") == []
+    s, t = road.project(run.lane_samples[:, :2])
+    aux_line = (s > 890.0) & (s < 970.0) & (np.abs(t) > 12.08)
+    blind = replace(run, lane_samples=run.lane_samples[~aux_line])
+    (st,) = _unseen(poorly_determined(road, blind), "outer edge unseen")
+    assert np.isnan(st.value_m)

@@ -5,8 +5,10 @@ wrong (a marking bridged across a narrowing road, an edge pulled by a ramp). The
 the map was built from say so: along such a stretch the road-edge points lie off the
 built edge on one side, or many lane samples lie far from every built lane boundary. This
 module bins the residuals of the points (:func:`~._common.point_residuals`) along the
-station and reports every stretch where they disagree, and every driving lane wider than
-a lane can be, so that the build warns with the station instead of saying "OK".
+station and reports every stretch where they disagree, every driving lane wider than a
+lane can be, and every stretch where a road edge was not seen and the line next to it
+does not pin it either (:func:`unseen_edges`), so that the build warns with the station
+instead of saying "OK".
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.ndimage import maximum_filter1d
 
 from ..config import MainlineConfig
 from ..io import MappingRun
@@ -89,16 +92,17 @@ class Stretch:
         )
 
 
+# unseen edges (:func:`unseen_edges`); metres unless said otherwise
+_SEEN_RADIUS_M = 2.5  # a station is seen with _SEEN_POINTS edge points this near it: stray
+_SEEN_POINTS = 3  # points (outliers, a ramp's edge crossing) do not end an unseen stretch
+_UNSEEN_CHANGE_M = 50.0  # an edge unseen over this long is reported where the line next to
+_UNSEEN_WIDTH_M = 1.0  # it moves this much closer or farther, or was not measured:
+_ADJACENT_MEASURED = 0.9  # near less than this share of the stretch's stations
 _UNSEEN_END_M = 100.0  # a median-side edge unseen this long at a run's end is reported
-_UNSEEN_CHANGE_M = 50.0  # an edge not seen over this long (metres) is reported where
-_UNSEEN_WIDTH_M = 1.0  # its distance to the line next to it changes by this much (metres)
-_SHOULDER_BIN_M = 10.0  # or that line was not measured (this many lane samples on it in
-_SHOULDER_NTH = 3  # a bin this long within this many bins either side: a dash cycle and
-_SHOULDER_REACH = 3  # more)
+_SHOULDER_BIN_M = 10.0  # a line is measured near a station with _SHOULDER_NTH samples on
+_SHOULDER_NTH = 3  # it in a bin of this length within _SHOULDER_REACH bins (a dash cycle
+_SHOULDER_REACH = 3  # and a worn stretch)
 _SAME_LINE_M = 0.05  # a boundary this near the edge is the edge (a lane of zero width)
-_ADJACENT_MEASURED = 0.9  # share of a stretch's stations with the line next to it measured
-_SEEN_RADIUS_M = 2.5  # a station is seen with this many edge points this near it:
-_SEEN_POINTS = 3  # stray points (outliers, a ramp's edge crossing) do not end a gap
 
 
 def _bins(length: float, step: float) -> FloatArray:
@@ -256,9 +260,7 @@ def _adjacent_line_change(
     np.add.at(counts, (row_lane[inside], bin_of(s_lane[inside])), 1.0)
     # a line measured within _SHOULDER_REACH bins of a station (its dashes, a worn
     # stretch) is followed there
-    on = counts >= _SHOULDER_NTH
-    reach = np.ones(2 * _SHOULDER_REACH + 1)
-    on = np.stack([np.convolve(row, reach, mode="same") > 0 for row in on.astype(float)])
+    on = maximum_filter1d(counts >= _SHOULDER_NTH, size=2 * _SHOULDER_REACH + 1, axis=1)
     on = on[:, bin_of(np.linspace(s0, s1, edge_t.size))]
     # the line next to the edge (a lane of zero width, the edge's own row left out): with
     # it measured nothing can hide between it and the edge
