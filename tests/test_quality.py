@@ -69,6 +69,7 @@ def test_missed_marking_gives_a_wide_lane_and_unexplained_samples():
 
 
 def _unseen(stretches, kind):
+    """The stretches of one kind (the unseen edges' and the others')."""
     return [st for st in stretches if st.kind == kind]
 
 
@@ -162,3 +163,28 @@ def test_a_short_unseen_stretch_is_judged_by_its_own_stations():
     blind = replace(run, lane_samples=run.lane_samples[~aux_line])
     (st,) = _unseen(poorly_determined(road, blind), "outer edge unseen")
     assert np.isnan(st.value_m)
+
+
+def test_a_reference_line_turning_tighter_than_a_motorway_can_is_reported():
+    from roadtwin.fitting import fit_parampoly3_chain
+    from roadtwin.model import Road
+
+    road = truth_road()
+    assert [
+        st for st in poorly_determined(road, sample_run(road)) if st.kind == "reference line"
+    ] == []
+    # a kink: 60 degrees within 20 m (radius about 19 m), as a mainline whose median-side
+    # points were a diverging road's (melbourne-1019-lane1-s21 with a noisier sensor)
+    s = np.arange(0.0, 400.0, 1.0)
+    heading = np.radians(60.0) * np.clip((s - 200.0) / 20.0, 0.0, 1.0)
+    xy = np.column_stack([np.cumsum(np.cos(heading)), np.cumsum(np.sin(heading))])
+    kinked = replace(road, geometry=tuple(fit_parampoly3_chain(xy, tolerance_m=0.02)))
+    kinked = Road(road.id, kinked.geometry, road.lane_sections, name=road.name)
+    found = [
+        st for st in poorly_determined(kinked, sample_run(kinked)) if st.kind == "reference line"
+    ]
+    assert len(found) == 1
+    assert 180.0 <= found[0].s0_m <= 200.0
+    assert 220.0 <= found[0].s1_m <= 240.0
+    assert found[0].value_m == np.clip(found[0].value_m, 15.0, 25.0)
+    assert "radius" in found[0].message()

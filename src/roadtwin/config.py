@@ -273,6 +273,10 @@ class MainlineConfig:
     about 12) before the bin counts as a marking the map lacks."""
     quality_max_lane_m: float = 5.0
     """A driving lane wider than this (metres) is flagged: a boundary was missed."""
+    quality_min_radius_m: float = 20.0
+    """A mainline whose reference line turns tighter than this radius (metres, over 10 m)
+    is flagged: no motorway or trunk carriageway does (CARLA Town06's tightest curve has
+    29 m); its edge points were another road's or too few."""
 
     _ZERO_OK: ClassVar[frozenset[str]] = frozenset(
         {

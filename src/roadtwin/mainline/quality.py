@@ -34,14 +34,15 @@ class Stretch:
     ----------
     s0_m, s1_m : station range (metres along the mainline road).
     kind : ``"reference edge"``, ``"outer edge"``, ``"lane markings"``, ``"lane width"``,
-        ``"reference edge unseen"`` or ``"outer edge unseen"`` (an edge not seen over 50 m
+        ``"reference edge unseen"``, ``"outer edge unseen"`` (an edge not seen over 50 m
         or more where the line next to it was not measured or its distance to the edge
-        changes by 1 m or more).
+        changes by 1 m or more) or ``"reference line"`` (turning tighter than a radius
+        of ``quality_min_radius_m``).
     value_m : the worst bin's figure: median signed edge offset of the points from the
         built edge (edges), lateral offset t where unexplained lane samples line up
         (markings), the widest lane (lane width) or how much the distance from an unseen
-        edge to the line next to it changes (unseen edges; NaN: that line not measured),
-        metres.
+        edge to the line next to it changes (unseen edges; NaN: that line not measured)
+        or the tightest radius (reference line), metres.
     fraction : share of the points in the worst bin that the map does not explain.
     """
 
@@ -64,6 +65,12 @@ class Stretch:
             return (
                 f"{where}: the outer road edge was not seen (out of the sensor's reach or "
                 "hidden); it is bridged from where it was seen" + self._width_note()
+            )
+        if self.kind == "reference line":
+            return (
+                f"{where}: the mainline turns with a {self.value_m:.0f} m radius, tighter "
+                "than a motorway or trunk road can: its reference line is poorly determined "
+                "(the median-side edge points there were another road's, or too few)"
             )
         if self.kind == "lane width":
             return f"{where}: a driving lane is {self.value_m:.1f} m wide (a lane missed?)"
@@ -120,8 +127,10 @@ def poorly_determined(
     ``quality_marking_m`` from every lane boundary that line up at one offset over two
     bins or more (a marking the map lacks, at least ``quality_min_marking_samples`` per
     bin); edge bins need ``quality_min_points`` points.
-    Driving lanes wider than ``quality_max_lane_m`` are flagged too. Neighbouring flagged
-    bins merge into one stretch.
+    Driving lanes wider than ``quality_max_lane_m`` are flagged too, edges unseen where
+    the line next to them does not pin them (:func:`unseen_edges`) and a reference line
+    turning tighter than ``quality_min_radius_m`` (:func:`tight_turns`). Neighbouring
+    flagged bins merge into one stretch.
     """
     cfg = config or MainlineConfig()
     edges = _bins(road.length, cfg.quality_bin_m)
@@ -163,6 +172,7 @@ def poorly_determined(
         add(keep, conc, share, "lane markings")
     widest = _widest_driving_lane(road, edges)
     add(widest > cfg.quality_max_lane_m, widest, np.zeros(n_bins), "lane width")
+    out += tight_turns(road, cfg.quality_min_radius_m)
     return tuple(sorted(out, key=lambda x: (x.s0_m, x.kind)))
 
 
@@ -226,6 +236,31 @@ def unseen_edges(
             held = k == 0 and (a == 0 or b == grid.size) and s1 - s0 >= _UNSEEN_END_M
             if held or not change < _UNSEEN_WIDTH_M:  # NaN: the line next to it unmeasured
                 out.append(Stretch(s0, s1, kind, change, 1.0))
+    return out
+
+
+_TURN_WINDOW_M = 10.0  # the radius of a turn is taken over this length (metres)
+
+
+def tight_turns(road: Road, min_radius_m: float) -> list[Stretch]:
+    """Stretches where the road's reference line turns tighter than ``min_radius_m``
+    (metres): the heading change over ``_TURN_WINDOW_M`` gives the radius, so a joint of
+    two geometry pieces does not count. Kind ``"reference line"``, value the tightest
+    radius (metres)."""
+    if road.length < 2.0 * _TURN_WINDOW_M:
+        return []
+    s = np.arange(0.0, road.length, 1.0)
+    heading = np.unwrap(road.heading(s))
+    n = int(_TURN_WINDOW_M)
+    turn = np.abs(heading[n:] - heading[:-n])
+    radius = _TURN_WINDOW_M / np.maximum(turn, 1e-9)
+    tight = np.zeros(s.size, dtype=bool)
+    for i in np.flatnonzero(radius < min_radius_m):
+        tight[i : i + n + 1] = True
+    out = []
+    for a, b in true_runs(tight):
+        worst = float(np.min(radius[max(a, 0) : max(min(b, radius.size), a + 1)]))
+        out.append(Stretch(float(s[a]), float(s[b - 1]), "reference line", worst, 1.0))
     return out
 
 
