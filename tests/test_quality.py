@@ -188,3 +188,27 @@ def test_a_reference_line_turning_tighter_than_a_motorway_can_is_reported():
     assert 220.0 <= found[0].s1_m <= 240.0
     assert found[0].value_m == np.clip(found[0].value_m, 15.0, 25.0)
     assert "radius" in found[0].message()
+
+
+def test_the_median_edge_fit_finds_its_own_knots_in_trajectory_stations():
+    """melbourne-1019-lane1-s21 with a noisier sensor: the median-side edge, unseen over
+    140 m before a median-side split, was fitted through another road's edge points and
+    swung with a 6.7 m radius; esmini jumped 31 m there. Such knots are found on the fitted
+    line (heading change over 10 m) and their edge points left out before a second fit."""
+    from roadtwin.fitting import PolylineFrame
+    from roadtwin.mainline.reference import _tight_turns
+
+    s = np.arange(0.0, 600.0, 1.0)
+    straight = np.column_stack([s, np.zeros_like(s)])
+    traj = PolylineFrame.from_points(straight + np.array([0.0, -5.0]))
+    assert _tight_turns(straight, traj, 20.0) == []
+    # a gentle 300 m radius curve: none either
+    arc = np.column_stack([300.0 * np.sin(s / 300.0), 300.0 * (1.0 - np.cos(s / 300.0))])
+    assert _tight_turns(arc, PolylineFrame.from_points(arc), 20.0) == []
+    # a swing of 90 degrees out and back within 30 m at 300 m
+    heading = np.radians(90.0) * np.clip(1.0 - np.abs(s - 300.0) / 15.0, 0.0, 1.0)
+    knotted = np.column_stack([np.cumsum(np.cos(heading)), np.cumsum(np.sin(heading))])
+    (lo, hi), *rest = _tight_turns(knotted, traj, 20.0)
+    assert rest == []
+    assert 270.0 <= lo <= 300.0
+    assert 290.0 <= hi <= 330.0

@@ -40,6 +40,7 @@ from ._common import (
     _trajectory_frame,
     road_surface_poses,
     robust_offset_fit,
+    true_runs,
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
@@ -64,6 +65,22 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
 
     t0 = time.perf_counter()
     median = fit_median_edge(ref_pts, traj, config=cfg, outer_pts=outer_pts)
+    knots = _tight_turns(median.xy, traj, cfg.quality_min_radius_m)
+    if knots:
+        # the line turns tighter than any carriageway can: the points there are another
+        # road's (a diverging ramp's edge beside an unseen median edge); bridged without
+        s_ref, _ = traj.project(ref_pts[:, :2])
+        drop = np.zeros(s_ref.size, dtype=bool)
+        for lo, hi in knots:
+            drop |= (s_ref > lo - _KNOT_MARGIN_M) & (s_ref < hi + _KNOT_MARGIN_M)
+        log.warning(
+            "mainline: the median-side edge turned tighter than a %.0f m radius at "
+            "s=%s m of the trajectory; its %d points there are left out",
+            cfg.quality_min_radius_m,
+            ", ".join(f"{lo:.0f}..{hi:.0f}" for lo, hi in knots),
+            int(np.count_nonzero(drop)),
+        )
+        median = fit_median_edge(ref_pts[~drop], traj, config=cfg, outer_pts=outer_pts)
     geometry = fit_parampoly3_chain(median.xy, tolerance_m=cfg.fit_tolerance_m)
     timings["reference_line"] = time.perf_counter() - t0
 
@@ -381,6 +398,33 @@ def _median_levels(
     u = side * t
     edges = np.arange(lo - 1.0, hi + 3.0, 2.0)
     return u, edges, edge_level_path(s, u, edges, config=cfg)
+
+
+_KNOT_MARGIN_M = 30.0  # edge points this near a knot of the median line are left out
+
+
+def _tight_turns(
+    xy: FloatArray, traj: PolylineFrame, min_radius_m: float
+) -> list[tuple[float, float]]:
+    """Stretches (trajectory stations, metres) where the polyline ``xy`` (mapping frame,
+    metres) turns tighter than ``min_radius_m`` over 10 m (heading change per 10 m)."""
+    s = arc_length(xy)
+    if s[-1] < 20.0:
+        return []
+    grid = np.arange(0.0, s[-1], 1.0)
+    heading = np.unwrap(np.arctan2(np.diff(xy[:, 1]), np.diff(xy[:, 0])))
+    h = np.interp(grid, s[:-1], heading)
+    turn = np.abs(h[10:] - h[:-10])
+    tight = np.zeros(grid.size, dtype=bool)
+    for i in np.flatnonzero(turn > 10.0 / min_radius_m):
+        tight[i : i + 11] = True
+    out = []
+    for a, b in true_runs(tight):
+        ends = np.interp([grid[a], grid[b - 1]], s, np.arange(s.size))
+        pts = xy[np.clip(np.rint(ends).astype(int), 0, len(xy) - 1)]
+        st, _ = traj.project(pts)
+        out.append((float(np.min(st)), float(np.max(st))))
+    return out
 
 
 _UNSEEN_END_M = 150.0  # a run end this long without median-side edge points is still road
