@@ -164,6 +164,29 @@ def true_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
+TURN_WINDOW_M = 10.0  # the radius of a turn is taken over this length (metres)
+
+
+def tight_turn_runs(
+    heading: FloatArray, min_radius_m: float
+) -> tuple[list[tuple[int, int]], FloatArray]:
+    """Where a line turns tighter than ``min_radius_m`` (metres).
+
+    ``heading`` (radians, unwrapped) is sampled every metre along the line; the radius is
+    the heading change over ``TURN_WINDOW_M`` (so a joint of two geometry pieces does not
+    count). Returns the index ranges ``[a, b)`` of the tight stretches (each window that
+    turns too tight, whole) and the radius (metres) of the window starting at each index.
+    """
+    n = int(TURN_WINDOW_M)
+    if heading.size <= n:
+        return [], np.full(0, np.inf)
+    radius = TURN_WINDOW_M / np.maximum(np.abs(heading[n:] - heading[:-n]), 1e-9)
+    tight = np.zeros(heading.size, dtype=bool)
+    for i in np.flatnonzero(radius < min_radius_m):
+        tight[i : i + n + 1] = True
+    return true_runs(tight), radius
+
+
 def _lam(cutoff_m: float, step_m: float, order: int = 2) -> float:
     """Whittaker smoothing strength for a cut-off wavelength (grid units)."""
     return (cutoff_m / (2.0 * math.pi * step_m)) ** (2 * order)

@@ -23,7 +23,15 @@ from scipy.ndimage import maximum_filter1d
 from ..config import MainlineConfig
 from ..io import MappingRun
 from ..model import Road
-from ._common import FloatArray, PointResiduals, _border_matrix, point_residuals, true_runs
+from ._common import (
+    TURN_WINDOW_M,
+    FloatArray,
+    PointResiduals,
+    _border_matrix,
+    point_residuals,
+    tight_turn_runs,
+    true_runs,
+)
 
 
 @dataclass(frozen=True)
@@ -239,27 +247,17 @@ def unseen_edges(
     return out
 
 
-_TURN_WINDOW_M = 10.0  # the radius of a turn is taken over this length (metres)
-
-
 def tight_turns(road: Road, min_radius_m: float) -> list[Stretch]:
     """Stretches where the road's reference line turns tighter than ``min_radius_m``
-    (metres): the heading change over ``_TURN_WINDOW_M`` gives the radius, so a joint of
-    two geometry pieces does not count. Kind ``"reference line"``, value the tightest
-    radius (metres)."""
-    if road.length < 2.0 * _TURN_WINDOW_M:
+    (metres; :func:`~._common.tight_turn_runs`). Kind ``"reference line"``, value the
+    tightest radius (metres)."""
+    if road.length < 2.0 * TURN_WINDOW_M:
         return []
     s = np.arange(0.0, road.length, 1.0)
-    heading = np.unwrap(road.heading(s))
-    n = int(_TURN_WINDOW_M)
-    turn = np.abs(heading[n:] - heading[:-n])
-    radius = _TURN_WINDOW_M / np.maximum(turn, 1e-9)
-    tight = np.zeros(s.size, dtype=bool)
-    for i in np.flatnonzero(radius < min_radius_m):
-        tight[i : i + n + 1] = True
+    runs, radius = tight_turn_runs(np.unwrap(road.heading(s)), min_radius_m)
     out = []
-    for a, b in true_runs(tight):
-        worst = float(np.min(radius[max(a, 0) : max(min(b, radius.size), a + 1)]))
+    for a, b in runs:
+        worst = float(np.min(radius[a : max(min(b, radius.size), a + 1)]))
         out.append(Stretch(float(s[a]), float(s[b - 1]), "reference line", worst, 1.0))
     return out
 

@@ -30,6 +30,7 @@ from ..model import (
     Road,
 )
 from ._common import (
+    TURN_WINDOW_M,
     BoundaryTrack,
     _grid,
     _lam,
@@ -40,7 +41,7 @@ from ._common import (
     _trajectory_frame,
     road_surface_poses,
     robust_offset_fit,
-    true_runs,
+    tight_turn_runs,
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
@@ -66,13 +67,14 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     t0 = time.perf_counter()
     median = fit_median_edge(ref_pts, traj, config=cfg, outer_pts=outer_pts)
     knots = _tight_turns(median.xy, traj, cfg.quality_min_radius_m)
-    if knots:
+    s_ref, _ = traj.project(ref_pts[:, :2]) if knots else (np.zeros(0), None)
+    drop = np.zeros(s_ref.size, dtype=bool)
+    for lo, hi in knots:
+        drop |= (s_ref > lo - _KNOT_MARGIN_M) & (s_ref < hi + _KNOT_MARGIN_M)
+    if knots and np.count_nonzero(~drop) >= 10:
         # the line turns tighter than any carriageway can: the points there are another
         # road's (a diverging ramp's edge beside an unseen median edge); bridged without
-        s_ref, _ = traj.project(ref_pts[:, :2])
-        drop = np.zeros(s_ref.size, dtype=bool)
-        for lo, hi in knots:
-            drop |= (s_ref > lo - _KNOT_MARGIN_M) & (s_ref < hi + _KNOT_MARGIN_M)
+        # them
         log.warning(
             "mainline: the median-side edge turned tighter than a %.0f m radius at "
             "s=%s m of the trajectory; its %d points there are left out",
@@ -407,22 +409,17 @@ def _tight_turns(
     xy: FloatArray, traj: PolylineFrame, min_radius_m: float
 ) -> list[tuple[float, float]]:
     """Stretches (trajectory stations, metres) where the polyline ``xy`` (mapping frame,
-    metres) turns tighter than ``min_radius_m`` over 10 m (heading change per 10 m)."""
+    metres) turns tighter than ``min_radius_m`` (:func:`~._common.tight_turn_runs`)."""
     s = arc_length(xy)
-    if s[-1] < 20.0:
+    if s[-1] < 2.0 * TURN_WINDOW_M:
         return []
     grid = np.arange(0.0, s[-1], 1.0)
     heading = np.unwrap(np.arctan2(np.diff(xy[:, 1]), np.diff(xy[:, 0])))
-    h = np.interp(grid, s[:-1], heading)
-    turn = np.abs(h[10:] - h[:-10])
-    tight = np.zeros(grid.size, dtype=bool)
-    for i in np.flatnonzero(turn > 10.0 / min_radius_m):
-        tight[i : i + 11] = True
+    runs, _ = tight_turn_runs(np.interp(grid, s[:-1], heading), min_radius_m)
     out = []
-    for a, b in true_runs(tight):
+    for a, b in runs:
         ends = np.interp([grid[a], grid[b - 1]], s, np.arange(s.size))
-        pts = xy[np.clip(np.rint(ends).astype(int), 0, len(xy) - 1)]
-        st, _ = traj.project(pts)
+        st, _ = traj.project(xy[np.clip(np.rint(ends).astype(int), 0, len(xy) - 1)])
         out.append((float(np.min(st)), float(np.max(st))))
     return out
 
