@@ -66,23 +66,7 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
 
     t0 = time.perf_counter()
     median = fit_median_edge(ref_pts, traj, config=cfg, outer_pts=outer_pts)
-    knots = _tight_turns(median.xy, traj, cfg.quality_min_radius_m)
-    s_ref, _ = traj.project(ref_pts[:, :2]) if knots else (np.zeros(0), None)
-    drop = np.zeros(s_ref.size, dtype=bool)
-    for lo, hi in knots:
-        drop |= (s_ref > lo - _KNOT_MARGIN_M) & (s_ref < hi + _KNOT_MARGIN_M)
-    if knots and np.count_nonzero(~drop) >= 10:
-        # the line turns tighter than any carriageway can: the points there are another
-        # road's (a diverging ramp's edge beside an unseen median edge); bridged without
-        # them
-        log.warning(
-            "mainline: the median-side edge turned tighter than a %.0f m radius at "
-            "s=%s m of the trajectory; its %d points there are left out",
-            cfg.quality_min_radius_m,
-            ", ".join(f"{lo:.0f}..{hi:.0f}" for lo, hi in knots),
-            int(np.count_nonzero(drop)),
-        )
-        median = fit_median_edge(ref_pts[~drop], traj, config=cfg, outer_pts=outer_pts)
+    median = _without_knots(median, ref_pts, traj, cfg, outer_pts)
     geometry = fit_parampoly3_chain(median.xy, tolerance_m=cfg.fit_tolerance_m)
     timings["reference_line"] = time.perf_counter() - t0
 
@@ -403,6 +387,37 @@ def _median_levels(
 
 
 _KNOT_MARGIN_M = 30.0  # edge points this near a knot of the median line are left out
+
+
+def _without_knots(
+    median: MedianEdge,
+    ref_pts: FloatArray,
+    traj: PolylineFrame,
+    cfg: MainlineConfig,
+    outer_pts: FloatArray,
+) -> MedianEdge:
+    """``median`` fitted again without its edge points (mapping frame, metres) within
+    ``_KNOT_MARGIN_M`` of where it turns tighter than ``cfg.quality_min_radius_m``: no
+    carriageway does, the points there are another road's (a diverging ramp's edge beside
+    an unseen median edge) and the fit bridges them. Unchanged without knots, or where
+    fewer than 10 points would be left."""
+    knots = _tight_turns(median.xy, traj, cfg.quality_min_radius_m)
+    if not knots:
+        return median
+    s_ref, _ = traj.project(ref_pts[:, :2])
+    drop = np.zeros(s_ref.size, dtype=bool)
+    for lo, hi in knots:
+        drop |= (s_ref > lo - _KNOT_MARGIN_M) & (s_ref < hi + _KNOT_MARGIN_M)
+    if np.count_nonzero(~drop) < 10:
+        return median
+    log.warning(
+        "mainline: the median-side edge turned tighter than a %.0f m radius at "
+        "s=%s m of the trajectory; its %d points there are left out",
+        cfg.quality_min_radius_m,
+        ", ".join(f"{lo:.0f}..{hi:.0f}" for lo, hi in knots),
+        int(np.count_nonzero(drop)),
+    )
+    return fit_median_edge(ref_pts[~drop], traj, config=cfg, outer_pts=outer_pts)
 
 
 def _tight_turns(
