@@ -20,7 +20,7 @@ from .gores import (
     fuse_gore_estimates,
     marking_gore_interval,
 )
-from .markings import _last_marking, _Track
+from .markings import _ends_on_converging_line, _last_marking, _Track
 
 log = logging.getLogger(__name__)
 
@@ -137,7 +137,14 @@ def _snap_to_hidden_gores(
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
                 gores.append(tr.lo)
                 at_lines.append((tr.lo, float(tr.d[0])))
-        if tr.hi < grid[-1] - step and hidden(tr.hi) and _outermost_at(out, k, tr.hi):
+        # a line ending on a line that converges onto it is a lane closing from both
+        # sides, no ramp line (melbourne-921-s2: cut back 70 m to where it began to bend)
+        if (
+            tr.hi < grid[-1] - step
+            and hidden(tr.hi)
+            and _outermost_at(out, k, tr.hi)
+            and not _ends_on_converging_line(out, k, tr.hi, float(tr.d[-1]))
+        ):
             rel = _beside_inner_line(tracks, k, tr)
             par = np.flatnonzero((np.gradient(rel, tr.s) < cfg.hidden_gore_slope) | (rel < _MET_M))
             if (

@@ -415,6 +415,7 @@ def _tracks_in_frame(
     cand: list[_Track] = []
     evidence: list[tuple[float, float]] = []
     # every column peak once (column, offset, track), for the short ramp lines below
+    raw = _join_tapers(raw, cfg)
     peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw])
     peak_d = np.concatenate([np.asarray(tr.d, dtype=float) for tr in raw])
     peak_tr = np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw])
@@ -472,8 +473,11 @@ def _tracks_in_frame(
         if d_edge is not None:
             # the line inward matters only for a cut end (a nose's taper line)
             inner = None if keep_g.all() else _next_line_inward(cand, k, float(g[0]), float(fit[0]))
+            meets = not keep_g[-1] and _ends_on_converging_line(
+                cand, k, float(g[-1]), float(fit[-1])
+            )
             keep_g |= _mainline_ends_inside_edge(
-                g, fit, keep_g, grid, d_edge, s_last, col, inner_d=inner
+                g, fit, keep_g, grid, d_edge, s_last, col, inner_d=inner, meets_line=meets
             )
         if not keep_g[-1] or not keep_g[0]:
             # a ramp line: where it meets / leaves the corridor's marking is a gore
@@ -496,6 +500,46 @@ def _tracks_in_frame(
         mark = _mark_type(ss, lo, hi, cfg)
         final.append(_Track(len(final), lo, hi, g, fit, mark, int(ss.size), ss, dd))
     return _merge_collinear(final, cfg, grid, d_edge), evidence
+
+
+_GOES_ON_COLUMNS = 2  # a line beginning within this many columns after another ended ...
+_GOES_ON_M = 1.0  # ... this close (metres) to one of its last two offsets ...
+_GOES_ON_MOVE_M = 1.0  # ... and moving inward by this much (metres) is its taper
+
+
+def _join_tapers(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
+    """The raw tracks with every taper that goes on from a line that ended joined to that
+    line (one marking).
+
+    A taper is a raw track too short for a marking (``lane_min_track_m``) that moves
+    inward by ``_GOES_ON_MOVE_M`` or more and begins within ``_GOES_ON_COLUMNS`` columns
+    after a track long enough for one ended, within ``_GOES_ON_M`` of one of that track's
+    last two offsets (the track's peaks after the matching one are dropped). Where a lane
+    closes right past an exit's gore, its line splits there: the ramp's line goes out,
+    the mainline's comes in. The linking may carry the track on along the ramp's line (cut
+    off later as one); the taper, left on its own, was shorter than a track and dropped,
+    and the closing lane became part of the shoulder (melbourne-408-lane1-s21 with a
+    noisier sensor: lane count 97.7 %). Joined, the lane closes along its own line."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    out = [_RawTrack(list(tr.cols), list(tr.d), tr.slope) for tr in raw]
+    dropped: set[int] = set()
+    for k, tr in enumerate(out):
+        if tr.cols[-1] - tr.cols[0] + 1 >= min_cols or tr.d[0] - tr.d[-1] < _GOES_ON_MOVE_M:
+            continue
+        for j, line in enumerate(out):
+            gap = tr.cols[0] - line.cols[-1]
+            if j == k or j in dropped or not 1 <= gap <= _GOES_ON_COLUMNS:
+                continue
+            if line.cols[-1] - line.cols[0] + 1 < min_cols:
+                continue
+            miss = [abs(v - tr.d[0]) for v in line.d[-2:]]
+            if min(miss) > _GOES_ON_M:
+                continue
+            keep = len(line.d) - (len(miss) - 1 - int(np.argmin(miss)))
+            out[j] = _RawTrack(line.cols[:keep] + tr.cols, line.d[:keep] + tr.d, tr.slope)
+            dropped.add(k)
+            break
+    return [tr for k, tr in enumerate(out) if k not in dropped]
 
 
 _SHORT_RAMP_LINE_M = 20.0  # a line too short for a track still shows a gore if this long ...
@@ -583,6 +627,82 @@ def _ramp_line_meeting(g: FloatArray, fit: FloatArray, others: list[_Track]) -> 
     if hits.size == 0:
         return g.size - 1 if converging else 0
     return int(hits[0]) if converging else int(hits[-1])
+
+
+_MOVING_SLOPE = 0.015  # a line whose end moves sideways this fast (m/m) ...
+_MOVING_OVER_M = 10.0  # ... over its last (first) this many metres is a taper's line ...
+_CARRY_MAX_M = 60.0  # ... carried on along that slope at most this far (metres)
+_OUTSIDE_EDGE_M = 0.3  # a carried line lies no farther than this beyond the seen edge
+
+
+def _along_its_slope(
+    tr: _Track,
+    tracks: list[_Track],
+    k: int,
+    grid: FloatArray,
+    *,
+    forward: bool,
+    lane_m: float,
+    d_edge: FloatArray | None = None,
+) -> _Track | None:
+    """Track ``k`` (``tr``) carried on along its slope to the line it meets, where it was
+    seen moving sideways at a taper's rate where it ends (``forward``) or begins; None if
+    it was not, or no line within a lane (``lane_m``, metres) of its end runs where its
+    slope carries it within ``_CARRY_MAX_M``, or the carried part would lie beyond the
+    outer edge ``d_edge`` (on ``grid``, NaN where it was not seen).
+
+    A lane's line seen only from the middle of its taper on (worn paint where it leaves
+    the line it splits from) is no line that stays where it is: held at the offset it was
+    first seen at back to where the edge moving out with it reached that offset, the lane
+    opened 40 m early and 2.2 m wide beside the shoulder (melbourne-14-s11+80: lane count
+    96.6 %). Carried on along its slope, it opens from the line it leaves, as a taper.
+    Stations and offsets in metres."""
+    n_slope = max(round(_MOVING_OVER_M / float(grid[1] - grid[0])), 2)
+    s_part, d_part = (
+        (tr.s[-n_slope:], tr.d[-n_slope:]) if forward else (tr.s[:n_slope], tr.d[:n_slope])
+    )
+    if s_part.size < 2 or tr.n == 0:
+        return None
+    slope = float(np.polyfit(s_part, d_part, 1)[0])
+    if abs(slope) < _MOVING_SLOPE:
+        return None
+    s_end, d_end = float(s_part[-1 if forward else 0]), float(d_part[-1 if forward else 0])
+    if forward:
+        probe = grid[(grid > s_end) & (grid <= s_end + _CARRY_MAX_M)]
+    else:
+        probe = grid[(grid < s_end) & (grid >= s_end - _CARRY_MAX_M)][::-1]
+    d_probe = d_end + slope * (probe - s_end)
+    meet = None
+    for j, nb in enumerate(tracks):
+        if j == k:
+            continue
+        inside = (probe >= nb.lo) & (probe <= nb.hi)
+        if not inside.any():
+            continue
+        # the side of the neighbour the line is on flips (or comes within _MEET_M) where
+        # they meet
+        side = np.where(inside, d_probe - np.interp(probe, nb.s, nb.d), np.nan)
+        at_end = side[np.flatnonzero(inside)[0]]
+        if abs(at_end) > lane_m:
+            continue
+        hit = np.flatnonzero(inside & ((np.abs(side) <= _MEET_M) | (side * at_end < 0.0)))
+        if hit.size and (meet is None or hit[0] < meet):
+            meet = int(hit[0])
+    if meet is None or meet == 0:
+        return None
+    g, d_new = probe[: meet + 1], d_probe[: meet + 1]
+    if d_edge is not None and np.any(d_new > np.interp(g, grid, d_edge) + _OUTSIDE_EDGE_M):
+        return None  # beyond the seen edge: not where the line went
+    if forward:
+        return replace(
+            tr, hi=float(g[-1]), s=np.concatenate([tr.s, g]), d=np.concatenate([tr.d, d_new])
+        )
+    return replace(
+        tr,
+        lo=float(g[-1]),
+        s=np.concatenate([g[::-1], tr.s]),
+        d=np.concatenate([d_new[::-1], tr.d]),
+    )
 
 
 def _meeting_station(
@@ -687,6 +807,12 @@ def _continue_to_convergence(
             if (forward and s_end >= grid[-1] - 1.0) or (not forward and s_end <= grid[0] + 1.0):
                 continue
             d_end = float(tr.d[-1] if forward else tr.d[0])
+            along = _along_its_slope(
+                out[k], tracks, k, grid, forward=forward, lane_m=lane_m, d_edge=d_edge
+            )
+            if along is not None:
+                out[k] = along
+                continue
             # the adjacent lines either side that run on past the end
             beside = []
             for j, nb in enumerate(neighbours):
@@ -822,6 +948,7 @@ def _mainline_ends_inside_edge(
     column_m: float,
     *,
     inner_d: float | None = None,
+    meets_line: bool = False,
 ) -> NDArray[np.bool_]:
     """The trimmed ends of a marking track (``~keep``, see :func:`_trim_ramp_lines`) that
     are the mainline's own lines after all: they stay inside the outer edge ``d_edge``
@@ -841,7 +968,11 @@ def _mainline_ends_inside_edge(
     lane sideways where lanes are added on the median side gave lane sections whose
     through lanes were not linked (melbourne-408-opp). Past a nose, the outer line of an
     acceleration lane that closes by a taper is kept (:func:`_closes_with_edge`;
-    ``inner_d``: the next line inward where the line is first seen, metres).
+    ``inner_d``: the next line inward where the line is first seen, metres). A diverging
+    tail that ends on a line converging towards it (``meets_line``,
+    :func:`_ends_on_converging_line`) is kept too: the lane between them closes from both
+    sides (melbourne-408-opp-s4: the inner line of a dropped lane moved 0.8 m out to meet
+    the outer one; cut, it went on flat and the lane ended 0.7 m wide, 10 m late).
     """
     back = np.zeros(g.size, dtype=bool)
     if keep.all():
@@ -863,9 +994,45 @@ def _mainline_ends_inside_edge(
     ):
         back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
-    if tail.size and g[-1] >= s_last - 2.0 * column_m and inside[tail].all():
+    if tail.size and (g[-1] >= s_last - 2.0 * column_m or meets_line) and inside[tail].all():
         back[tail] = True
     return back
+
+
+_CLOSING_OVER_M = 30.0  # a line ends on another whose gap to it shrank over this ...
+_CLOSING_BY_M = 0.5  # ... by this much (metres), the other coming in by as much ...
+_CLOSING_AHEAD_M = 50.0  # ... and, closing at that rate, meets it within this (metres) ...
+_CLOSING_AFTER_M = 20.0  # ... while the other goes on at least this far beyond the meeting
+
+
+def _ends_on_converging_line(cand: list[_Track], k: int, s_end: float, d_end: float) -> bool:
+    """Whether track ``k``, whose end at station ``s_end`` (offset ``d_end``, metres)
+    moves outward, ends on another candidate track farther out that converges towards
+    it: the gap between the two shrank by ``_CLOSING_BY_M`` or more over the last
+    ``_CLOSING_OVER_M``, the other line came in, closing at that rate they meet within
+    ``_CLOSING_AHEAD_M``, and the other line goes on ``_CLOSING_AFTER_M`` beyond the meeting.
+
+    A lane closing from both sides: its inner line moves out while its outer line comes
+    in, and only the outer line goes on (the inner one's samples end where the two become
+    one marking). An exit's diverging line leaves past every line instead (the line
+    beyond it, the exit lane's outer line, leaves with it)."""
+    tr_k = cand[k]
+    before = s_end - _CLOSING_OVER_M
+    if tr_k.lo > before:
+        return False
+    d_k_before = float(np.interp(before, tr_k.s, tr_k.d))
+    for j, tr in enumerate(cand):
+        if j == k or tr.lo > before:
+            continue
+        d_there, d_before = np.interp([s_end, before], tr.s, tr.d)
+        gap, gap_before = d_there - d_end, d_before - d_k_before
+        closing = gap_before - gap
+        if gap <= -_CLOSING_BY_M or closing < _CLOSING_BY_M or d_before - d_there < _CLOSING_BY_M:
+            continue
+        meet = s_end + max(gap, 0.0) / closing * _CLOSING_OVER_M
+        if meet - s_end <= _CLOSING_AHEAD_M and tr.hi >= meet + _CLOSING_AFTER_M:
+            return True
+    return False
 
 
 _WITH_EDGE_SHARE = 0.5  # a line whose gap to the edge changes by less than this share ...
