@@ -203,8 +203,19 @@ def _settled_offset(track: _RawTrack, col: int, column_m: float) -> float:
     return track.d[-1]
 
 
-def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack]:
-    """Greedy nearest-neighbour linking of column peaks into tracks."""
+def _link_tracks(
+    peaks: list[FloatArray], cfg: MainlineConfig, frame_offset: FloatArray | None = None
+) -> list[_RawTrack]:
+    """Greedy nearest-neighbour linking of column peaks into tracks.
+
+    ``frame_offset`` (metres per column): where the peaks are offsets in a frame that
+    moves with the marking pattern (:mod:`.shift`), the frame's offset at each column. A
+    line that stays where it is in the road while the pattern shifts around it (the
+    median-side line where lanes are added beyond it) moves by minus the frame's move in
+    the frame; its trend lags where the shift begins, and the track took the line that
+    moves with the pattern instead (melbourne-408-opp-s9: the median-side line swapped
+    for the new lanes' line, 2.3 m off over 100 m). Such a line may also go on where it
+    stays put in the road."""
     max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
     tracks: list[_RawTrack] = []
     active: list[int] = []
@@ -220,7 +231,19 @@ def _link_tracks(peaks: list[FloatArray], cfg: MainlineConfig) -> list[_RawTrack
             # offset, once every line that its own trend explains has taken its peak (a
             # converging line must not take over the line it met)
             last = np.array([_settled_offset(tracks[i], c, cfg.lane_column_m) for i in active])
-            for guess, tol in ((pred, cfg.lane_link_m), (last, _SETTLE_LINK_M)):
+            guesses = [(pred, cfg.lane_link_m)]
+            if frame_offset is not None:
+                still = np.array(
+                    [
+                        tracks[i].d[-1] - (frame_offset[c] - frame_offset[tracks[i].cols[-1]])
+                        for i in active
+                    ]
+                )
+                # only where the frame moves (elsewhere it is the trend's own guess)
+                moving = np.abs(still - np.array([tracks[i].d[-1] for i in active])) > 0.05
+                guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m))
+            guesses.append((last, _SETTLE_LINK_M))
+            for guess, tol in guesses:
                 cost = np.abs(pk[:, None] - guess[None, :])
                 n_ok = int(np.count_nonzero(cost <= tol))
                 order = np.argsort(cost, axis=None, kind="stable")[:n_ok]
@@ -325,7 +348,7 @@ def _tracks_from_samples(
         edge = None if d_edge is None else d_edge - frame.offset(grid)
         d_frame = d - frame.offset(s)
         centres, peaks = _find_track_peaks(s, d_frame, length, cfg, frame.deepest_m + below_m)
-        raw = _link_tracks(peaks, cfg)
+        raw = _link_tracks(peaks, cfg, frame.offset(centres))
         tracks, evidence = _tracks_in_frame(
             s, d_frame, grid, length, cfg, edge, centres, raw, frame
         )
