@@ -1096,3 +1096,15 @@ def test_no_lane_of_the_built_roads_ends_below_zero_width():
     assert lanes[-3].width.value(s).min() > -1e-9
     assert lanes[-3].width.value(np.array([300.0]))[0] == pytest.approx(0.0, abs=1e-9)
     assert lanes[-2].width == road.lane_sections[0].right[1].width
+
+
+def test_a_mainline_piece_is_never_split_into_a_sliver():
+    """Offset steps and renumbering borders split the mainline between junctions, but a
+    step within ``min_road_length_m`` of a piece's end (or of the previous split) stays
+    inside the road: a step 1.9 m past an exit's junction made a road no car could drive a
+    lane of (oakland-28393854-lane1-s21)."""
+    from roadtwin.topology import _split_stations
+
+    assert _split_stations([1396.0, 1700.0, 1702.0, 2163.0], 1394.1, 2165.0, 5.0) == [1700.0]
+    assert _split_stations([10.0, 20.0], 0.0, 100.0, 5.0) == [10.0, 20.0]
+    assert _split_stations([3.0, 97.0], 0.0, 100.0, 5.0) == []

@@ -528,6 +528,19 @@ def _renumbering_borders(road: Road, traffic_side: TrafficSide) -> list[float]:
     return out
 
 
+def _split_stations(steps: Sequence[float], lo: float, hi: float, min_m: float) -> list[float]:
+    """The stations of sorted ``steps`` (metres) where a mainline piece ``lo``..``hi`` is
+    split: those inside it that leave no part shorter than ``min_m``. A step a metre or
+    two past a junction's end made a road 1.9 m long that no car can drive a lane of
+    (oakland-28393854-lane1-s21: a median shoulder renumbered 1.9 m past an exit's
+    junction); such a step stays inside the road, its lanes linked by id there."""
+    out: list[float] = []
+    for x in steps:
+        if x - (out[-1] if out else lo) >= min_m and hi - x >= min_m:
+            out.append(float(x))
+    return out
+
+
 def _chain_roads(parts: list[Road], traffic_side: TrafficSide) -> list[Road]:
     """Consecutive parts of one road linked end to start (road and lane links by geometry).
 
@@ -907,7 +920,7 @@ def build_topology(
     split_ids = itertools.count(n_main + (per_zone + 1) * len(zones) + 1)
     tails: list[list[Road]] = []
     for i in range(n_main):
-        inside = [x for x in steps if cuts[2 * i] + 1.0 < x < cuts[2 * i + 1] - 1.0]
+        inside = _split_stations(steps, cuts[2 * i], cuts[2 * i + 1], cfg.min_road_length_m)
         if not inside:
             tails.append([])
             continue
