@@ -122,6 +122,27 @@ def _replace_road(net: RoadNetwork, road_id: str, **changes) -> RoadNetwork:
     return dataclasses.replace(net, roads=roads)
 
 
+def test_a_mainline_lane_narrower_than_a_car_over_its_last_road_ends_where_it_was_wide():
+    """A through lane that closes by a taper from 1.8 m at the start of the last mainline
+    road: the route along it targets where it was last 2 m wide, not the end of that road
+    (0.05 m wide, where esmini moved the car into the next lane: melbourne-921-s2)."""
+    net = mainline_exit_network("default")
+    road = net.road("2")
+    sec = road.lane_sections[0]
+    taper = CubicProfile((CubicPiece(0.0, 1.8, -1.8 / road.length),))
+    right = tuple(dataclasses.replace(ln, width=taper) if ln.id == -2 else ln for ln in sec.right)
+    net = _replace_road(net, "2", lane_sections=(dataclasses.replace(sec, right=right),))
+    route = next(r for r in find_routes(net) if r.name == "mainline lane -2")
+    assert not route.problem
+    assert route.target.road_id != "2"
+    assert route.on_target_m > 0.0
+    tr = net.road(route.target.road_id)
+    s_t = np.array([route.target.s_m])
+    lid = route.target.lane_id
+    width = abs(tr.lane_border_t(s_t, lid) - tr.lane_border_t(s_t, lid + (1 if lid < 0 else -1)))
+    assert width[0] >= 2.0
+
+
 def test_a_removed_connection_is_a_route_without_lane_path():
     net = _drop_connection(mainline_exit_network(), "100", "1")
     route = next(r for r in find_routes(net) if r.kind == "exit")

@@ -265,7 +265,11 @@ def _make_route(
         # never is (a lane link onto a shoulder) still gets the target, at its end
         u_hi = cum[k_last] + follow_m
         u = min(cum[-1] - cfg.end_margin_m, u_hi)
-        for j in range(len(lanes) - 1, k_last - 1, -1):
+        # a mainline lane that closes by a taper may narrow below the width over its last
+        # road already (melbourne-921-s2: 1.6 m where the road began, esmini moved the car
+        # into the lane beside it): its target is where it was last wide enough
+        first = 0 if kind == "mainline" else k_last
+        for j in range(len(lanes) - 1, first - 1, -1):
             wide = _usable(ctx, lanes[j], from_entry=False)
             if wide is not None:
                 u = min(cum[j] + wide, u_hi)
@@ -297,7 +301,10 @@ def _make_route(
         lane = next((n[2] for n in nodes if n[1] == k), nodes[0][2])
         points.append(LanePoint(road_id, lane, float(mid)))
     points.append(target)
-    on_target = u_target - max(u_start, cum[max(k_last, i0)])
+    k_target = i1  # the first lane of the target's road (the last road's, or before it)
+    while k_target > 0 and lanes[k_target - 1][0] == lanes[i1][0]:
+        k_target -= 1
+    on_target = u_target - max(u_start, cum[max(k_target, i0)])
     return Route(
         name, kind, tuple(used), tuple(points), float(u_target - u_start), float(on_target)
     )
