@@ -239,8 +239,13 @@ def _link_tracks(
                         for i in active
                     ]
                 )
-                # only where the frame moves (elsewhere it is the trend's own guess)
+                # only where the frame moves (elsewhere it is the trend's own guess), and
+                # for a line seen in the column before: across a gap another line may
+                # have shifted into its place (krems-30799129-s11+20: an exit's line left
+                # while the lines inward shifted out by a lane, and its track took the
+                # line that arrived 20 m on, the gore 25 m late)
                 moving = np.abs(still - np.array([tracks[i].d[-1] for i in active])) > 0.05
+                moving &= np.array([tracks[i].cols[-1] == c - 1 for i in active])
                 guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m))
             guesses.append((last, _SETTLE_LINK_M))
             for guess, tol in guesses:
