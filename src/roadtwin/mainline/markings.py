@@ -682,9 +682,9 @@ def _along_its_slope(
     A lane's line seen only from the middle of its taper on (worn paint where it leaves
     the line it splits from) is no line that stays where it is: held at the offset it was
     first seen at back to where the edge moving out with it reached that offset, the lane
-    opened 40 m early and 2.2 m wide beside the shoulder (melbourne-14-s11+80: lane count
-    96.6 %). Carried on along its slope, it opens from the line it leaves, as a taper.
-    Stations and offsets in metres."""
+    opened at once 2.2 m wide there, 30 m before its taper reached that width
+    (melbourne-14-s11+80: lane count 96.6 %). Carried on along its slope, it opens from
+    the line it leaves, as a taper. Stations and offsets in metres."""
     n_slope = max(round(_MOVING_OVER_M / float(grid[1] - grid[0])), 2)
     s_part, d_part = (
         (tr.s[-n_slope:], tr.d[-n_slope:]) if forward else (tr.s[:n_slope], tr.d[:n_slope])
