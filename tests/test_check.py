@@ -441,3 +441,28 @@ def test_a_driving_lane_ending_at_full_width_inside_a_road_is_a_dead_end():
     assert not [
         f for f in check_network(RoadNetwork(Header(), (road_ok,))) if f.code == "lane_dead_end"
     ]
+
+
+def test_a_ctrl_c_while_a_checkers_scratch_folder_is_removed_waits_until_it_is_gone(
+    monkeypatch,
+):
+    """A Ctrl-C that lands while an external checker's scratch folder is being removed
+    (the checker just done) stopped the removal half-way and left the folder in TMPDIR
+    (once in CI). It is delivered once the folder is gone."""
+    import os
+    import shutil
+    import signal
+    from pathlib import Path
+
+    import roadtwin.consumers as consumers
+
+    real = shutil.rmtree
+
+    def rmtree(path, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C right now
+        real(path, **kwargs)
+
+    monkeypatch.setattr(consumers.shutil, "rmtree", rmtree)
+    with pytest.raises(KeyboardInterrupt), consumers._scratch_dir("roadtwin-test-") as tmp:
+        Path(tmp, "result.xqar").write_text("x", encoding="utf-8")
+    assert not Path(tmp).exists()

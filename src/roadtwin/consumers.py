@@ -22,6 +22,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections import Counter
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -130,6 +131,34 @@ def _signals_deferred() -> Iterator[list[int]]:
             signal.signal(signum, handler)  # type: ignore[arg-type]
 
 
+_SCRATCH_REMOVE_S = 5.0  # how long a scratch folder's removal is retried (seconds)
+
+
+@contextlib.contextmanager
+def _scratch_dir(prefix: str) -> Iterator[str]:
+    """A temporary folder for a tool's files, removed on the way out, also after a signal.
+
+    A Ctrl-C that arrives while the folder is being removed (the tool done, its files being
+    deleted) stopped the removal half-way: the folder stayed in TMPDIR (once in CI,
+    ``test_signal_during_check_cleans_up``). Signals wait until the folder is gone (then
+    delivered again), and the removal is retried for a while (a killed tool's last write
+    may land while the folder is being removed)."""
+    tmp = tempfile.mkdtemp(prefix=prefix)
+    try:
+        yield tmp
+    finally:
+        # a signal arriving while the folder is removed waits until it is gone
+        with _signals_deferred() as pending:
+            deadline = time.monotonic() + _SCRATCH_REMOVE_S
+            while True:
+                shutil.rmtree(tmp, ignore_errors=True)
+                if not os.path.exists(tmp) or time.monotonic() > deadline:
+                    break
+                time.sleep(0.05)
+        for signum in pending:
+            os.kill(os.getpid(), signum)
+
+
 def _kill_group(proc: subprocess.Popen) -> None:
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(proc.pid, signal.SIGKILL)
@@ -147,7 +176,7 @@ def run_sumo(path: Path, network: RoadNetwork, *, timeout_s: float = 600.0) -> C
     exe = find_tool("netconvert")
     if exe is None:
         return ConsumerResult(name, "not installed", messages=("netconvert not found",))
-    with tempfile.TemporaryDirectory(prefix="roadtwin-sumo-") as tmp:
+    with _scratch_dir("roadtwin-sumo-") as tmp:
         cmd = [
             exe,
             "--opendrive-files",
@@ -242,7 +271,7 @@ def run_asam(path: Path, *, timeout_s: float = 600.0) -> ConsumerResult:
         exe = None
     if exe is None:
         return ConsumerResult(name, "not installed", messages=("qc_opendrive not found",))
-    with tempfile.TemporaryDirectory(prefix="roadtwin-qc-") as tmp:
+    with _scratch_dir("roadtwin-qc-") as tmp:
         result_file = Path(tmp) / "result.xqar"
         config_file = Path(tmp) / "config.xml"
         config_file.write_text(
