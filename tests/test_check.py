@@ -463,6 +463,11 @@ def test_a_ctrl_c_while_a_checkers_scratch_folder_is_removed_waits_until_it_is_g
         real(path, **kwargs)
 
     monkeypatch.setattr(consumers.shutil, "rmtree", rmtree)
-    with pytest.raises(KeyboardInterrupt), consumers._scratch_dir("roadtwin-test-") as tmp:
-        Path(tmp, "result.xqar").write_text("x", encoding="utf-8")
+    # Python's own Ctrl-C handler (a CI job run in the background starts with SIGINT ignored)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt), consumers._scratch_dir("roadtwin-test-") as tmp:
+            Path(tmp, "result.xqar").write_text("x", encoding="utf-8")
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert not Path(tmp).exists()
