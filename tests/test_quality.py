@@ -100,6 +100,14 @@ def test_unseen_reference_edge_is_reported_where_the_line_next_to_it_was_not_mea
     assert "not measured either" in st.message()
 
 
+def _without_aux_line(road, run, s0: float, s1: float):
+    """``run`` without the lane samples of the deceleration lane's line (beyond 12.08 m)
+    between stations ``s0`` and ``s1`` (metres): its paint worn, or out of reach."""
+    s, t = road.project(run.lane_samples[:, :2])
+    aux_line = (s > s0) & (s < s1) & (np.abs(t) > 12.08)
+    return replace(run, lane_samples=run.lane_samples[~aux_line])
+
+
 def test_lane_opening_unseen_at_the_edge_is_reported():
     road = truth_road()
     run = sample_run(road, gap=(880.0, 1000.0))
@@ -107,9 +115,7 @@ def test_lane_opening_unseen_at_the_edge_is_reported():
     # next to the outer edge keeps its distance to it: not reported
     assert _unseen(poorly_determined(road, run), "outer edge unseen") == []
     # without its line (worn, out of reach) nothing measured where the lane opens
-    s, t = road.project(run.lane_samples[:, :2])
-    aux_line = (s > 880.0) & (s < 1000.0) & (np.abs(t) > 12.08)
-    blind = replace(run, lane_samples=run.lane_samples[~aux_line])
+    blind = _without_aux_line(road, run, 880.0, 1000.0)
     (st,) = _unseen(poorly_determined(road, blind), "outer edge unseen")
     assert 875.0 <= st.s0_m <= 885.0
     assert 995.0 <= st.s1_m <= 1005.0
@@ -158,9 +164,7 @@ def test_a_short_unseen_stretch_is_judged_by_its_own_stations():
     # reported; with its line seen: not (a stretch shorter than the lines' reach window)
     run = sample_run(road, gap=(900.0, 960.0))
     assert _unseen(poorly_determined(road, run), "outer edge unseen") == []
-    s, t = road.project(run.lane_samples[:, :2])
-    aux_line = (s > 890.0) & (s < 970.0) & (np.abs(t) > 12.08)
-    blind = replace(run, lane_samples=run.lane_samples[~aux_line])
+    blind = _without_aux_line(road, run, 890.0, 970.0)
     (st,) = _unseen(poorly_determined(road, blind), "outer edge unseen")
     assert np.isnan(st.value_m)
 

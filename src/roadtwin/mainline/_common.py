@@ -181,9 +181,9 @@ def tight_turn_runs(
     if heading.size <= n:
         return [], np.full(0, np.inf)
     radius = TURN_WINDOW_M / np.maximum(np.abs(heading[n:] - heading[:-n]), 1e-9)
-    tight = np.zeros(heading.size, dtype=bool)
-    for i in np.flatnonzero(radius < min_radius_m):
-        tight[i : i + n + 1] = True
+    # every station of each tight window [i, i + n]: the full convolution has the
+    # heading's length
+    tight = np.convolve((radius < min_radius_m).astype(float), np.ones(n + 1)) > 0.0
     return true_runs(tight), radius
 
 

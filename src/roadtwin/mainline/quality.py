@@ -224,8 +224,12 @@ def unseen_edges(
     """
     grid = np.arange(0.0, road.length + 1.0, 1.0)
     grid[-1] = min(grid[-1], road.length)
-    both = _border_matrix(road, grid, edges=True)[:2]
     lines = _border_matrix(road, grid, edges=False)
+    # the two edges: the reference line (row 0) and the outermost lane's border (the last
+    # row each station has; none on a section without lanes)
+    n_rows = np.count_nonzero(np.isfinite(lines), axis=0)
+    outer = lines[np.maximum(n_rows - 1, 0), np.arange(grid.size)]
+    both = np.stack([lines[0], np.where(n_rows > 1, outer, np.nan)])
     measured = np.abs(lane_samples.error) < marking_m
     s_lane, row_lane = lane_samples.s[measured], lane_samples.boundary[measured]
     out: list[Stretch] = []
