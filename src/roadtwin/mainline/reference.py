@@ -39,6 +39,7 @@ from ._common import (
     _sign,
     _split_edges,
     _trajectory_frame,
+    inner_line_points,
     road_surface_poses,
     robust_offset_fit,
     tight_turn_runs,
@@ -633,6 +634,12 @@ def fit_median_edge(
                 steps = _smoothest_steps(frame, s[near], t[near], side, steps, cfg)
             shift = steps.from_base(lo, hi)
             s, t = s[near], t[near] - side * shift.at(s[near])
+        if it > 0:
+            # the frame is the previous fit (on the base level): t is each point's residual
+            # from it; a second line of points beyond the edge (the other carriageway's,
+            # across a narrow median) is not averaged in
+            inner = inner_line_points(s, side * t)
+            s, t = s[inner], t[inner]
         grid = _grid(lo, hi, step)
         grid = grid[grid <= hi + 1e-9] if grid[-1] > hi + 0.5 * step else grid
         cutoff = cfg.edge_smoothing_m if it > 0 else max(cfg.edge_smoothing_m, 60.0)
