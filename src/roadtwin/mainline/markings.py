@@ -8,6 +8,7 @@ reference edge towards the carriageway).
 
 from __future__ import annotations
 
+import bisect
 import logging
 import math
 from dataclasses import dataclass, field, replace
@@ -203,6 +204,58 @@ def _settled_offset(track: _RawTrack, col: int, column_m: float) -> float:
     return track.d[-1]
 
 
+_MET_GAP_COLUMNS = 4  # a line missed over this many columns ...
+_MET_SLOPE = 0.015  # ... moving sideways this fast (m/m), a taper's, ...
+_MET_LINE_M = 0.3  # ... and met another line that it came this close to (metres) ...
+_MET_OVER_COLUMNS = 4  # ... closing the gap to it over its last this many columns ...
+_MET_CLOSED_M = 0.5  # ... by this much at least (metres; a line beside it runs parallel)
+
+
+def _met_another(
+    tracks: list[_RawTrack], active: list[int], pred: FloatArray, col: int, column_m: float
+) -> NDArray[np.bool_]:
+    """Per active track, whether its trend guess is void in column ``col``: a taper's line
+    (moving at ``_MET_SLOPE`` or faster; a flat line beside another, a dashed one where a
+    solid one leaves it, is no taper), missed over ``_MET_GAP_COLUMNS`` columns or more
+    (``column_m`` metres each; across a dash gap or two the trend stays trusted), that
+    closed by ``_MET_CLOSED_M`` on a line running along the road over its last columns
+    and would be carried onto or over it (that line within ``_MET_LINE_M`` behind the
+    track's last offset up to ``pred``, its predicted offset, metres).
+
+    Lines do not cross: a taper's line that met another ended there. Its slope linked it
+    across a 55 m gap to the paint of a line beyond (melbourne-921-s2: an entry's line that
+    met the next line at 520 m went on through two lanes to a gore's shoulder line at
+    628 m). Judged against lines that move too, or after two missed columns already, it
+    cut an entry's converging lines where a noisy peak split one of them, and a phantom
+    line ran between them (melbourne-408-opp-s9, -921-s9 with a noisier sensor)."""
+    out = np.zeros(len(active), dtype=bool)
+    for k, i in enumerate(active):
+        tr = tracks[i]
+        if col - tr.cols[-1] < _MET_GAP_COLUMNS or abs(tr.slope) < _MET_SLOPE * column_m:
+            continue
+        step = math.copysign(1.0, pred[k] - tr.d[-1])
+        c_before = tr.cols[max(-_MET_OVER_COLUMNS, -len(tr.cols))]
+        d_before = tr.d[max(-_MET_OVER_COLUMNS, -len(tr.d))]
+        for j in active:
+            other = tracks[j]
+            # the line met runs along the road (a through line); two lines converging
+            # side by side (an entry's, where a noisy peak split one of them) are not
+            # judged here
+            if j == i or other.cols[-1] < tr.cols[-1] or other.cols[0] > c_before:
+                continue
+            if abs(other.slope) >= _MET_SLOPE * column_m:
+                continue
+            # the gap to the other line, ahead in the direction of the move, then and now
+            gap_now = (other.d[-1] - tr.d[-1]) * step
+            k_then = bisect.bisect_left(other.cols, c_before)
+            gap_then = (other.d[min(k_then, len(other.d) - 1)] - d_before) * step
+            converged = gap_then - gap_now >= _MET_CLOSED_M
+            if converged and -_MET_LINE_M <= gap_now <= (pred[k] - tr.d[-1]) * step:
+                out[k] = True
+                break
+    return out
+
+
 def _link_tracks(
     peaks: list[FloatArray], cfg: MainlineConfig, frame_offset: FloatArray | None = None
 ) -> list[_RawTrack]:
@@ -231,6 +284,7 @@ def _link_tracks(
             # offset, once every line that its own trend explains has taken its peak (a
             # converging line must not take over the line it met)
             last = np.array([_settled_offset(tracks[i], c, cfg.lane_column_m) for i in active])
+            pred = np.where(_met_another(tracks, active, pred, c, cfg.lane_column_m), np.inf, pred)
             guesses = [(pred, cfg.lane_link_m)]
             if frame_offset is not None:
                 still = np.array(
