@@ -12,6 +12,7 @@ import numpy as np
 
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline.markings import _link_tracks
+from roadtwin.mainline.sections import _edge_takes_over
 
 COLUMN_M = MainlineConfig().lane_column_m
 
@@ -55,3 +56,20 @@ def test_without_a_line_in_between_the_trend_still_bridges_the_gap():
     assert len(taper) == 1
     assert taper[0].cols[-1] == 23
     assert len(tracks) == 1
+
+
+def test_the_median_edge_stepping_onto_a_line_ends_no_lane():
+    grid = np.arange(0.0, 200.0, 1.0)
+    d_median = np.where(grid < 100.0, 0.0, 8.0)  # an exit's two lanes leave at 100 m
+    steps = np.array([100.0])
+    # the innermost through line at 8.02 m: the edge goes on from it beyond the gore
+    assert _edge_takes_over(8.02, 100.0, "end", grid, d_median, steps)
+    # the exit's lines at 1.2 and 4.6 m end with their lanes
+    assert not _edge_takes_over(4.6, 100.0, "end", grid, d_median, steps)
+    assert not _edge_takes_over(1.2, 100.0, "end", grid, d_median, steps)
+    # a line ending 40 m from any step of the edge: not the edge's
+    assert not _edge_takes_over(8.02, 140.0, "end", grid, d_median, steps)
+    # an entry's mirror: the edge steps from 8 m in to 0, the line at 8 m begins there
+    d_entry = np.where(grid < 100.0, 8.0, 0.0)
+    assert _edge_takes_over(7.95, 100.0, "start", grid, d_entry, steps)
+    assert not _edge_takes_over(3.4, 100.0, "start", grid, d_entry, steps)

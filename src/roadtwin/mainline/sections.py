@@ -171,6 +171,30 @@ def _shoulder_stretches(
     return edge_lines, shoulder_of
 
 
+_TAKES_OVER_M = 1.0  # the median-side edge this close to a line beyond its step goes on as it
+
+
+def _edge_takes_over(
+    d_line: float,
+    s_step: float,
+    end: str,
+    grid: FloatArray,
+    d_median: FloatArray,
+    median_steps: FloatArray,
+) -> bool:
+    """Whether a line that ends (``end`` "end") or begins ("start") at ``s_step`` (metres),
+    at offset ``d_line`` (metres), does so because the median-side edge steps onto it
+    there: beyond an exit's gore on the median side the edge goes on where the mainline's
+    innermost line was, and the lane outward of that line goes on too (it was counted
+    with the exit's lanes: melbourne-921-s2, a 2-lane exit built with 3). The edge's
+    offset is taken 5 m on the far side of the step (``d_median`` on ``grid``)."""
+    if not median_steps.size or np.min(np.abs(median_steps - s_step)) >= _GORE_MATCH_M:
+        return False
+    probe = s_step + (5.0 if end == "end" else -5.0)
+    i = int(np.clip(np.searchsorted(grid, probe), 0, grid.size - 1))
+    return bool(abs(d_median[i] - d_line) < _TAKES_OVER_M)
+
+
 def _sections_from_tracks(
     tracks: list[_Track],
     grid: FloatArray,
@@ -262,6 +286,8 @@ def _sections_from_tracks(
                 s_ev = float(grid[i_edge])
                 if breaks.size and np.min(np.abs(breaks - s_ev)) < _GORE_MATCH_M:
                     s_ev = float(breaks[np.argmin(np.abs(breaks - s_ev))])
+                    if _edge_takes_over(dmat[k, i_edge], s_ev, end, grid, d_median, median_steps):
+                        continue
                     raw_events.append((k, end, s_ev, 0.0, None))
             else:
                 raw_events.append((k, end, info[0], info[1], info[2]))
