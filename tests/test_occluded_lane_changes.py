@@ -664,3 +664,32 @@ def test_an_entry_line_converging_while_the_lines_shift_places_its_gore():
     out, gores = _snap_to_hidden_gores(lines, [], covered, grid, cfg)
     assert gores.size == 0
     assert out[1].lo == 1420.0
+
+
+def test_a_taper_fitted_at_a_hidden_gore_starts_from_the_shoulder_seen_closing():
+    """A 2-lane entry's gore at 827 m hidden in a gap of the outer edge from 742 to 868 m;
+    before the gap the hard shoulder beside the line at 8.4 m was seen closing (3.2 m at
+    700 m, 2.69 m at the gap). A shoulder taper fitted there at 3.04 m full width over 60 m
+    had stepped the edge out by 0.35 m at the gap's start and held it to 767 m
+    (oakland-28393854-opp-s9 with a noisier sensor, 1 m off the truth's edge). The
+    shoulder now closes from the 2.69 m seen at the gap's start to zero at the gore."""
+    from roadtwin.mainline.gores import ShoulderTaper
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 1000.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 8.4), _track(1, grid, 828.0, 15.4)]
+    d_edge = np.where(
+        grid < 700.0, 11.6, np.where(grid < 830.0, 11.6 - 0.0125 * (grid - 700.0), 18.7)
+    )
+    d_edge = np.where((grid >= 742.0) & (grid < 830.0), 11.09, d_edge)  # the fit, held
+    covered = (grid < 742.0) | (grid > 868.0)
+    taper = ShoulderTaper(827.3, 60.0, 3.04, True, 0.02)
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, [taper])
+    inside = (grid >= 742.0) & (grid <= 827.0)
+    width = out[inside] - 8.4
+    start = float(np.interp(742.0, grid, out)) - 8.4
+    assert abs(start - (11.6 - 0.0125 * 41.0 - 8.4)) < 0.05  # no step at the gap's start
+    assert np.all(np.diff(width) <= 1e-9)  # closing all the way
+    assert float(np.interp(785.0, grid, out)) - 8.4 < 2.0  # half way: 1.4 m, was 2.9 m
+    assert float(np.interp(827.0, grid, out)) - 8.4 < 0.02

@@ -412,7 +412,7 @@ def _bridge_edge_gaps(
             fitted = [tp for tp in tapers or () if abs(tp.s_gore - s_jump) <= grid[1] - grid[0]]
             for tp in fitted:
                 side = k < j if tp.entry else k >= j
-                hw[side] = tp.width(grid[a:b][side])
+                hw[side] = _fitted_from_seen(tp, grid[a:b][side], grid[i0], grid[i1], hw0, hw1)
             if fitted:
                 out[a:b][ok] = inner[ok] + hw[ok]
                 continue
@@ -446,6 +446,33 @@ def _bridge_edge_gaps(
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
+
+
+_FITTED_JUMP_M = 0.1  # a fitted taper this much wider than the seen shoulder at the gap
+
+
+def _fitted_from_seen(
+    taper: ShoulderTaper, g: FloatArray, s_start: float, s_end: float, hw0: float, hw1: float
+) -> FloatArray:
+    """Shoulder width (metres) at stations ``g`` of a gap (seen at ``s_start`` and
+    ``s_end``, metres, with widths ``hw0`` and ``hw1``) from a taper fitted at a gore in
+    it. Where the fitted taper is wider than the shoulder seen at the gap's end on its
+    side, the shoulder was already closing (opening) there: it tapers from that seen width
+    at the gap's end to zero at the gore instead (the fitted taper's shape scaled to that
+    width where the gap's end lies inside it), with no step at the gap's end
+    (oakland-28393854-opp-s9 with a noisier sensor: a 2-lane entry's shoulder seen closing
+    for 20 m, then hidden over 85 m to the gore; the taper fitted at its full width from
+    farther back stepped the edge out by 0.35 m and closed it over the last 60 m only, 1 m
+    off the truth's)."""
+    seen_at, seen_width = (s_start, hw0) if taper.entry else (s_end, hw1)
+    fitted_there = float(taper.width(np.array([seen_at]))[0])
+    if fitted_there <= seen_width + _FITTED_JUMP_M:
+        return taper.width(g)
+    distance = abs(taper.s_gore - seen_at)
+    if distance >= taper.length_m:
+        return taper_width(g, seen_width, taper.s_gore, distance, entry=taper.entry)
+    # seen inside the fitted taper: its shape, scaled to the width seen
+    return taper.width(g) * (max(seen_width, 0.0) / fitted_there)
 
 
 def _entry_in_gap(
