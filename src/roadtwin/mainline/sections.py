@@ -177,7 +177,7 @@ _TAKES_OVER_M = 1.0  # the median-side edge this close to a line beyond its step
 def _edge_takes_over(
     d_line: float,
     s_step: float,
-    end: str,
+    end: Literal["start", "end"],
     grid: FloatArray,
     d_median: FloatArray,
     median_steps: FloatArray,
