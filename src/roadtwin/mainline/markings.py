@@ -501,6 +501,7 @@ def _tracks_in_frame(
     peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw])
     peak_d = np.concatenate([np.asarray(tr.d, dtype=float) for tr in raw])
     peak_tr = np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw])
+    raw = _into_merging_peaks(raw, cfg, (peak_col, peak_d, peak_tr))
     for i_raw, tr in enumerate(raw):
         lo = centres[tr.cols[0]] - 0.5 * col
         hi = centres[tr.cols[-1]] + 0.5 * col
@@ -622,6 +623,58 @@ def _join_tapers(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
             dropped.add(k)
             break
     return [tr for k, tr in enumerate(out) if k not in dropped]
+
+
+_STEADY_M = 0.2  # a short line whose offsets span at most this much (metres) runs along ...
+_MERGED_M = 0.1  # ... into a neighbour's peak until the two lie this close (metres) ...
+_CLOSING_M = 0.05  # ... while the neighbour closes on it by this much (metres) a column
+
+
+def _into_merging_peaks(
+    raw: list[_RawTrack],
+    cfg: MainlineConfig,
+    peaks: tuple[NDArray[np.int64], FloatArray, NDArray[np.int64]],
+) -> list[_RawTrack]:
+    """The raw tracks, each one shorter than twice a marking's least length
+    (``lane_min_track_m``) that runs
+    along the road (offsets within ``_STEADY_M``) carried on at its offset over the
+    columns beyond its ends where another line closes on it (by ``_CLOSING_M`` or more a
+    column, nearer than ``lane_min_separation_m``): the two share one histogram peak
+    there, and the other line took it. A lay-by's or a bay's line bulges out of a line
+    and back in over 130 m, 1.3 m out at most, and the line it left goes on straight,
+    dashed: it is a peak of its own only where the two lie 0.8 m apart, 60 m, too short
+    for a track once a noisier sensor dropped a dash (krems-24980555-s11+80: the straight
+    line lost, its boundary 1.3 m off). ``peaks``: every column peak once (column,
+    offset, index of its raw track)."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    peak_col, peak_d, peak_tr = peaks
+    out = list(raw)
+    for k, tr in enumerate(raw):
+        # a track as long as the shortest marking may still fall short of it where its
+        # samples begin and end (a dashed line's first and last dash)
+        if tr.cols[-1] - tr.cols[0] + 1 >= 2 * min_cols or max(tr.d) - min(tr.d) > _STEADY_M:
+            continue
+        level = float(np.median(tr.d))
+        before: list[int] = []
+        after: list[int] = []
+        for step, found in ((-1, before), (1, after)):
+            col = tr.cols[0] if step < 0 else tr.cols[-1]
+            last = math.inf
+            while True:
+                col += step
+                other = (peak_col == col) & (peak_tr != k)
+                if not np.any(other):
+                    break
+                gap = float(np.min(np.abs(peak_d[other] - level)))
+                if gap < _MERGED_M or gap >= cfg.lane_min_separation_m or last - gap < _CLOSING_M:
+                    break
+                found.append(col)
+                last = gap
+        if before or after:
+            cols = before[::-1] + list(tr.cols) + after
+            d = [level] * len(before) + list(tr.d) + [level] * len(after)
+            out[k] = _RawTrack(cols, d, tr.slope)
+    return out
 
 
 _SHORT_RAMP_LINE_M = 20.0  # a line too short for a track still shows a gore if this long ...
