@@ -4,14 +4,15 @@ Two defects of melbourne-921-s2, where the fit of its median-side edge moved by 
 an entry's taper line that met the next line went on along its slope through two lanes,
 linked across a 55 m gap to the shoulder line beyond an exit's gore; and at that gore on
 the median side the mainline's innermost line, which the edge goes on from, was counted
-with the exit's lanes (a 2-lane exit built with 3)."""
+with the exit's lanes (a 2-lane exit built with 3). And the other way: a lane drop's line
+seen again past the fastest part of its S goes on there."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from roadtwin.config import MainlineConfig
-from roadtwin.mainline.markings import _link_tracks
+from roadtwin.mainline.markings import _join_late_pieces, _link_tracks, _RawTrack
 from roadtwin.mainline.sections import _edge_takes_over
 
 COLUMN_M = MainlineConfig().lane_column_m
@@ -73,3 +74,54 @@ def test_the_median_edge_stepping_onto_a_line_ends_no_lane():
     d_entry = np.where(grid < 100.0, 8.0, 0.0)
     assert _edge_takes_over(7.95, 100.0, "start", grid, d_entry, steps)
     assert not _edge_takes_over(3.4, 100.0, "start", grid, d_entry, steps)
+
+
+# column peaks (5 m columns) of melbourne-408-opp-s9+80 where a lane drops: its line
+# closes from 18.3 m onto the line at 14.8 m along an S, unseen over 6 columns in its
+# fastest part, then seen for two columns before it meets that line
+DROP_LINE = dict.fromkeys(range(40, 88), 18.3) | {
+    88: 18.28,
+    89: 18.33,
+    90: 18.28,
+    91: 18.17,
+    92: 18.12,
+    93: 17.87,
+    94: 17.69,
+}
+DROP_LATE = {101: 15.83, 102: 15.53}
+
+
+def _drop_tracks(late: dict[int, float]) -> list[_RawTrack]:
+    line = _RawTrack([], [])
+    for c, v in DROP_LINE.items():
+        line.add(c, v)
+    through = _RawTrack(list(range(30, 130)), [14.8] * 100)
+    piece = _RawTrack([], [])
+    for c, v in late.items():
+        piece.add(c, v)
+    return [through, line, piece]
+
+
+def test_a_closing_line_seen_again_beyond_its_guess_goes_on_there():
+    """Its trend (0.17 m a column) guessed 16.5 m at column 101, 0.67 m short of the
+    piece: the piece, too short for a track, is the line's end, not dropped."""
+    out = _join_late_pieces(_drop_tracks(DROP_LATE), MainlineConfig())
+    assert len(out) == 2
+    assert out[1].cols[-2:] == [101, 102]
+    assert out[1].d[-1] == 15.53
+
+
+def test_a_piece_off_a_line_s_course_or_long_enough_is_not_joined():
+    cfg = MainlineConfig()
+    # behind the line it left (back at 18 m): another line's paint
+    assert len(_join_late_pieces(_drop_tracks({101: 18.0, 102: 18.0}), cfg)) == 3
+    # beyond where the trend may carry it (2 m past the guess)
+    assert len(_join_late_pieces(_drop_tracks({101: 14.5, 102: 14.4}), cfg)) == 3
+    # a piece long enough for a track is a line of its own
+    long_piece = dict.fromkeys(range(101, 101 + 12), 15.8)
+    out = _join_late_pieces(_drop_tracks(long_piece), cfg)
+    assert len(out) == 3
+    # a line running along the road that paint appears beside later: not a taper
+    flat = _drop_tracks(DROP_LATE)
+    flat[1] = _RawTrack(list(range(40, 95)), [18.3] * 55)
+    assert len(_join_late_pieces(flat, cfg)) == 3

@@ -497,7 +497,7 @@ def _tracks_in_frame(
     cand: list[_Track] = []
     evidence: list[tuple[float, float]] = []
     # every column peak once (column, offset, track), for the short ramp lines below
-    raw = _join_tapers(raw, cfg)
+    raw = _join_late_pieces(_join_tapers(raw, cfg), cfg)
     peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw])
     peak_d = np.concatenate([np.asarray(tr.d, dtype=float) for tr in raw])
     peak_tr = np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw])
@@ -675,6 +675,56 @@ def _into_merging_peaks(
             d = [level] * len(before) + list(tr.d) + [level] * len(after)
             out[k] = _RawTrack(cols, d, tr.slope)
     return out
+
+
+_LATE_MIN_MISSED = 2  # a line unseen over this many columns or more ...
+_LATE_SLOPE = 0.015  # ... moving sideways this fast (m/m, a taper's) ...
+_LATE_SPREAD = 0.5  # ... may go on this share of its slope farther a missed column
+
+
+def _join_late_pieces(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
+    """The raw tracks with each piece too short for a marking (``lane_min_track_m``)
+    joined to the end of a track long enough for one that ended before it, where the
+    piece lies where that track's trend carries it: at most ``lane_link_m`` behind its
+    guess, and ahead of it by up to ``_LATE_SPREAD`` times its slope more for every
+    column missed. The track moved at ``_LATE_SLOPE`` or faster and was unseen over
+    ``_LATE_MIN_MISSED`` columns or more, within ``lane_max_gap_m``.
+
+    A lane drop's line closes along an S, faster in its middle than where it was last
+    seen, and paint is worn or missed most where it crosses the wheel paths: the linking
+    guessed short of it (melbourne-408-opp-s9+80: a line last seen moving 0.17 m a column
+    was seen again 7 columns on, 0.67 m beyond its guess, for two columns before it met
+    the line it closes on), the piece was dropped as too short and the lane stayed open
+    over 60 m. Widening the linking's own guess took the next line of a lane pattern
+    shifting sideways instead (melbourne-921-s9): only a piece no track would keep is
+    joined here."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
+    slope_min = _LATE_SLOPE * cfg.lane_column_m
+    out = [_RawTrack(list(tr.cols), list(tr.d), tr.slope) for tr in raw]
+    long_enough = [tr.cols[-1] - tr.cols[0] + 1 >= min_cols for tr in out]
+    dropped: set[int] = set()
+    for k in sorted(range(len(out)), key=lambda i: out[i].cols[0]):
+        piece = out[k]
+        if long_enough[k]:
+            continue
+        best, best_miss = -1, math.inf
+        for j, line in enumerate(out):
+            gap = piece.cols[0] - line.cols[-1]
+            if j == k or j in dropped or not long_enough[j] or abs(line.slope) < slope_min:
+                continue
+            if not _LATE_MIN_MISSED < gap <= max_gap:
+                continue
+            guess = line.d[-1] + line.slope * gap
+            ahead = (piece.d[0] - guess) * math.copysign(1.0, line.slope)
+            reach = cfg.lane_link_m + _LATE_SPREAD * abs(line.slope) * (gap - 1)
+            if -cfg.lane_link_m <= ahead <= reach and abs(ahead) < best_miss:
+                best, best_miss = j, abs(ahead)
+        if best >= 0:
+            line = out[best]
+            out[best] = _RawTrack(line.cols + piece.cols, line.d + piece.d, line.slope)
+            dropped.add(k)
+    return [tr for k, tr in enumerate(out) if k not in dropped]
 
 
 _SHORT_RAMP_LINE_M = 20.0  # a line too short for a track still shows a gore if this long ...
