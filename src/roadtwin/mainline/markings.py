@@ -635,17 +635,16 @@ def _into_merging_peaks(
     cfg: MainlineConfig,
     peaks: tuple[NDArray[np.int64], FloatArray, NDArray[np.int64]],
 ) -> list[_RawTrack]:
-    """The raw tracks, each one shorter than twice a marking's least length
-    (``lane_min_track_m``) that runs
-    along the road (offsets within ``_STEADY_M``) carried on at its offset over the
-    columns beyond its ends where another line closes on it (by ``_CLOSING_M`` or more a
-    column, nearer than ``lane_min_separation_m``): the two share one histogram peak
-    there, and the other line took it. A lay-by's or a bay's line bulges out of a line
-    and back in over 130 m, 1.3 m out at most, and the line it left goes on straight,
-    dashed: it is a peak of its own only where the two lie 0.8 m apart, 60 m, too short
-    for a track once a noisier sensor dropped a dash (krems-24980555-s11+80: the straight
-    line lost, its boundary 1.3 m off). ``peaks``: every column peak once (column,
-    offset, index of its raw track)."""
+    """The raw tracks, each one that runs along the road (offsets within ``_STEADY_M``)
+    and is shorter than twice a marking's least length (``lane_min_track_m``) carried on
+    at its offset over the columns beyond its ends where another line closes on it (by
+    ``_CLOSING_M`` or more a column, nearer than ``lane_min_separation_m``): the two
+    share one histogram peak there, and the other line took it. A lay-by's or a bay's
+    line bulges out of a line and back in over 130 m, 1.3 m out at most, and the line it
+    left goes on straight, dashed: it is a peak of its own only where the two lie 0.8 m
+    apart, 60 m, too short for a track once a noisier sensor dropped a dash
+    (krems-24980555-s11+80: the straight line lost, its boundary 1.3 m off). ``peaks``:
+    every column peak once (column, offset, index of its raw track)."""
     min_cols = cfg.lane_min_track_m / cfg.lane_column_m
     peak_col, peak_d, peak_tr = peaks
     out = list(raw)
