@@ -256,10 +256,27 @@ def _met_another(
     return out
 
 
+_NO_LINK = 1e6
+"""Cost of a peak and a track that none of the track's guesses reaches (no link)."""
+_RANK_COST = 10.0
+"""Added per rank of the guess a link uses (trend, stays-put, settled): more than any
+distance a guess may be off, so a later guess links a track only where that does not
+leave a line its own trend explains unlinked."""
+
+
 def _link_tracks(
     peaks: list[FloatArray], cfg: MainlineConfig, frame_offset: FloatArray | None = None
 ) -> list[_RawTrack]:
-    """Greedy nearest-neighbour linking of column peaks into tracks.
+    """Column peaks linked into tracks, one column after the other.
+
+    In each column the active tracks' guesses (the trend, the stays-put guess in a moving
+    frame, the settled offset) and the peaks are matched as a whole: as many links as the
+    guesses' reaches allow, then the least distance (an assignment, each peak and track
+    used once). Taken pair by pair from the nearest, a track could take the peak another
+    track needed and leave that one none: where Town06's split shoulder lines (0.5 m
+    apart) swing out side by side at a lane gain, one line's track went unlinked for three
+    columns and then took the other line's peaks (town06-auto-s3 with a noisier sensor,
+    lanes 0.199 -> 0.177 m). A peak no track takes begins a track.
 
     ``frame_offset`` (metres per column): where the peaks are offsets in a frame that
     moves with the marking pattern (:mod:`.shift`), the frame's offset at each column. A
@@ -269,6 +286,8 @@ def _link_tracks(
     moves with the pattern instead (melbourne-408-opp-s9: the median-side line swapped
     for the new lanes' line, 2.3 m off over 100 m). Such a line may also go on where it
     stays put in the road."""
+    from scipy.optimize import linear_sum_assignment
+
     max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
     tracks: list[_RawTrack] = []
     active: list[int] = []
@@ -276,7 +295,6 @@ def _link_tracks(
         active = [i for i in active if c - tracks[i].cols[-1] <= max_gap]
         used_p: set[int] = set()
         if active and pk.size:
-            used_t: set[int] = set()
             pred = np.array([tracks[i].predict(c) for i in active])
             # across missed columns a taper's slope overshoots where the line flattens out
             # at its new offset (worn paint over a lane gain's last 25 m, oakland-28393854
@@ -302,16 +320,14 @@ def _link_tracks(
                 moving &= np.array([tracks[i].cols[-1] == c - 1 for i in active])
                 guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m))
             guesses.append((last, _SETTLE_LINK_M))
-            for guess, tol in guesses:
+            total = np.full((pk.size, len(active)), _NO_LINK)
+            for rank, (guess, tol) in enumerate(guesses):
                 cost = np.abs(pk[:, None] - guess[None, :])
-                n_ok = int(np.count_nonzero(cost <= tol))
-                order = np.argsort(cost, axis=None, kind="stable")[:n_ok]
-                for flat in order.tolist():
-                    pi, ti = divmod(flat, len(active))
-                    if pi in used_p or ti in used_t:
-                        continue
-                    used_p.add(pi)
-                    used_t.add(ti)
+                reached = np.where(cost <= tol, cost + rank * _RANK_COST, _NO_LINK)
+                total = np.minimum(total, reached)
+            for pi, ti in zip(*linear_sum_assignment(total), strict=True):
+                if total[pi, ti] < _NO_LINK:
+                    used_p.add(int(pi))
                     tracks[active[ti]].add(c, float(pk[pi]))
         for pi in range(pk.size):
             if pi not in used_p:
