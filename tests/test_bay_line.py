@@ -12,7 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from roadtwin.config import MainlineConfig
-from roadtwin.mainline.markings import _into_merging_peaks, _RawTrack, _tracks_from_samples
+from roadtwin.mainline.linking import _RawTrack
+from roadtwin.mainline.markings import _tracks_from_samples
+from roadtwin.mainline.raw_joins import _into_merging_peaks
 
 LENGTH_M = 1200.0
 BAY = (500.0, 630.0)  # stations (metres) where the bay's line leaves and rejoins

@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 
 from roadtwin.config import MainlineConfig
-from roadtwin.mainline.markings import _join_late_pieces, _link_tracks, _RawTrack
+from roadtwin.mainline.linking import _link_tracks, _RawTrack
+from roadtwin.mainline.raw_joins import _join_late_pieces
 from roadtwin.mainline.sections import _edge_takes_over
 
 COLUMN_M = MainlineConfig().lane_column_m

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from roadtwin.config import MainlineConfig
-from roadtwin.mainline.markings import _link_tracks
+from roadtwin.mainline.linking import _link_tracks
 
 
 def _two_lines(jump_a: float, jump_b: float) -> list[np.ndarray]:

@@ -39,7 +39,9 @@ Implementation, one concern per module: ``_common`` (results, helpers,
 self-consistency); ``reference`` (default method: median-side reference edge, its steps
 and excursions, elevation); ``median_moves`` (the median-side edge unseen beside a
 gore); ``edge_levels`` (level paths and steps of an edge); ``lanes`` (the lane fit's
-driver); ``markings`` (marking tracks: peaks, linking, ramp lines, collinear pieces);
+driver); ``linking`` (marking peaks per column linked into raw tracks); ``raw_joins``
+(raw tracks joined where a line went to pieces); ``markings`` (marking tracks: samples,
+ramp lines, collinear pieces);
 ``hidden_lanes`` (lanes and lines beyond the sensor's reach); ``unpainted`` (the
 outermost line where it is not seen); ``shift`` (the marking
 pattern's sideways shift); ``outer_edge`` (the outer edge and its bridging across gaps);

@@ -186,7 +186,7 @@ def common_shift(
     length
         Road length (metres).
     peak_s, peak_d, peak_track
-        The histogram peaks linked into tracks (:func:`.markings._link_tracks`): station
+        The histogram peaks linked into tracks (:func:`.linking._link_tracks`): station
         and offset (metres) of each peak and the track it belongs to. A line weighs the
         same in a window however many samples it has there (a solid line no more than a
         broken one): its samples are those nearest to its peaks.

@@ -1,0 +1,158 @@
+"""Raw marking tracks (:mod:`.linking`) joined or carried on where one line's peaks went
+to pieces: a taper's piece after the line it goes on from, a short piece where a moving
+line's trend carries it past a gap, a short line into the peak of a line that closes on
+it. Columns and offsets as in :mod:`.linking` (metres from the reference edge).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from .linking import _RawTrack
+
+FloatArray = NDArray[np.float64]
+
+
+_GOES_ON_COLUMNS = 2  # a line beginning within this many columns after another ended ...
+_GOES_ON_M = 1.0  # ... this close (metres) to one of its last two offsets ...
+_GOES_ON_MOVE_M = 1.0  # ... and moving inward by this much (metres) is its taper
+
+
+def _join_tapers(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
+    """The raw tracks with every taper that goes on from a line that ended joined to that
+    line (one marking).
+
+    A taper is a raw track too short for a marking (``lane_min_track_m``) that moves
+    inward by ``_GOES_ON_MOVE_M`` or more and begins within ``_GOES_ON_COLUMNS`` columns
+    after a track long enough for one ended, within ``_GOES_ON_M`` of one of that track's
+    last two offsets (the track's peaks after the matching one are dropped). Where a lane
+    closes right past an exit's gore, its line splits there: the ramp's line goes out,
+    the mainline's comes in. The linking may carry the track on along the ramp's line (cut
+    off later as one); the taper, left on its own, was shorter than a track and dropped,
+    and the closing lane became part of the shoulder (melbourne-408-lane1-s21 with a
+    noisier sensor: lane count 97.7 %). Joined, the lane closes along its own line."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    out = [_RawTrack(list(tr.cols), list(tr.d), tr.slope) for tr in raw]
+    dropped: set[int] = set()
+    for k, tr in enumerate(out):
+        if tr.cols[-1] - tr.cols[0] + 1 >= min_cols or tr.d[0] - tr.d[-1] < _GOES_ON_MOVE_M:
+            continue
+        for j, line in enumerate(out):
+            gap = tr.cols[0] - line.cols[-1]
+            if j == k or j in dropped or not 1 <= gap <= _GOES_ON_COLUMNS:
+                continue
+            if line.cols[-1] - line.cols[0] + 1 < min_cols:
+                continue
+            miss = [abs(v - tr.d[0]) for v in line.d[-2:]]
+            if min(miss) > _GOES_ON_M:
+                continue
+            keep = len(line.d) - (len(miss) - 1 - int(np.argmin(miss)))
+            out[j] = _RawTrack(line.cols[:keep] + tr.cols, line.d[:keep] + tr.d, tr.slope)
+            dropped.add(k)
+            break
+    return [tr for k, tr in enumerate(out) if k not in dropped]
+
+
+_STEADY_M = 0.2  # a short line whose offsets span at most this much (metres) runs along ...
+_MERGED_M = 0.1  # ... into a neighbour's peak until the two lie this close (metres) ...
+_CLOSING_M = 0.05  # ... while the neighbour closes on it by this much (metres) a column
+
+
+def _into_merging_peaks(
+    raw: list[_RawTrack],
+    cfg: MainlineConfig,
+    peaks: tuple[NDArray[np.int64], FloatArray, NDArray[np.int64]],
+) -> list[_RawTrack]:
+    """The raw tracks, each one that runs along the road (offsets within ``_STEADY_M``)
+    and is shorter than twice a marking's least length (``lane_min_track_m``) carried on
+    at its offset over the columns beyond its ends where another line closes on it (by
+    ``_CLOSING_M`` or more a column, nearer than ``lane_min_separation_m``): the two
+    share one histogram peak there, and the other line took it. A lay-by's or a bay's
+    line bulges out of a line and back in over 130 m, 1.3 m out at most, and the line it
+    left goes on straight, dashed: it is a peak of its own only where the two lie 0.8 m
+    apart, 60 m, too short for a track once a noisier sensor dropped a dash
+    (krems-24980555-s11+80: the straight line lost, its boundary 1.3 m off). ``peaks``:
+    every column peak once (column, offset, index of its raw track)."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    peak_col, peak_d, peak_tr = peaks
+    out = list(raw)
+    for k, tr in enumerate(raw):
+        # a track as long as the shortest marking may still fall short of it where its
+        # samples begin and end (a dashed line's first and last dash)
+        if tr.cols[-1] - tr.cols[0] + 1 >= 2 * min_cols or max(tr.d) - min(tr.d) > _STEADY_M:
+            continue
+        level = float(np.median(tr.d))
+        before: list[int] = []
+        after: list[int] = []
+        for step, found in ((-1, before), (1, after)):
+            col = tr.cols[0] if step < 0 else tr.cols[-1]
+            last = math.inf
+            while True:
+                col += step
+                other = (peak_col == col) & (peak_tr != k)
+                if not np.any(other):
+                    break
+                gap = float(np.min(np.abs(peak_d[other] - level)))
+                if gap < _MERGED_M or gap >= cfg.lane_min_separation_m or last - gap < _CLOSING_M:
+                    break
+                found.append(col)
+                last = gap
+        if before or after:
+            cols = before[::-1] + list(tr.cols) + after
+            d = [level] * len(before) + list(tr.d) + [level] * len(after)
+            out[k] = _RawTrack(cols, d, tr.slope)
+    return out
+
+
+_LATE_MIN_MISSED = 2  # a line unseen over this many columns or more ...
+_LATE_SLOPE = 0.015  # ... moving sideways this fast (m/m, a taper's) ...
+_LATE_SPREAD = 0.5  # ... may go on this share of its slope farther a missed column
+
+
+def _join_late_pieces(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
+    """The raw tracks with each piece too short for a marking (``lane_min_track_m``)
+    joined to the end of a track long enough for one that ended before it, where the
+    piece lies where that track's trend carries it: at most ``lane_link_m`` behind its
+    guess, and ahead of it by up to ``_LATE_SPREAD`` times its slope more for every
+    column missed. The track moved at ``_LATE_SLOPE`` or faster and was unseen over
+    ``_LATE_MIN_MISSED`` columns or more, within ``lane_max_gap_m``.
+
+    A lane drop's line closes along an S, faster in its middle than where it was last
+    seen, and paint is worn or missed most where it crosses the wheel paths: the linking
+    guessed short of it (melbourne-408-opp-s9+80: a line last seen moving 0.17 m a column
+    was seen again 7 columns on, 0.67 m beyond its guess, for two columns before it met
+    the line it closes on), the piece was dropped as too short and the lane stayed open
+    over 60 m. Widening the linking's own guess took the next line of a lane pattern
+    shifting sideways instead (melbourne-921-s9): only a piece no track would keep is
+    joined here."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
+    slope_min = _LATE_SLOPE * cfg.lane_column_m
+    out = [_RawTrack(list(tr.cols), list(tr.d), tr.slope) for tr in raw]
+    long_enough = [tr.cols[-1] - tr.cols[0] + 1 >= min_cols for tr in out]
+    dropped: set[int] = set()
+    for k in sorted(range(len(out)), key=lambda i: out[i].cols[0]):
+        piece = out[k]
+        if long_enough[k]:
+            continue
+        best, best_miss = -1, math.inf
+        for j, line in enumerate(out):
+            gap = piece.cols[0] - line.cols[-1]
+            if j == k or j in dropped or not long_enough[j] or abs(line.slope) < slope_min:
+                continue
+            if not _LATE_MIN_MISSED < gap <= max_gap:
+                continue
+            guess = line.d[-1] + line.slope * gap
+            ahead = (piece.d[0] - guess) * math.copysign(1.0, line.slope)
+            reach = cfg.lane_link_m + _LATE_SPREAD * abs(line.slope) * (gap - 1)
+            if -cfg.lane_link_m <= ahead <= reach and abs(ahead) < best_miss:
+                best, best_miss = j, abs(ahead)
+        if best >= 0:
+            line = out[best]
+            out[best] = _RawTrack(line.cols + piece.cols, line.d + piece.d, line.slope)
+            dropped.add(k)
+    return [tr for k, tr in enumerate(out) if k not in dropped]
