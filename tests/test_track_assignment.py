@@ -44,3 +44,25 @@ def test_one_peak_goes_to_the_nearer_guess():
     first, second = sorted(tracks, key=lambda tr: tr.d[0])
     assert first.cols == list(range(10))
     assert second.cols == list(range(20))
+
+
+def test_a_line_that_stays_put_keeps_its_peak_in_a_moving_frame():
+    """In a frame that moves with the marking pattern (lanes added beyond the line), a
+    line that stays where it is in the road moves by minus the frame's move; its trend
+    lags where the shift begins. Here the frame moves 0.9 m in a column: the line's own
+    peak lies 0.9 m from its trend's guess (out of reach) and on its stays-put guess,
+    another line's peak 0.58 m from the trend's guess. The stays-put guess, dearer by
+    0.25 m only, wins (melbourne-408-opp-s9: the median-side line's track took the new
+    lanes' line 0.58 m from its trend, its own peak 0.24 m from the stays-put guess)."""
+    move = np.array([0.0 if c < 11 else 0.9 * (c - 10) for c in range(20)])
+    peaks = [
+        np.array([5.0]) if c < 11 else np.sort(np.array([5.0 - move[c], 5.58])) for c in range(20)
+    ]
+    tracks = _link_tracks(peaks, MainlineConfig(), move)
+    line = next(tr for tr in tracks if tr.cols[0] == 0)
+    assert line.cols == list(range(20))
+    assert line.d[11] == 5.0 - 0.9
+    assert line.d[-1] == 5.0 - move[-1]
+    other = [tr for tr in tracks if tr.cols[0] == 11]
+    assert len(other) == 1
+    assert other[0].d == [5.58] * 9

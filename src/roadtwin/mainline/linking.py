@@ -251,10 +251,16 @@ def _met_another(
 
 _NO_LINK = 1e6
 """Cost of a peak and a track that none of the track's guesses reaches (no link)."""
-_RANK_COST = 10.0
-"""Added per rank of the guess a link uses (trend, stays-put, settled): more than any
-distance a guess may be off, so a later guess links a track only where that does not
-leave a line its own trend explains unlinked."""
+_STAYS_PUT_COST = 0.25
+"""Added (metres) to a link by the stays-put guess in a moving frame: the trend's guess is
+preferred by this much, the nearer one wins beyond it (melbourne-408-opp-s9: the
+median-side line's lagging trend took the new lanes' line 0.58 m from it while its own
+peak lay 0.24 m from its stays-put guess). Taken pair by pair, guess by guess, the same
+margin had cost melbourne-408-opp-s4+80 edge 0.097 -> 0.151 m (session 28)."""
+_SETTLED_COST = 10.0
+"""Added to a link by the settled-offset guess: more than any distance a guess may be
+off, so it links a track only where that leaves no line its own trend explains
+unlinked (a converging line must not take over the line it met)."""
 
 
 def _link_tracks(
@@ -264,12 +270,13 @@ def _link_tracks(
 
     In each column the active tracks' guesses (the trend, the stays-put guess in a moving
     frame, the settled offset) and the peaks are matched as a whole: as many links as the
-    guesses' reaches allow, then the least distance (an assignment, each peak and track
-    used once). Taken pair by pair from the nearest, a track could take the peak another
-    track needed and leave that one none: where Town06's split shoulder lines (0.5 m
-    apart) swing out side by side at a lane gain, one line's track went unlinked for three
-    columns and then took the other line's peaks (town06-auto-s3 with a noisier sensor,
-    lanes 0.199 -> 0.177 m). A peak no track takes begins a track.
+    guesses' reaches allow, then the least distance, each guess's own extra cost added
+    (an assignment, each peak and track used once). Taken pair by pair from the nearest,
+    a track could take the peak another track needed and leave that one none: where
+    Town06's split shoulder lines (0.5 m apart) swing out side by side at a lane gain, one
+    line's track went unlinked for three columns and then took the other line's peaks
+    (town06-auto-s3 with a noisier sensor, lanes 0.199 -> 0.177 m). A peak no track takes
+    begins a track.
 
     ``frame_offset`` (metres per column): where the peaks are offsets in a frame that
     moves with the marking pattern (:mod:`.shift`), the frame's offset at each column. A
@@ -296,7 +303,7 @@ def _link_tracks(
             # converging line must not take over the line it met)
             last = np.array([_settled_offset(tracks[i], c, cfg.lane_column_m) for i in active])
             pred = np.where(_met_another(tracks, active, pred, c, cfg.lane_column_m), np.inf, pred)
-            guesses = [(pred, cfg.lane_link_m)]
+            guesses = [(pred, cfg.lane_link_m, 0.0)]
             if frame_offset is not None:
                 still = np.array(
                     [
@@ -311,12 +318,12 @@ def _link_tracks(
                 # line that arrived 20 m on, the gore 25 m late)
                 moving = np.abs(still - np.array([tracks[i].d[-1] for i in active])) > 0.05
                 moving &= np.array([tracks[i].cols[-1] == c - 1 for i in active])
-                guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m))
-            guesses.append((last, _SETTLE_LINK_M))
+                guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m, _STAYS_PUT_COST))
+            guesses.append((last, _SETTLE_LINK_M, _SETTLED_COST))
             total = np.full((pk.size, len(active)), _NO_LINK)
-            for rank, (guess, tol) in enumerate(guesses):
+            for guess, tol, extra in guesses:
                 cost = np.abs(pk[:, None] - guess[None, :])
-                reached = np.where(cost <= tol, cost + rank * _RANK_COST, _NO_LINK)
+                reached = np.where(cost <= tol, cost + extra, _NO_LINK)
                 total = np.minimum(total, reached)
             for pi, ti in zip(*linear_sum_assignment(total), strict=True):
                 if total[pi, ti] < _NO_LINK:
