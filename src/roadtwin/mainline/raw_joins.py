@@ -79,6 +79,9 @@ def _into_merging_peaks(
     every column peak once (column, offset, index of its raw track)."""
     min_cols = cfg.lane_min_track_m / cfg.lane_column_m
     peak_col, peak_d, peak_tr = peaks
+    # the peaks sorted by column once: each column's are one slice
+    by_col = np.argsort(peak_col, kind="stable")
+    col_sorted = peak_col[by_col]
     out = list(raw)
     for k, tr in enumerate(raw):
         # a track as long as the shortest marking may still fall short of it where its
@@ -93,8 +96,9 @@ def _into_merging_peaks(
             last = math.inf
             while True:
                 col += step
-                other = (peak_col == col) & (peak_tr != k)
-                if not np.any(other):
+                lo, hi = np.searchsorted(col_sorted, (col, col + 1))
+                other = by_col[lo:hi][peak_tr[by_col[lo:hi]] != k]
+                if not other.size:
                     break
                 gap = float(np.min(np.abs(peak_d[other] - level)))
                 if gap < _MERGED_M or gap >= cfg.lane_min_separation_m or last - gap < _CLOSING_M:
@@ -132,7 +136,7 @@ def _join_late_pieces(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTra
     min_cols = cfg.lane_min_track_m / cfg.lane_column_m
     max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
     slope_min = _LATE_SLOPE * cfg.lane_column_m
-    out = [_RawTrack(list(tr.cols), list(tr.d), tr.slope) for tr in raw]
+    out = list(raw)  # joined tracks are new objects: the input's are left as they are
     long_enough = [tr.cols[-1] - tr.cols[0] + 1 >= min_cols for tr in out]
     dropped: set[int] = set()
     for k in sorted(range(len(out)), key=lambda i: out[i].cols[0]):
