@@ -137,6 +137,35 @@ def test_an_auxiliary_lane_unseen_in_the_middle_is_no_excursion():
     assert spans.shape == (0, 2)
 
 
+# The first pass's level path (2 m bins, metres from the smoothed trajectory) of
+# town06-auto-s3 before its second inner exit: the car drifts 3.5 m away from the
+# median with its lane (an outer lane gain) while the exit's edge peels off (1724-1742 m),
+# unseen at the nose, the road's edge back at 16.6 m after it.
+_DRIFTING = [
+    *[13.34] * 9,
+    *[13.37, 13.39, 13.45, 13.53],
+    *[13.59] * 10,
+    *[13.50, 13.39, 13.39, 13.38, 13.48, 13.45, 13.59, 13.59, 13.59, 13.59, 13.66, 13.81],
+    *[13.84, 13.84, 13.87, 14.01, 14.09, 14.09, 14.19, 14.34, 14.34, 14.44, 14.59, 14.59],
+    *[14.69, 14.84, 14.84, 15.03, 15.09, 15.09, 15.24, 15.34, 15.34, 15.48, 15.59, 15.61],
+    *[15.71, 15.84, 15.89, 16.09, 16.36, 16.70, 17.01, 17.45, 17.95, 18.43, 19.12, 19.84],
+    *[20.42, np.nan, np.nan, np.nan, 16.59, 16.68, 16.76, 16.84, 16.84, 16.87],
+    *[16.84] * 19,
+]
+
+
+def test_an_excursion_in_a_drifting_frame_is_found_about_the_edges_course():
+    centres = 1600.2 + 2.0 * np.arange(len(_DRIFTING))
+    level = np.array(_DRIFTING)
+    # against a level base the drift itself is outward for 80 m and more: nothing found
+    assert median_excursions(centres, level)[0].shape == (0, 2)
+    spans, bases = median_excursions(centres, level, drifting=True)
+    assert spans.shape == (1, 2)
+    assert 1722.0 < spans[0, 0] < 1730.0  # the peel-off (1724 m) ...
+    assert 1747.0 < spans[0, 1] < 1751.0  # ... to the nose (1749 m)
+    assert 15.9 < bases[0] < 16.7  # between the road's edge before and after
+
+
 def test_a_long_departure_is_no_excursion():
     """An edge that is away for longer than a ramp's peel-off is the road's own."""
     centres = np.arange(1.0, 800.0, 2.0)

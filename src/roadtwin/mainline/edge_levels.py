@@ -328,11 +328,13 @@ def edge_steps(
         )
         area = None
         if seen_both_sides:
-            start = _gore_area_start(
-                centres, level, station, min(before, after), exit_=after < before
-            )
+            # an exit's step lies where the ramp's edge leaves the road's level; an
+            # entry's at its nose, where the new lane begins (an entry's edge coming in
+            # after the nose is the new lane's: Town06's inner entries, whose maps begin
+            # the lane at the nose, put 17 m after it 3.7 m off)
+            start = _gore_area_start(centres, level, station, after) if after < before else None
             if start is not None:
-                area = (min(start, station), max(start, station), min(before, after))
+                area = (start, station, after)
                 station = start
         else:
             gap = (centres[seen[j_first]], centres[seen[j_first + 1]])
@@ -417,23 +419,22 @@ _AREA_NEAR_M = 10.0  # seen this near the nose (the last metres of a gore may be
 
 
 def _gore_area_start(
-    centres: FloatArray, level: FloatArray, nose: float, low: float, *, exit_: bool
+    centres: FloatArray, level: FloatArray, nose: float, low: float
 ) -> float | None:
-    """Where a ramp's edge leaves (joins) the road's level before (after) a step's nose
-    (metres): the start of the gore area, or None where the level holds up to the nose.
+    """Where a ramp's edge leaves the road's level before an exit's nose (metres): the
+    start of the gore area, or None where the level holds up to the nose.
 
     At an exit the ramp's edge peels off the edge the road had before the gore and the
     level path follows it outward up to the nose, where the new edge nearer the
-    carriageway begins (an entry mirrored). Between the two the lanes that leave already
-    belong to the ramp: the road's edge there is the new one (HD maps split the road
-    where the lanes' borders part; a map cut at the nose keeps the leaving lanes straight
-    on the road while the ramp's pavement bends away, 11 m at CARLA Town06's first inner
-    exit). Walking from the nose into the higher level's side, the gore area goes on
-    while the level keeps coming in by ``_AREA_SLOPE_M`` per bin or more; ``low`` is the
-    level nearer the carriageway (metres), whose bins next to the nose are not the ramp's.
+    carriageway begins. Between the two the lanes that leave already belong to the ramp:
+    the road's edge there is the new one (HD maps split the road where the lanes' borders
+    part; a map cut at the nose keeps the leaving lanes straight on the road while the
+    ramp's pavement bends away, 11 m at CARLA Town06's first inner exit). Walking back
+    from the nose, the gore area goes on while the level keeps coming in by
+    ``_AREA_SLOPE_M`` per bin or more; ``low`` is the level after the nose, nearer the
+    carriageway (metres), whose bins next to the nose are not the ramp's.
     """
-    direction = -1.0 if exit_ else 1.0  # from the nose into the higher level's side
-    dist = direction * (centres - nose)
+    dist = nose - centres  # from the nose back into the higher level's side
     high = np.isfinite(level) & (level > low + 1.0)
     idx = np.flatnonzero((dist > -2.0) & (dist <= _AREA_MAX_M) & high)
     if idx.size < 2:
@@ -447,7 +448,7 @@ def _gore_area_start(
     k = int(np.argmin(walk)) if not walk.all() else walk.size
     if k == 0 or float(level[idx[0]] - level[idx[k]]) < _AREA_RISE_M:
         return None
-    return nose + direction * (float(dist[idx[k]]) + 1.0)
+    return nose - (float(dist[idx[k]]) + 1.0)
 
 
 _GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...

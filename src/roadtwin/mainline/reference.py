@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.ndimage import percentile_filter
+from scipy.ndimage import median_filter, percentile_filter
 
 from .._errors import InputError
 from ..config import MainlineConfig
@@ -458,7 +458,9 @@ _EXCURSION_POINT_M = 0.6  # a point inside an excursion this far outward of its 
 # the ramp's
 
 
-def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArray, FloatArray]:
+def median_excursions(
+    centres: FloatArray, level: FloatArray, *, drifting: bool = False
+) -> tuple[FloatArray, FloatArray]:
     """Stretches where the median-side edge's level path leaves outward and comes back.
 
     A ramp leaving (joining) on the median side without a lane ending (beginning) at full
@@ -474,6 +476,11 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
     centres, level
         Station bin centres (metres) and the level path (metres towards the median, NaN
         where unseen) of :func:`~.edge_levels.edge_level_path`.
+    drifting
+        The level path is measured in a frame that may drift away from the edge (the
+        trajectory's: town06-auto-s3's car moved 4 m sideways with its lane over the
+        100 m before an inner exit, and no excursion was found against a level base).
+        In a frame that follows the edge (a fit of the edge itself) it does not.
 
     Returns
     -------
@@ -487,8 +494,13 @@ def median_excursions(centres: FloatArray, level: FloatArray) -> tuple[FloatArra
     window = max(3, round(_EXCURSION_BASE_M / step) | 1)
     filled = np.interp(centres, centres[ok], level[ok])
     # a low percentile: an excursion is outward, and the base must not rise with it (or
-    # with a step to a farther level beside it)
-    base = percentile_filter(filled, _EXCURSION_BASE_PERCENT, size=window, mode="nearest")
+    # with a step to a farther level beside it); in a frame that drifts away from the
+    # edge, about the course the edge keeps there (a running median, which follows the
+    # drift and not an excursion shorter than half its window)
+    course = median_filter(filled, size=window, mode="nearest") if drifting else 0.0
+    base = course + percentile_filter(
+        filled - course, _EXCURSION_BASE_PERCENT, size=window, mode="nearest"
+    )
     out = ok & (level - base > _EXCURSION_OUT_M)
     # runs of outward bins, unseen bins inside a run included (the gore's nose)
     idx = np.flatnonzero(out)
@@ -608,28 +620,35 @@ def fit_median_edge(
             side = 1.0 if np.median(t) >= 0.0 else -1.0
         u, edges, level = _median_levels(s, t, side, lo, hi, cfg)
         centres = 0.5 * (edges[1:] + edges[:-1])
+        # a ramp's edge peeling off on the median side is not the road's edge (in every
+        # pass: the first one's bend would stay in the frames of the others), nor is its
+        # nose, where the path drops back to the road's edge, a step of the road's edge
+        # (the first pass's trajectory frame drifting beside it, a 1.8 m step sized
+        # there bent town06-auto-s3's reference 0.6 m at an inner exit)
+        spans, bases = median_excursions(centres, level, drifting=it == 0)
+        road = ~_excursion_points(s, u, spans, bases)
+        s, t, u = s[road], t[road], u[road]
+        level_road = _without_spans(centres, level, spans)
         if it == 0 or has_steps:
             steps = edge_steps(
                 s,
                 u,
                 edges,
-                level,
+                level_road,
                 config=cfg,
                 across=functools.partial(_across, frame, outer_pts, side),
             )
             has_steps = bool(steps.stations.size)
-        # a ramp's edge peeling off on the median side is not the road's edge (in every
-        # pass: the first one's bend would stay in the frames of the others)
-        spans, bases = median_excursions(centres, level)
-        if spans.size:
-            k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
-            inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
-            ramp = inside & (u > bases[k] + _EXCURSION_POINT_M)
-            s, t, u = s[~ramp], t[~ramp], u[~ramp]
+        if has_steps or spans.size:
+            # points on the edge's own level (the path bridged across excursions: a
+            # ramp's edge runs on beyond its nose, and beyond an excursion found in the
+            # first pass no zero-sized step at its nose leaves it out any more)
+            seen = np.isfinite(level_road)
+            near = np.abs(u - np.interp(s, centres[seen], level_road[seen])) < 0.8
+            s, t, u = s[near], t[near], u[near]
         if has_steps:
-            # points on the edge's own level, each segment moved onto the base level
-            path = np.interp(s, centres[np.isfinite(level)], level[np.isfinite(level)])
-            near = (np.abs(u - path) < 0.8) & ~steps.ramp_points(s, u)
+            # each segment moved onto the base level
+            near = ~steps.ramp_points(s, u)
             if it > 0:
                 steps = _smoothest_steps(frame, s[near], t[near], side, steps, cfg)
             shift = steps.from_base(lo, hi)
@@ -672,16 +691,44 @@ def fit_median_edge(
     # the steps in the final line's own stations
     s_f, t_f = frame.project(ref_pts)
     ok = (s_f >= 0.0) & (s_f <= frame.length)
-    u, edges, level = _median_levels(s_f[ok], t_f[ok], side, 0.0, frame.length, cfg)
+    s_f, t_f = s_f[ok], t_f[ok]
+    u, edges, level = _median_levels(s_f, t_f, side, 0.0, frame.length, cfg)
+    centres = 0.5 * (edges[1:] + edges[:-1])
+    spans, bases = median_excursions(centres, level)
+    road = ~_excursion_points(s_f, u, spans, bases)
     steps = edge_steps(
-        s_f[ok],
-        u,
+        s_f[road],
+        u[road],
         edges,
-        level,
+        _without_spans(centres, level, spans),
         config=cfg,
         across=functools.partial(_across, frame, outer_pts, side),
     )
     return MedianEdge(frame.xy, steps, frame.z, unseen)
+
+
+def _excursion_points(
+    s: FloatArray, u: FloatArray, spans: FloatArray, bases: FloatArray
+) -> NDArray[np.bool_]:
+    """Mask of the edge points (stations ``s``, offsets ``u`` towards the median, metres)
+    that are a ramp's: inside an excursion (:func:`median_excursions`) and more than
+    ``_EXCURSION_POINT_M`` outward of its base."""
+    if not spans.size:
+        return np.zeros(s.size, dtype=bool)
+    k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
+    inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
+    return inside & (u > bases[k] + _EXCURSION_POINT_M)
+
+
+def _without_spans(centres: FloatArray, level: FloatArray, spans: FloatArray) -> FloatArray:
+    """The level path (on bin ``centres``, metres) unseen (NaN) over the excursions
+    ``spans``: what is left of it is the road's own edge."""
+    if not spans.size:
+        return level
+    out = level.copy()
+    for a, b in spans:
+        out[(centres >= a) & (centres <= b)] = np.nan
+    return out
 
 
 def _across(
