@@ -66,3 +66,32 @@ def test_a_line_that_stays_put_keeps_its_peak_in_a_moving_frame():
     other = [tr for tr in tracks if tr.cols[0] == 11]
     assert len(other) == 1
     assert other[0].d == [5.58] * 9
+
+
+def test_lines_beside_the_outer_edge_swing_out_with_it():
+    """A lane gain on the outer side: the edge and the shoulder's line 0.65 m inside it
+    swing out 3.5 m along an S over 40 m, while the lane line inward stays and a new line
+    leaves it 0.5 m inside the shoulder's line. The trend of the accelerating shoulder line
+    lags; alone it lost the line and its pieces were joined to the new line (Town06's
+    lane gain, town06-auto-s2: 0.8 m off). The line's guess that keeps its distance to
+    the seen edge links every column."""
+    column_m = MainlineConfig().lane_column_m
+    x = np.clip((np.arange(40) * column_m - 60.0) / 40.0, 0.0, 1.0)
+    swing = 3.5 * x * x * (3.0 - 2.0 * x)
+    peaks = [
+        np.array([15.1, 15.1 + sw, 15.6 + sw]) if sw > 0.5 else np.array([15.1, 15.6 + sw])
+        for sw in swing
+    ]
+    edge = 16.25 + swing
+    alone = _link_tracks(peaks, MainlineConfig())
+    assert not any(tr.cols == list(range(40)) and tr.d[-1] == 19.1 for tr in alone)
+    tracks = _link_tracks(peaks, MainlineConfig(), edge=edge)
+    shoulder = next(tr for tr in tracks if tr.d[0] == 15.6)
+    assert shoulder.cols == list(range(40))
+    np.testing.assert_allclose(shoulder.d, 15.6 + swing)
+    new = [tr for tr in tracks if tr.cols[0] > 0]
+    assert len(new) == 1
+    np.testing.assert_allclose(new[0].d, 15.1 + swing[new[0].cols])
+    # unseen (NaN) edge: no such guess
+    blind = _link_tracks(peaks, MainlineConfig(), edge=np.full(40, np.nan))
+    assert [tr.cols for tr in blind] == [tr.cols for tr in alone]

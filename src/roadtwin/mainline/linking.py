@@ -257,6 +257,8 @@ preferred by this much, the nearer one wins beyond it (melbourne-408-opp-s9: the
 median-side line's lagging trend took the new lanes' line 0.58 m from it while its own
 peak lay 0.24 m from its stays-put guess). Taken pair by pair, guess by guess, the same
 margin had cost melbourne-408-opp-s4+80 edge 0.097 -> 0.151 m (session 28)."""
+_EDGE_NEAR_M = 2.0  # a line this near the outer edge (metres) may move with it ...
+_EDGE_COST = 0.1  # ... its guess dearer than the trend's by this (metres)
 _SETTLED_COST = 10.0
 """Added to a link by the settled-offset guess: more than any distance a guess may be
 off, so it links a track only where that leaves no line its own trend explains
@@ -264,7 +266,10 @@ unlinked (a converging line must not take over the line it met)."""
 
 
 def _link_tracks(
-    peaks: list[FloatArray], cfg: MainlineConfig, frame_offset: FloatArray | None = None
+    peaks: list[FloatArray],
+    cfg: MainlineConfig,
+    frame_offset: FloatArray | None = None,
+    edge: FloatArray | None = None,
 ) -> list[_RawTrack]:
     """Column peaks linked into tracks, one column after the other.
 
@@ -285,7 +290,13 @@ def _link_tracks(
     the frame; its trend lags where the shift begins, and the track took the line that
     moves with the pattern instead (melbourne-408-opp-s9: the median-side line swapped
     for the new lanes' line, 2.3 m off over 100 m). Such a line may also go on where it
-    stays put in the road."""
+    stays put in the road.
+
+    ``edge`` (metres per column, same frame, NaN where unseen): the outer edge. A line
+    within ``_EDGE_NEAR_M`` of it may also go on at the distance it kept from it, where the
+    edge moves: at a lane gain the shoulder's line swings out with the edge along an S,
+    faster than its trend follows (town06-auto-s2: the line lost over 30 m, its pieces
+    joined to the new lane's line, 0.8 m off)."""
     from scipy.optimize import linear_sum_assignment
 
     max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
@@ -319,6 +330,15 @@ def _link_tracks(
                 moving = np.abs(still - np.array([tracks[i].d[-1] for i in active])) > 0.05
                 moving &= np.array([tracks[i].cols[-1] == c - 1 for i in active])
                 guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m, _STAYS_PUT_COST))
+            if edge is not None:
+                d_last = np.array([tracks[i].d[-1] for i in active])
+                edge_then = edge[[tracks[i].cols[-1] for i in active]]
+                along = d_last + (edge[c] - edge_then)
+                # NaN (unseen edge) compares False: no such guess
+                follows = (np.abs(edge_then - d_last) <= _EDGE_NEAR_M) & (
+                    np.abs(along - d_last) > 0.05
+                )
+                guesses.append((np.where(follows, along, np.inf), cfg.lane_link_m, _EDGE_COST))
             guesses.append((last, _SETTLE_LINK_M, _SETTLED_COST))
             total = np.full((pk.size, len(active)), _NO_LINK)
             for guess, tol, extra in guesses:

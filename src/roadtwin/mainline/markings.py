@@ -104,30 +104,50 @@ def _tracks_from_samples(
     if s.size < 10:
         return [], []
     centres, peaks = _find_track_peaks(s, d, length, cfg, below_m)
-    raw = _link_tracks(peaks, cfg)
+    # the outer edge where it was seen (bridged across a gap it is no evidence: of where
+    # the lines beside it go, of a lane it closes)
+    if d_edge is not None and covered is not None:
+        seen_edge = np.where(covered, d_edge, np.nan)
+    else:
+        seen_edge = None
     witness = None
     if d_edge is not None:
-        witness = OuterEdge(grid, d_edge if covered is None else np.where(covered, d_edge, np.nan))
-    frame = _shift_frame(s, d, length, centres, raw, cfg, witness)
+        witness = OuterEdge(grid, d_edge if seen_edge is None else seen_edge)
+    # the pattern's shift from the lines linked without the edge (lines that follow the
+    # edge as it moves with the whole pattern would hide the shift: melbourne-921-s9+20)
+    frame = _shift_frame(s, d, length, centres, _link_tracks(peaks, cfg), cfg, witness)
     if frame is None:
+        raw = _link_tracks(peaks, cfg, edge=_at_columns(seen_edge, grid, centres))
         tracks, evidence = _tracks_in_frame(s, d, grid, length, cfg, d_edge, centres, raw)
     else:
         edge = None if d_edge is None else d_edge - frame.offset(grid)
         d_frame = d - frame.offset(s)
         centres, peaks = _find_track_peaks(s, d_frame, length, cfg, frame.deepest_m + below_m)
-        raw = _link_tracks(peaks, cfg, frame.offset(centres))
+        raw = _link_tracks(
+            peaks,
+            cfg,
+            frame.offset(centres),
+            _at_columns(
+                None if seen_edge is None else seen_edge - frame.offset(grid), grid, centres
+            ),
+        )
         tracks, evidence = _tracks_in_frame(
             s, d_frame, grid, length, cfg, edge, centres, raw, frame
         )
         tracks = [_out_of_frame(tr, grid, frame) for tr in tracks]
         moved = frame.offset(np.array([g for g, _ in evidence], dtype=float))
         evidence = [(g, v + float(m)) for (g, v), m in zip(evidence, moved, strict=True)]
-    if d_edge is not None and covered is not None:
-        # the edge closes a lane only where it was seen (a bridged gap is no evidence)
-        seen_edge = np.where(covered, d_edge, np.nan)
-    else:
-        seen_edge = None
     return _continue_to_convergence(tracks, grid, cfg, seen_edge), evidence
+
+
+def _at_columns(
+    values: FloatArray | None, grid: FloatArray, centres: FloatArray
+) -> FloatArray | None:
+    """``values`` on ``grid`` (metres, NaN where unknown) at the column ``centres``
+    (metres): each the value of the first grid station at or after the centre."""
+    if values is None:
+        return None
+    return values[np.clip(np.searchsorted(grid, centres), 0, grid.size - 1)]
 
 
 def _out_of_frame(track: _Track, grid: FloatArray, frame: ShiftFrame) -> _Track:
