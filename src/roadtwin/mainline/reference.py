@@ -644,8 +644,9 @@ def fit_median_edge(
             # ramp's edge runs on beyond its nose, and beyond an excursion found in the
             # first pass no zero-sized step at its nose leaves it out any more)
             seen = np.isfinite(level_road)
-            near = np.abs(u - np.interp(s, centres[seen], level_road[seen])) < 0.8
-            s, t, u = s[near], t[near], u[near]
+            if seen.any():
+                near = np.abs(u - np.interp(s, centres[seen], level_road[seen])) < 0.8
+                s, t, u = s[near], t[near], u[near]
         if has_steps:
             # each segment moved onto the base level
             near = ~steps.ramp_points(s, u)
