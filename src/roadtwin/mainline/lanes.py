@@ -34,6 +34,7 @@ from .markings import _merge_collinear, _tracks_from_samples
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
+from .shoulder_line import continue_shoulder_line
 from .unpainted import follow_edge_across_unpainted
 
 FloatArray = NDArray[np.float64]
@@ -190,6 +191,8 @@ def fit_lanes(
     # sensor had the inner lanes missing there, one shoulder 11.6 m wide); observed tracks
     # still apart were split at a gore on purpose (a9-10959882-s9 +60)
     tracks = _merge_collinear(tracks, cfg, grid, d_edge, with_inferred_only=True)
+    if np.all(np.isfinite(d_edge)):
+        tracks = continue_shoulder_line(tracks, grid, d_edge, covered, (s_l, d_l), car, cfg)
     tracks, breaks = split_edge_lines_at_steps(tracks, grid, d_edge, breaks, cfg.edge_line_m)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps

@@ -1,0 +1,109 @@
+"""The outer shoulder's own line where it lies beyond the sensor's reach.
+
+Some roads paint a line on the hard shoulder itself, a fixed distance inside the outer
+edge (CARLA Town06: a solid line 0.6 m inside it, the shoulder split in two). Driven in
+an inner lane, that line lies beyond the sensor's lateral reach over most of the run and
+is seen only where the road narrows or the car moves out; the outermost lane line and the
+edge are seen all along. Where the run saw such a line at a steady distance from the edge
+over a long stretch, with the outermost lane line a steady distance inside it, it goes on
+at that distance wherever the same pattern (lane line and edge that far apart) is seen
+and the line's place is out of the sensor's reach: unseen there is not absent
+(town06-auto-lane1-s21 and -lane2-s22: the line 0.5 m off wherever it was missing).
+
+Stations are metres along the reference line; offsets ``d`` metres from the reference
+edge towards the carriageway (the lanes' frame, :func:`~.lanes.fit_lanes`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..config import MainlineConfig
+from .markings import _marking_matrix, _Track
+
+FloatArray = NDArray[np.float64]
+
+_TO_EDGE_M = (0.25, 1.2)  # a shoulder's line lies this far inside the edge (metres) ...
+_STEADY_M = 0.15  # ... steady to within this (interquartile range, metres) ...
+_SEEN_MIN_M = 100.0  # ... over this much of the run at least (metres)
+_GAP_M = (0.25, 1.5)  # the lane's outer line lies this far inside the shoulder's line ...
+_PATTERN_M = 0.25  # ... and this close to where the pattern puts it (metres)
+_REACH_PERCENT = 99.0  # the sensor's reach: this percentile of the samples' distance
+_REACH_MARGIN_M = 1.0  # a place this close inside the reach would have been seen
+_CLEAR_M = 0.3  # no line of the run this close to the inferred one
+
+
+def _reach(s_lane: FloatArray, d_lane: FloatArray, car: tuple[FloatArray, FloatArray]) -> float:
+    """The sensor's lateral reach (metres): how far from the car the lane samples lie."""
+    away = np.abs(d_lane - np.interp(s_lane, car[0], car[1]))
+    return float(np.percentile(away, _REACH_PERCENT)) if away.size else math.inf
+
+
+def continue_shoulder_line(
+    tracks: list[_Track],
+    grid: FloatArray,
+    d_edge: FloatArray,
+    covered: NDArray[np.bool_],
+    lane_samples: tuple[FloatArray, FloatArray],
+    car: tuple[FloatArray, FloatArray] | None,
+    cfg: MainlineConfig,
+) -> list[_Track]:
+    """``tracks`` with the shoulder's line (see the module) added where it is out of
+    reach. ``d_edge`` (on ``grid``) is the outer edge, ``covered`` where it was seen;
+    ``lane_samples`` and ``car`` the samples' and the car's stations and offsets."""
+    if car is None or car[0].size < 2 or not tracks:
+        return tracks
+    marks = _marking_matrix(tracks, grid)  # (tracks, grid), NaN where a track is absent
+    seen_edge = np.where(covered, d_edge, np.nan)
+    step = float(grid[1] - grid[0])
+    best: tuple[float, int, float, float] | None = None  # seen metres, track, to edge, gap
+    for k, tr in enumerate(tracks):
+        if tr.n == 0 or tr.mark != "solid":
+            continue
+        to_edge = seen_edge - marks[k]
+        inner = np.where(marks < marks[k] - _CLEAR_M, marks, -np.inf).max(axis=0)
+        gap = marks[k] - inner
+        on = np.isfinite(to_edge) & np.isfinite(inner)
+        on &= (to_edge >= _TO_EDGE_M[0]) & (to_edge <= _TO_EDGE_M[1])
+        on &= (gap >= _GAP_M[0]) & (gap <= _GAP_M[1])
+        seen = np.count_nonzero(on) * step
+        if seen < _SEEN_MIN_M:
+            continue
+        q1, q3 = np.percentile(to_edge[on], [25, 75])
+        g1, g3 = np.percentile(gap[on], [25, 75])
+        if q3 - q1 > _STEADY_M or g3 - g1 > _STEADY_M:
+            continue
+        if best is None or seen > best[0]:
+            best = (seen, k, float(np.median(to_edge[on])), float(np.median(gap[on])))
+    if best is None:
+        return tracks
+    _, k, to_edge_m, gap_m = best
+    line = seen_edge - to_edge_m
+    car_d = np.interp(grid, car[0], car[1])
+    out_of_reach = np.abs(line - car_d) >= _reach(*lane_samples, car) - _REACH_MARGIN_M
+    others = np.delete(marks, k, axis=0)
+    with np.errstate(invalid="ignore"):
+        clear = ~np.any(np.abs(others - line) < _CLEAR_M, axis=0)
+        lane_line = np.any(np.abs(others - (line - gap_m)) < _PATTERN_M, axis=0)
+        beyond = ~np.any(others > line, axis=0)
+    where = np.isfinite(line) & out_of_reach & clear & lane_line & beyond
+    # the seen line goes on from its ends over the stretches next to them
+    tr = tracks[k]
+    own = np.flatnonzero((grid >= tr.lo) & (grid <= tr.hi))
+    a, b = int(own[0]), int(own[-1]) + 1
+    while a > 0 and where[a - 1]:
+        a -= 1
+    while b < grid.size and where[b]:
+        b += 1
+    if a == own[0] and b == own[-1] + 1:
+        return tracks
+    before, after = grid[a : own[0]], grid[own[-1] + 1 : b]
+    s_new = np.concatenate([before, tr.s, after])
+    d_new = np.concatenate([line[a : own[0]], tr.d, line[own[-1] + 1 : b]])
+    out = list(tracks)
+    out[k] = replace(tr, lo=float(s_new[0]), hi=float(s_new[-1]), s=s_new, d=d_new)
+    return out

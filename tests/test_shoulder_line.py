@@ -1,0 +1,78 @@
+"""The shoulder's own line goes on where it lies beyond the sensor's reach.
+
+Town06 paints a solid line 0.6 m inside the outer edge (its hard shoulder split in two).
+Driven in an inner lane, that line lay beyond the sensor's lateral reach over most of
+town06-auto-lane1-s21 and was seen over 350 m only: wherever it was missing, the
+boundary was 0.5 m off (lanes 0.146 m). Unseen out of reach is not absent."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from roadtwin.config import MainlineConfig
+from roadtwin.mainline.markings import _Track
+from roadtwin.mainline.shoulder_line import continue_shoulder_line
+
+GRID = np.arange(0.0, 1001.0, 1.0)
+
+
+def _track(k: int, lo: float, hi: float, d: float, mark: str = "solid", n: int = 100) -> _Track:
+    s = GRID[(GRID >= lo) & (GRID <= hi)]
+    return _Track(k, lo, hi, s, np.full(s.size, d), mark, n, s.copy())
+
+
+def _run(car_d: np.ndarray) -> list[_Track]:
+    """Lane lines at 4.6, 8.1, 11.6 (broken) and 15.1 m (the lane's outer line), the
+    shoulder's line at 15.6 m seen over 400-700 m only, the edge at 16.25 m seen all along;
+    lane samples up to 12 m either side of the car (the sensor's reach)."""
+    tracks = [
+        _track(0, 0.0, 1000.0, 4.6, "broken"),
+        _track(1, 0.0, 1000.0, 8.1, "broken"),
+        _track(2, 0.0, 1000.0, 11.6, "broken"),
+        _track(3, 0.0, 1000.0, 15.1),
+        _track(4, 400.0, 700.0, 15.6),
+    ]
+    s_lane = np.repeat(GRID, 5)
+    d_lane = np.interp(s_lane, GRID, car_d) + np.tile(np.linspace(-12.0, 12.0, 5), GRID.size)
+    d_edge = np.full(GRID.size, 16.25)
+    covered = np.ones(GRID.size, dtype=bool)
+    return continue_shoulder_line(
+        tracks, GRID, d_edge, covered, (s_lane, d_lane), (GRID, car_d), MainlineConfig()
+    )
+
+
+def test_the_shoulders_line_goes_on_out_of_reach():
+    out = _run(np.full(GRID.size, 3.0))  # 12.6 m from the shoulder's line: out of reach
+    line = out[4]
+    assert line.lo == 0.0
+    assert line.hi == 1000.0
+    np.testing.assert_allclose(np.interp([100.0, 550.0, 900.0], line.s, line.d), 15.6, atol=0.01)
+    assert len(out) == 5
+
+
+def test_not_where_the_car_would_have_seen_it():
+    """Where the car drove within reach of the line's place (800-1000 m) and saw no line
+    there, the line is absent: it stops where the car came near."""
+    car = np.where(GRID < 800.0, 3.0, 8.0)
+    line = _run(car)[4]
+    assert line.lo == 0.0
+    assert 798.0 <= line.hi <= 800.0
+
+
+def test_no_pattern_seen_long_enough_no_line():
+    """A line seen over less than 100 m beside the edge is no pattern to go on with."""
+    car = np.full(GRID.size, 3.0)
+    tracks = [_track(0, 0.0, 1000.0, 15.1), _track(1, 400.0, 460.0, 15.6)]
+    s_lane = np.repeat(GRID, 5)
+    d_lane = 3.0 + np.tile(np.linspace(-12.0, 12.0, 5), GRID.size)
+    out = continue_shoulder_line(
+        tracks,
+        GRID,
+        np.full(GRID.size, 16.25),
+        np.ones(GRID.size, dtype=bool),
+        (s_lane, d_lane),
+        (GRID, car),
+        MainlineConfig(),
+    )
+    assert out[1].lo == 400.0
+    assert out[1].hi == 460.0
