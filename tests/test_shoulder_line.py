@@ -17,7 +17,7 @@ GRID = np.arange(0.0, 1001.0, 1.0)
 
 
 def _track(k: int, lo: float, hi: float, d: float, mark: str = "solid", n: int = 100) -> _Track:
-    s = GRID[(GRID >= lo) & (GRID <= hi)]
+    s = GRID[(lo <= GRID) & (hi >= GRID)]
     return _Track(k, lo, hi, s, np.full(s.size, d), mark, n, s.copy())
 
 
