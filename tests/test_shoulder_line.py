@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from roadtwin.config import MainlineConfig
 from roadtwin.mainline.markings import _Track
 from roadtwin.mainline.shoulder_line import continue_shoulder_line
 
@@ -36,9 +35,7 @@ def _run(car_d: np.ndarray) -> list[_Track]:
     d_lane = np.interp(s_lane, GRID, car_d) + np.tile(np.linspace(-12.0, 12.0, 5), GRID.size)
     d_edge = np.full(GRID.size, 16.25)
     covered = np.ones(GRID.size, dtype=bool)
-    return continue_shoulder_line(
-        tracks, GRID, d_edge, covered, (s_lane, d_lane), (GRID, car_d), MainlineConfig()
-    )
+    return continue_shoulder_line(tracks, GRID, d_edge, covered, (s_lane, d_lane), (GRID, car_d))
 
 
 def test_the_shoulders_line_goes_on_out_of_reach():
@@ -72,7 +69,6 @@ def test_no_pattern_seen_long_enough_no_line():
         np.ones(GRID.size, dtype=bool),
         (s_lane, d_lane),
         (GRID, car),
-        MainlineConfig(),
     )
     assert out[1].lo == 400.0
     assert out[1].hi == 460.0

@@ -192,7 +192,7 @@ def fit_lanes(
     # still apart were split at a gore on purpose (a9-10959882-s9 +60)
     tracks = _merge_collinear(tracks, cfg, grid, d_edge, with_inferred_only=True)
     if np.all(np.isfinite(d_edge)):
-        tracks = continue_shoulder_line(tracks, grid, d_edge, covered, (s_l, d_l), car, cfg)
+        tracks = continue_shoulder_line(tracks, grid, d_edge, covered, (s_l, d_l), car)
     tracks, breaks = split_edge_lines_at_steps(tracks, grid, d_edge, breaks, cfg.edge_line_m)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps

@@ -22,7 +22,6 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..config import MainlineConfig
 from .markings import _marking_matrix, _Track
 
 FloatArray = NDArray[np.float64]
@@ -50,11 +49,11 @@ def continue_shoulder_line(
     covered: NDArray[np.bool_],
     lane_samples: tuple[FloatArray, FloatArray],
     car: tuple[FloatArray, FloatArray] | None,
-    cfg: MainlineConfig,
 ) -> list[_Track]:
-    """``tracks`` with the shoulder's line (see the module) added where it is out of
-    reach. ``d_edge`` (on ``grid``) is the outer edge, ``covered`` where it was seen;
-    ``lane_samples`` and ``car`` the samples' and the car's stations and offsets."""
+    """``tracks`` with the shoulder's line (see the module) continued from its ends over
+    the stretches next to them where it lies out of reach. ``d_edge`` (on ``grid``) is the
+    outer edge, ``covered`` where it was seen; ``lane_samples`` and ``car`` the samples'
+    and the car's stations and offsets (metres, the lanes' frame)."""
     if car is None or car[0].size < 2 or not tracks:
         return tracks
     marks = _marking_matrix(tracks, grid)  # (tracks, grid), NaN where a track is absent
@@ -94,6 +93,8 @@ def continue_shoulder_line(
     # the seen line goes on from its ends over the stretches next to them
     tr = tracks[k]
     own = np.flatnonzero((grid >= tr.lo) & (grid <= tr.hi))
+    if own.size == 0:
+        return tracks
     a, b = int(own[0]), int(own[-1]) + 1
     while a > 0 and where[a - 1]:
         a -= 1
