@@ -315,24 +315,19 @@ def _link_tracks(
             last = np.array([_settled_offset(tracks[i], c, cfg.lane_column_m) for i in active])
             pred = np.where(_met_another(tracks, active, pred, c, cfg.lane_column_m), np.inf, pred)
             guesses = [(pred, cfg.lane_link_m, 0.0)]
+            d_last = np.array([tracks[i].d[-1] for i in active])
+            c_last = np.array([tracks[i].cols[-1] for i in active])
             if frame_offset is not None:
-                still = np.array(
-                    [
-                        tracks[i].d[-1] - (frame_offset[c] - frame_offset[tracks[i].cols[-1]])
-                        for i in active
-                    ]
-                )
+                still = d_last - (frame_offset[c] - frame_offset[c_last])
                 # only where the frame moves (elsewhere it is the trend's own guess), and
                 # for a line seen in the column before: across a gap another line may
                 # have shifted into its place (krems-30799129-s11+20: an exit's line left
                 # while the lines inward shifted out by a lane, and its track took the
                 # line that arrived 20 m on, the gore 25 m late)
-                moving = np.abs(still - np.array([tracks[i].d[-1] for i in active])) > 0.05
-                moving &= np.array([tracks[i].cols[-1] == c - 1 for i in active])
+                moving = (np.abs(still - d_last) > 0.05) & (c_last == c - 1)
                 guesses.append((np.where(moving, still, np.inf), cfg.lane_link_m, _STAYS_PUT_COST))
             if edge is not None:
-                d_last = np.array([tracks[i].d[-1] for i in active])
-                edge_then = edge[[tracks[i].cols[-1] for i in active]]
+                edge_then = edge[c_last]
                 along = d_last + (edge[c] - edge_then)
                 # NaN (unseen edge) compares False: no such guess
                 follows = (np.abs(edge_then - d_last) <= _EDGE_NEAR_M) & (

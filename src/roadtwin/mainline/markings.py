@@ -115,9 +115,11 @@ def _tracks_from_samples(
         witness = OuterEdge(grid, d_edge if seen_edge is None else seen_edge)
     # the pattern's shift from the lines linked without the edge (lines that follow the
     # edge as it moves with the whole pattern would hide the shift: melbourne-921-s9+20)
-    frame = _shift_frame(s, d, length, centres, _link_tracks(peaks, cfg), cfg, witness)
+    raw = _link_tracks(peaks, cfg)
+    frame = _shift_frame(s, d, length, centres, raw, cfg, witness)
     if frame is None:
-        raw = _link_tracks(peaks, cfg, edge=_at_columns(seen_edge, grid, centres))
+        if seen_edge is not None:
+            raw = _link_tracks(peaks, cfg, edge=_at_columns(seen_edge, grid, centres))
         tracks, evidence = _tracks_in_frame(s, d, grid, length, cfg, d_edge, centres, raw)
     else:
         edge = None if d_edge is None else d_edge - frame.offset(grid)

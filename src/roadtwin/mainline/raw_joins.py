@@ -36,7 +36,7 @@ def _join_tapers(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
     and the closing lane became part of the shoulder (melbourne-408-lane1-s21 with a
     noisier sensor: lane count 97.7 %). Joined, the lane closes along its own line."""
     min_cols = cfg.lane_min_track_m / cfg.lane_column_m
-    out = [_RawTrack(list(tr.cols), list(tr.d), tr.slope) for tr in raw]
+    out = list(raw)  # joins build new tracks: the raw ones are never changed
     dropped: set[int] = set()
     for k, tr in enumerate(out):
         if tr.cols[-1] - tr.cols[0] + 1 >= min_cols or tr.d[0] - tr.d[-1] < _GOES_ON_MOVE_M:

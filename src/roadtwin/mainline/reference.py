@@ -625,10 +625,8 @@ def fit_median_edge(
         # nose, where the path drops back to the road's edge, a step of the road's edge
         # (the first pass's trajectory frame drifting beside it, a 1.8 m step sized
         # there bent town06-auto-s3's reference 0.6 m at an inner exit)
-        spans, bases = median_excursions(centres, level, drifting=it == 0)
-        road = ~_excursion_points(s, u, spans, bases)
+        road, level_road, spans = _without_excursions(s, u, centres, level, drifting=it == 0)
         s, t, u = s[road], t[road], u[road]
-        level_road = _without_spans(centres, level, spans)
         if it == 0 or has_steps:
             steps = edge_steps(
                 s,
@@ -694,42 +692,38 @@ def fit_median_edge(
     ok = (s_f >= 0.0) & (s_f <= frame.length)
     s_f, t_f = s_f[ok], t_f[ok]
     u, edges, level = _median_levels(s_f, t_f, side, 0.0, frame.length, cfg)
-    centres = 0.5 * (edges[1:] + edges[:-1])
-    spans, bases = median_excursions(centres, level)
-    road = ~_excursion_points(s_f, u, spans, bases)
+    road, level_road, _ = _without_excursions(s_f, u, 0.5 * (edges[1:] + edges[:-1]), level)
     steps = edge_steps(
         s_f[road],
         u[road],
         edges,
-        _without_spans(centres, level, spans),
+        level_road,
         config=cfg,
         across=functools.partial(_across, frame, outer_pts, side),
     )
     return MedianEdge(frame.xy, steps, frame.z, unseen)
 
 
-def _excursion_points(
-    s: FloatArray, u: FloatArray, spans: FloatArray, bases: FloatArray
-) -> NDArray[np.bool_]:
-    """Mask of the edge points (stations ``s``, offsets ``u`` towards the median, metres)
-    that are a ramp's: inside an excursion (:func:`median_excursions`) and more than
-    ``_EXCURSION_POINT_M`` outward of its base."""
+def _without_excursions(
+    s: FloatArray, u: FloatArray, centres: FloatArray, level: FloatArray, *, drifting: bool = False
+) -> tuple[NDArray[np.bool_], FloatArray, FloatArray]:
+    """The road's own edge without the excursions of its level path
+    (:func:`median_excursions`; ``drifting`` as there).
+
+    Returns the mask of the edge points (stations ``s``, offsets ``u`` towards the median,
+    metres) that are not a ramp's (inside an excursion and more than
+    ``_EXCURSION_POINT_M`` outward of its base), the level path (on bin ``centres``,
+    metres) unseen (NaN) over the excursions, and the excursions' ``(k, 2)`` station
+    intervals."""
+    spans, bases = median_excursions(centres, level, drifting=drifting)
     if not spans.size:
-        return np.zeros(s.size, dtype=bool)
+        return np.ones(s.size, dtype=bool), level, spans
     k = np.clip(np.searchsorted(spans[:, 0], s, side="right") - 1, 0, None)
     inside = (s >= spans[k, 0]) & (s <= spans[k, 1])
-    return inside & (u > bases[k] + _EXCURSION_POINT_M)
-
-
-def _without_spans(centres: FloatArray, level: FloatArray, spans: FloatArray) -> FloatArray:
-    """The level path (on bin ``centres``, metres) unseen (NaN) over the excursions
-    ``spans``: what is left of it is the road's own edge."""
-    if not spans.size:
-        return level
-    out = level.copy()
+    level_road = level.copy()
     for a, b in spans:
-        out[(centres >= a) & (centres <= b)] = np.nan
-    return out
+        level_road[(centres >= a) & (centres <= b)] = np.nan
+    return ~(inside & (u > bases[k] + _EXCURSION_POINT_M)), level_road, spans
 
 
 def _across(

@@ -22,6 +22,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
+from ._common import true_runs
 from .markings import _marking_matrix, _Track
 
 FloatArray = NDArray[np.float64]
@@ -96,10 +97,11 @@ def continue_shoulder_line(
     if own.size == 0:
         return tracks
     a, b = int(own[0]), int(own[-1]) + 1
-    while a > 0 and where[a - 1]:
-        a -= 1
-    while b < grid.size and where[b]:
-        b += 1
+    for lo, hi in true_runs(where):
+        if lo < own[0] <= hi:
+            a = lo  # the stretch that reaches the seen line's start
+        if lo <= own[-1] + 1 < hi:
+            b = hi  # ... and the one that goes on from its end
     if a == own[0] and b == own[-1] + 1:
         return tracks
     before, after = grid[a : own[0]], grid[own[-1] + 1 : b]
