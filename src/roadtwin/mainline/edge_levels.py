@@ -294,6 +294,7 @@ def edge_steps(
     *,
     config: MainlineConfig | None = None,
     across: Callable[[], tuple[FloatArray, FloatArray] | None] | None = None,
+    lines: Callable[[], tuple[FloatArray, FloatArray] | None] | None = None,
 ) -> EdgeSteps:
     """The steps of a level path (:func:`edge_level_path`) and each segment's offset.
 
@@ -305,7 +306,11 @@ def edge_steps(
     change) the level also moves where the car changed lanes unseen; it is a step only
     where ``across`` (called only then: the other edge's points, stations and offsets away
     from this edge, metres, same frame) says the carriageway's width changed with it
-    (:func:`_step_across_gap`), at the gap's middle. Each segment's offset is the median
+    (:func:`_step_across_gap`), at the gap's middle; where ``lines`` (called only then:
+    the lane samples, stations and offsets towards this edge, metres, same frame) show the
+    edge's own line held at the old level across part of the gap and then leaving it
+    outward, the step is there, a ramp's line peeling off (:func:`edge_line_departure`).
+    Each segment's offset is the median
     ``u`` of its points on the path, 10 m clear of its steps where it has enough of them.
     """
     cfg = config or MainlineConfig()
@@ -317,6 +322,7 @@ def edge_steps(
     # [station, level before, level after, gore area or None] per step
     found: list[list] = []
     across_bins: FloatArray | None = None
+    line_pts: tuple[FloatArray, FloatArray] | None = None
     for j_first, j in _jump_groups(jumps):
         before = float(np.median(level[seen[max(j_first - 4, 0) : j_first + 1]]))
         after = float(np.median(level[seen[j + 1 : j + 6]]))
@@ -342,7 +348,15 @@ def edge_steps(
                 other = across()
                 if other is not None:
                     across_bins = _bin_medians(other[0], other[1], edges_s)
-            station = _step_across_gap(gap, after - before, centres, level, across_bins, cfg)
+            change = after - before
+            station = _step_across_gap(gap, change, centres, level, across_bins, cfg)
+            if lines is not None and _width_changes(gap, change, centres, level, across_bins, cfg):
+                # the edge's own line, seen in the gap, says where the gore is
+                line_pts = lines() if line_pts is None else line_pts
+                departure = None if line_pts is None else edge_line_departure(
+                    line_pts[0], line_pts[1], gap, max(before, after), forward=after < before
+                )  # fmt: skip
+                station = departure if departure is not None else station
             if station is None:
                 continue
             # sized from either side of the gap (nothing of the step was seen in it)
@@ -499,21 +513,7 @@ def _step_across_gap(
     middle: nothing seen tells where in it the gore is.
     """
     lo, hi = gap
-    if across is None or hi - lo < _GAP_MIN_M:
-        return None
-    seen = np.isfinite(level)
-    held_before = seen & (centres <= lo) & (centres > lo - _GAP_HELD_M)
-    held_after = seen & (centres >= hi) & (centres < hi + _GAP_HELD_M)
-    if min(np.count_nonzero(held_before), np.count_nonzero(held_after)) < _GAP_HELD_BINS:
-        return None  # a level seen only briefly next to the gap may be a bend's
-    width = level + across
-    ok = np.isfinite(width)
-    before = np.flatnonzero(ok & (centres <= lo) & (centres > lo - _GAP_REACH_M))[-_GAP_WIDTH_BINS:]
-    after = np.flatnonzero(ok & (centres >= hi) & (centres < hi + _GAP_REACH_M))[:_GAP_WIDTH_BINS]
-    if before.size < _GAP_WIDTH_BINS or after.size < _GAP_WIDTH_BINS:
-        return None
-    width_change = float(np.median(width[after]) - np.median(width[before]))
-    if abs(width_change) <= cfg.edge_step_m or width_change * level_change <= 0.0:
+    if not _width_changes(gap, level_change, centres, level, across, cfg):
         return None
     if abs(level_change) < _GAP_STEP_MIN_M or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
         # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
@@ -527,6 +527,123 @@ def _step_across_gap(
     if level_change > 0.0 and _peels_off(centres, level, hi, 1.0):
         return hi
     return 0.5 * (lo + hi)
+
+
+def _width_changes(
+    gap: tuple[float, float],
+    level_change: float,
+    centres: FloatArray,
+    level: FloatArray,
+    across: FloatArray | None,
+    cfg: MainlineConfig,
+) -> bool:
+    """Whether the carriageway's width (this edge's level plus ``across``, the other
+    edge's median offset per bin) changes across the unseen stretch ``gap`` with this
+    edge's level (``level_change``, metres): a step, not the car's own lane change (which
+    moves both edges by the same amount in opposite directions). The width is taken where
+    both edges were seen nearest the gap on each side, both levels held next to it."""
+    lo, hi = gap
+    if across is None or hi - lo < _GAP_MIN_M:
+        return False
+    seen = np.isfinite(level)
+    held_before = seen & (centres <= lo) & (centres > lo - _GAP_HELD_M)
+    held_after = seen & (centres >= hi) & (centres < hi + _GAP_HELD_M)
+    if min(np.count_nonzero(held_before), np.count_nonzero(held_after)) < _GAP_HELD_BINS:
+        return False  # a level seen only briefly next to the gap may be a bend's
+    width = level + across
+    ok = np.isfinite(width)
+    before = np.flatnonzero(ok & (centres <= lo) & (centres > lo - _GAP_REACH_M))[-_GAP_WIDTH_BINS:]
+    after = np.flatnonzero(ok & (centres >= hi) & (centres < hi + _GAP_REACH_M))[:_GAP_WIDTH_BINS]
+    if before.size < _GAP_WIDTH_BINS or after.size < _GAP_WIDTH_BINS:
+        return False
+    width_change = float(np.median(width[after]) - np.median(width[before]))
+    return abs(width_change) > cfg.edge_step_m and width_change * level_change > 0.0
+
+
+_LINE_BAND_M = (0.1, 1.5)  # the edge's line lies this far inside the edge (metres)
+_LINE_SIDE_M = 20.0  # ... judged over this much next to the gap, seen side
+_LINE_BIN_M = 2.0  # the walk's bins (metres along)
+_LINE_GATE_M = 0.35  # a sample this near the walk's prediction is the line's
+_LINE_LOST_BINS = 7  # this many bins in a row without the line end the walk
+_LINE_COURSE_BINS = 15  # the line's course: a straight fit to this many bins ...
+_LINE_BEND_BINS = 8  # ... before the last this many ...
+_LINE_LEAVES_M = 0.3  # ... the line this far outward of it in 3 bins has left it ...
+_LINE_HELD_M = 0.1  # ... from the last bin this near it
+
+
+def edge_line_departure(
+    s: FloatArray, u: FloatArray, gap: tuple[float, float], outer_level: float, *, forward: bool
+) -> float | None:
+    """Station (metres) where the line along the edge leaves the edge's outer level inside
+    an unseen stretch ``gap`` of the edge: an exit's (``forward``: walked from the gap's
+    start) or an entry's (walked back from its end) gore, where a ramp's line peels off
+    (joins). None where no such line is seen next to the gap, it is lost in the gap
+    before leaving, or it does not leave outward.
+
+    ``s``, ``u``: lane samples (stations, offsets towards the edge, metres, the edge
+    points' frame); ``outer_level``: the edge's level (same offsets) on the wider side
+    of the gap. The line is the one nearest the edge within ``_LINE_BAND_M`` inside it
+    over the ``_LINE_SIDE_M`` next to the gap; it is walked bin by bin (samples within
+    ``_LINE_GATE_M`` of its prediction, which follows its slope). Where it lies more than
+    ``_LINE_LEAVES_M`` outward of its course (a straight fit to the ``_LINE_COURSE_BINS``
+    bins before the last ``_LINE_BEND_BINS``) over three bins it has left; the departure
+    is the last of those ``_LINE_BEND_BINS`` within ``_LINE_HELD_M`` of that course.
+    """
+    direction = 1.0 if forward else -1.0
+    start, end = (gap[0], gap[1]) if forward else (gap[1], gap[0])
+    along = direction * (s - start)
+    band = (u > outer_level - _LINE_BAND_M[1]) & (u < outer_level - _LINE_BAND_M[0])
+    side = band & (along > -_LINE_SIDE_M) & (along <= 0.0)
+    n_side = int(_LINE_SIDE_M / _LINE_BIN_M)
+    if not side.any():
+        return None
+    b = np.floor(-along[side] / _LINE_BIN_M).astype(np.int64)
+    per_bin = np.full(n_side, -np.inf)
+    np.maximum.at(per_bin, np.clip(b, 0, n_side - 1), u[side])
+    seen = per_bin[np.isfinite(per_bin)]
+    if seen.size < n_side // 2 or 1.4826 * float(np.median(np.abs(seen - np.median(seen)))) > 0.1:
+        return None
+    held = float(np.median(seen))
+    n_bins = int(np.ceil(abs(end - start) / _LINE_BIN_M))
+    inside = (along > 0.0) & (along <= n_bins * _LINE_BIN_M)
+    k_of = np.floor(along[inside] / _LINE_BIN_M).astype(np.int64)
+    order = np.argsort(k_of, kind="stable")
+    k_sorted, u_sorted = k_of[order], u[inside][order]
+    first = np.searchsorted(k_sorted, np.arange(n_bins), side="left")
+    last = np.searchsorted(k_sorted, np.arange(n_bins), side="right")
+    pred, slope, last_value, last_k = held, 0.0, held, -1
+    track = np.full(n_bins, np.nan)
+    for k in range(n_bins):
+        cand = u_sorted[first[k] : last[k]]
+        cand = cand[np.abs(cand - pred) < _LINE_GATE_M]
+        if not cand.size:
+            if k - last_k >= _LINE_LOST_BINS:
+                break
+            pred += slope
+            continue
+        value = float(np.median(cand))
+        slope = 0.5 * slope + 0.5 * (value - last_value) / (k - last_k)
+        track[k], pred, last_value, last_k = value, value + slope, value, k
+    tracked = np.flatnonzero(np.isfinite(track))
+    for i, k in enumerate(tracked):
+        # the line's course, straight over the bins before the last _LINE_BEND_BINS (a
+        # frame drifting against the line, a bridged edge, tilts it; a ramp's line bends
+        # away from it over tens of metres before it is clearly off)
+        prev = tracked[
+            (tracked >= k - _LINE_BEND_BINS - _LINE_COURSE_BINS) & (tracked < k - _LINE_BEND_BINS)
+        ]
+        nxt = tracked[i : i + 3]
+        if prev.size < _LINE_COURSE_BINS // 3 or nxt.size < 3:
+            continue
+        coef = np.polyfit(prev.astype(float), track[prev], 1)
+        if np.all(track[nxt] - np.polyval(coef, nxt.astype(float)) > _LINE_LEAVES_M):
+            bend = tracked[(tracked >= k - _LINE_BEND_BINS) & (tracked < k)]
+            near = bend[track[bend] - np.polyval(coef, bend.astype(float)) <= _LINE_HELD_M]
+            held_to = int(near[-1]) if near.size else int(prev[-1])
+            if np.count_nonzero(tracked <= held_to) < 0.5 * (held_to + 1):
+                return None  # the line was not seen holding its course up to there
+            return float(start + direction * (held_to + 0.5) * _LINE_BIN_M)
+    return None
 
 
 _PEEL_NEAR_M = 10.0  # the level this near a gap's end ...

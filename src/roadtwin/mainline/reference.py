@@ -66,8 +66,10 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
     timings["frame"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    median = fit_median_edge(ref_pts, traj, config=cfg, outer_pts=outer_pts)
-    median = _without_knots(median, ref_pts, traj, cfg, outer_pts)
+    median = fit_median_edge(
+        ref_pts, traj, config=cfg, outer_pts=outer_pts, lane_pts=run.lane_samples
+    )
+    median = _without_knots(median, ref_pts, traj, cfg, outer_pts, run.lane_samples)
     geometry = fit_parampoly3_chain(median.xy, tolerance_m=cfg.fit_tolerance_m)
     timings["reference_line"] = time.perf_counter() - t0
 
@@ -396,6 +398,7 @@ def _without_knots(
     traj: PolylineFrame,
     cfg: MainlineConfig,
     outer_pts: FloatArray,
+    lane_pts: FloatArray,
 ) -> MedianEdge:
     """``median`` fitted again without its edge points (mapping frame, metres) within
     ``_KNOT_MARGIN_M`` of where it turns tighter than ``cfg.quality_min_radius_m``: no
@@ -418,7 +421,7 @@ def _without_knots(
         ", ".join(f"{lo:.0f}..{hi:.0f}" for lo, hi in knots),
         int(np.count_nonzero(drop)),
     )
-    return fit_median_edge(ref_pts[~drop], traj, config=cfg, outer_pts=outer_pts)
+    return fit_median_edge(ref_pts[~drop], traj, config=cfg, outer_pts=outer_pts, lane_pts=lane_pts)
 
 
 def _tight_turns(
@@ -574,6 +577,7 @@ def fit_median_edge(
     *,
     config: MainlineConfig | None = None,
     outer_pts: FloatArray | None = None,
+    lane_pts: FloatArray | None = None,
 ) -> MedianEdge:
     """The median-side road edge: a smooth reference line and the edge's steps.
 
@@ -588,7 +592,8 @@ def fit_median_edge(
     a ramp's edge peels off (joins) on the median side and the edge goes on at its level
     beyond the gore (:func:`median_excursions`), the ramp's points are left out.
     ``outer_pts`` (the other edge's points) tell a step hidden in an occlusion gap from
-    the car's own lane change there (:func:`~.edge_levels.edge_steps`).
+    the car's own lane change there, and ``lane_pts`` (the lane samples) where in the gap
+    the edge's own line leaves for a ramp (:func:`~.edge_levels.edge_steps`).
     """
     cfg = config or MainlineConfig()
     step = cfg.grid_step_m
@@ -635,6 +640,7 @@ def fit_median_edge(
                 level_road,
                 config=cfg,
                 across=functools.partial(_across, frame, outer_pts, side),
+                lines=functools.partial(_lines, frame, lane_pts, side),
             )
             has_steps = bool(steps.stations.size)
         if has_steps or spans.size:
@@ -700,6 +706,7 @@ def fit_median_edge(
         level_road,
         config=cfg,
         across=functools.partial(_across, frame, outer_pts, side),
+        lines=functools.partial(_lines, frame, lane_pts, side),
     )
     return MedianEdge(frame.xy, steps, frame.z, unseen)
 
@@ -735,6 +742,17 @@ def _across(
         return None
     s, t = frame.project(outer_pts)
     return s, -side * t
+
+
+def _lines(
+    frame: PolylineFrame, lane_pts: FloatArray | None, side: float
+) -> tuple[FloatArray, FloatArray] | None:
+    """The lane samples in ``frame``: stations and offsets towards the median (metres),
+    or None without them."""
+    if lane_pts is None or lane_pts.shape[0] == 0:
+        return None
+    s, t = frame.project(lane_pts)
+    return s, side * t
 
 
 def _bin_sums(
