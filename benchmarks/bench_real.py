@@ -322,6 +322,7 @@ def build_and_judge(
             unjudged=len(topo.get("unjudged") or []),
             connected=topo.get("connected"),
             widest_lane_m=widest,
+            pose_rms=_pose_error(run_dir),
             **_away_from_junctions(rep.details, run_dir),
         )
         if drive:
@@ -331,6 +332,22 @@ def build_and_judge(
         row["trace"] = traceback.format_exc(limit=8)
     row["time_s"] = time.perf_counter() - t0
     return row
+
+
+def _pose_error(run_dir: Path) -> float | None:
+    """Sideways RMS (metres) of the run's measured poses against its noise-free ones
+    (``truth_trajectory.csv``): every point and sample is placed from these poses, so an
+    error of the map that moves with them is a floor no fit removes. None without them."""
+    truth_csv = run_dir / "truth_trajectory.csv"
+    if not truth_csv.exists():
+        return None
+    measured = np.loadtxt(run_dir / "trajectory.csv", delimiter=",", skiprows=1, ndmin=2)
+    truth = np.loadtxt(truth_csv, delimiter=",", skiprows=1, ndmin=2)
+    n = min(measured.shape[0], truth.shape[0])
+    dx, dy = (measured[:n, 2:4] - truth[:n, 2:4]).T
+    yaw = truth[:n, 5]
+    sideways = -dx * np.sin(yaw) + dy * np.cos(yaw)
+    return float(np.sqrt(np.mean(sideways**2)))
 
 
 def _widest_lane(network) -> float:
@@ -430,8 +447,8 @@ def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
         "| run | split | method | km | edge RMSE | lane RMSE | edge / lane strict "
         "| edge / lane away | lane count "
         "| ramps found/true | typed | spurious | ramp centre RMSE | widest lane | check errors "
-        "| SUMO | ASAM | drive | build s |\n"
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+        "| SUMO | ASAM | drive | build s | pose RMSE |\n"
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
     lines = [head]
     for name, split, rows in results:
@@ -460,7 +477,7 @@ def format_rows(results: list[tuple[str, str, list[dict]]]) -> str:
                 f"| {r['typed']} | {r['spurious']} | {_f(r.get('ramp_centre'), 2)} "
                 f"| {_f(r['widest_lane_m'], 1)} "
                 f"| {r['check_errors']} | {status('sumo')} | {status('asam')} | {drive_txt} "
-                f"| {_f(r['build_s'], 1)} |"
+                f"| {_f(r['build_s'], 1)} | {_f(r.get('pose_rms'))} |"
             )
     return "\n".join(lines)
 
