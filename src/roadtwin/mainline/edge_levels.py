@@ -642,8 +642,27 @@ def edge_line_departure(
             held_to = int(near[-1]) if near.size else int(prev[-1])
             if np.count_nonzero(tracked <= held_to) < 0.5 * (held_to + 1):
                 return None  # the line was not seen holding its course up to there
-            return float(start + direction * (held_to + 0.5) * _LINE_BIN_M)
+            # the last bin near the course lies metres after the bend's start (a ramp's
+            # line leaves on a curve: 0.1 m off 7 m after it on a 250 m radius): the
+            # start fitted as a hinge, off the course by c (x - x0)^2 after it
+            fit = tracked[(tracked >= held_to - _LINE_BEND_BINS) & (tracked <= nxt[-1])]
+            x0 = _hinge_start(fit.astype(float), track[fit] - np.polyval(coef, fit.astype(float)))
+            x0 = min(max(x0, held_to - _LINE_BEND_BINS), held_to)
+            return float(start + direction * (x0 + 0.5) * _LINE_BIN_M)
     return None
+
+
+def _hinge_start(x: FloatArray, off: FloatArray) -> float:
+    """The ``x0`` (bins, in steps of a quarter bin over ``x``'s range) whose hinge
+    ``c * max(x - x0, 0)^2`` (``c`` by least squares) fits the offsets ``off`` (metres
+    from a line's straight course) best."""
+    x0 = np.arange(float(x[0]), float(x[-1]), 0.25)
+    if not x0.size:
+        return float(x[0])
+    q = np.clip(x[None, :] - x0[:, None], 0.0, None) ** 2
+    c = np.sum(q * off[None, :], axis=1) / np.maximum(np.sum(q * q, axis=1), 1e-12)
+    sse = np.sum((off[None, :] - c[:, None] * q) ** 2, axis=1)
+    return float(x0[int(np.argmin(sse))])
 
 
 _PEEL_NEAR_M = 10.0  # the level this near a gap's end ...
