@@ -568,7 +568,7 @@ _LINE_LOST_BINS = 7  # this many bins in a row without the line end the walk
 _LINE_COURSE_BINS = 15  # the line's course: a straight fit to this many bins ...
 _LINE_BEND_BINS = 8  # ... before the last this many ...
 _LINE_LEAVES_M = 0.3  # ... the line this far outward of it in 3 bins has left it ...
-_LINE_HELD_M = 0.1  # ... from the last bin this near it
+_LINE_HELD_M = 0.1  # ... its bend starting before the last bin this near it
 
 
 def edge_line_departure(
@@ -586,8 +586,10 @@ def edge_line_departure(
     over the ``_LINE_SIDE_M`` next to the gap; it is walked bin by bin (samples within
     ``_LINE_GATE_M`` of its prediction, which follows its slope). Where it lies more than
     ``_LINE_LEAVES_M`` outward of its course (a straight fit to the ``_LINE_COURSE_BINS``
-    bins before the last ``_LINE_BEND_BINS``) over three bins it has left; the departure
-    is the last of those ``_LINE_BEND_BINS`` within ``_LINE_HELD_M`` of that course.
+    bins before the last ``_LINE_BEND_BINS``) over three bins it has left. The departure
+    is the start of the bend, fitted as a hinge (:func:`_hinge_start`) within the
+    ``_LINE_BEND_BINS`` before the last bin within ``_LINE_HELD_M`` of that course; the
+    line must have been seen in half the bins up to there.
     """
     direction = 1.0 if forward else -1.0
     start, end = (gap[0], gap[1]) if forward else (gap[1], gap[0])
