@@ -306,10 +306,11 @@ def edge_steps(
     change) the level also moves where the car changed lanes unseen; it is a step only
     where ``across`` (called only then: the other edge's points, stations and offsets away
     from this edge, metres, same frame) says the carriageway's width changed with it
-    (:func:`_step_across_gap`), at the gap's middle; where ``lines`` (called only then:
-    the lane samples, stations and offsets towards this edge, metres, same frame) show the
-    edge's own line held at the old level across part of the gap and then leaving it
-    outward, the step is there, a ramp's line peeling off (:func:`edge_line_departure`).
+    (:func:`_width_changes`), at the gap's middle (:func:`_step_across_gap`); where
+    ``lines`` (called only then: the lane samples, stations and offsets towards this edge,
+    metres, same frame) show the edge's own line held at the old level across part of the
+    gap and then leaving it outward, the step is there, a ramp's line peeling off
+    (:func:`edge_line_departure`).
     Each segment's offset is the median
     ``u`` of its points on the path, 10 m clear of its steps where it has enough of them.
     """
@@ -349,14 +350,17 @@ def edge_steps(
                 if other is not None:
                     across_bins = _bin_medians(other[0], other[1], edges_s)
             change = after - before
-            station = _step_across_gap(gap, change, centres, level, across_bins, cfg)
-            if lines is not None and _width_changes(gap, change, centres, level, across_bins, cfg):
-                # the edge's own line, seen in the gap, says where the gore is
-                line_pts = lines() if line_pts is None else line_pts
-                departure = None if line_pts is None else edge_line_departure(
-                    line_pts[0], line_pts[1], gap, max(before, after), forward=after < before
-                )  # fmt: skip
-                station = departure if departure is not None else station
+            station = None
+            if _width_changes(gap, change, centres, level, across_bins, cfg):
+                # the edge's own line, seen in the gap, says where the gore is; else its
+                # size and what was seen at the gap's ends
+                if lines is not None and line_pts is None:
+                    line_pts = lines()
+                if line_pts is not None:
+                    outer, exit_ = max(before, after), after < before
+                    station = edge_line_departure(*line_pts, gap, outer, forward=exit_)
+                if station is None:
+                    station = _step_across_gap(gap, change, centres, level)
             if station is None:
                 continue
             # sized from either side of the gap (nothing of the step was seen in it)
@@ -494,27 +498,17 @@ def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArra
 
 
 def _step_across_gap(
-    gap: tuple[float, float],
-    level_change: float,
-    centres: FloatArray,
-    level: FloatArray,
-    across: FloatArray | None,
-    cfg: MainlineConfig,
+    gap: tuple[float, float], level_change: float, centres: FloatArray, level: FloatArray
 ) -> float | None:
     """Station (metres) of a step whose level change (``level_change``, metres, between
     the levels either side) falls in the unseen stretch ``gap`` (the centres of the seen
-    bins either side), or None where the change is the car's own sideways move.
+    bins either side) where the carriageway's width changed with it
+    (:func:`_width_changes`), or None where it is bridged as a taper.
 
-    A lane change of the car moves both edges by the same amount in opposite directions,
-    so the carriageway's width (this edge's level plus ``across``, the other edge's
-    median offset per bin) stays; a step (lanes ending or beginning at full width on this
-    side, a gore hidden by a truck or out of reach) changes it. The width is taken where
-    both edges were seen nearest the gap on each side. The step lies at the gap's
-    middle: nothing seen tells where in it the gore is.
+    The step lies at the gap's middle (nothing seen tells where in it the gore is), or at
+    the end of the gap where a ramp's edge was seen peeling off the higher level.
     """
     lo, hi = gap
-    if not _width_changes(gap, level_change, centres, level, across, cfg):
-        return None
     if abs(level_change) < _GAP_STEP_MIN_M or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
         # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
         # unseen is mapped as one that tapers over the gap, and the lane structure
