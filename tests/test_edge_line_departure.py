@@ -65,6 +65,21 @@ def test_a_line_holding_its_course_gives_no_gore():
     assert edge_line_departure(s, u, GAP, 0.0, forward=True) is None
 
 
+def test_a_line_moving_in_with_a_lane_dropped_gives_no_gore():
+    """town06-auto-lane2-s22 with a noisier sensor (seed offset 140): the median edge
+    tapers in by a lane (325-365 m) inside a gap (318-486 m) and its line with it. In a
+    frame bridged straight across the gap the line bends back outward where the taper
+    ends (an S), 0.3 m off its course within metres; it never lies beyond where it was
+    held (taken for a gore, the step made the lane end at full width: a dead end)."""
+    rng = np.random.default_rng(7)
+    s = np.arange(250.0, 600.0, 0.5)
+    x = np.clip((s - 325.0) / 40.0, 0.0, 1.0)
+    world = -0.9 - 3.5 * x * x * (3.0 - 2.0 * x)
+    bridge = -3.5 * np.clip((s - 318.0) / 168.0, 0.0, 1.0)
+    u = world - bridge + rng.normal(0.0, 0.05, s.size)
+    assert edge_line_departure(s, u, (318.0, 486.0), 0.0, forward=True) is None
+
+
 def test_a_line_lost_before_it_leaves_gives_no_gore():
     s, u = _samples(seen_to=560.0)
     assert edge_line_departure(s, u, GAP, 0.0, forward=True) is None

@@ -562,7 +562,8 @@ _LINE_LOST_BINS = 7  # this many bins in a row without the line end the walk
 _LINE_COURSE_BINS = 15  # the line's course: a straight fit to this many bins ...
 _LINE_BEND_BINS = 8  # ... before the last this many ...
 _LINE_LEAVES_M = 0.3  # ... the line this far outward of it in 3 bins has left it ...
-_LINE_HELD_M = 0.1  # ... its bend starting before the last bin this near it
+_LINE_HELD_M = 0.1  # ... its bend starting before the last bin this near it ...
+_LINE_BEYOND_M = 1.0  # ... and going on to this far beyond where it was held
 
 
 def edge_line_departure(
@@ -580,7 +581,10 @@ def edge_line_departure(
     over the ``_LINE_SIDE_M`` next to the gap; it is walked bin by bin (samples within
     ``_LINE_GATE_M`` of its prediction, which follows its slope). Where it lies more than
     ``_LINE_LEAVES_M`` outward of its course (a straight fit to the ``_LINE_COURSE_BINS``
-    bins before the last ``_LINE_BEND_BINS``) over three bins it has left. The departure
+    bins before the last ``_LINE_BEND_BINS``) over three bins, and goes on to lie
+    ``_LINE_BEYOND_M`` outward of where it was held next to the gap, it has left (a line
+    that bends back after moving in, an S beside a lane dropped at the edge, has not). The
+    departure
     is the start of the bend, fitted as a hinge (:func:`_hinge_start`) within the
     ``_LINE_BEND_BINS`` before the last bin within ``_LINE_HELD_M`` of that course; the
     line must have been seen in half the bins up to there.
@@ -633,6 +637,10 @@ def edge_line_departure(
             continue
         coef = np.polyfit(prev.astype(float), track[prev], 1)
         if np.all(track[nxt] - np.polyval(coef, nxt.astype(float)) > _LINE_LEAVES_M):
+            if np.max(track[tracked[i:]]) - held < _LINE_BEYOND_M:
+                # it bends back after moving in (an S: the edge tapering in with a lane
+                # dropped beside it), it does not leave beyond where it was held
+                return None
             bend = tracked[(tracked >= k - _LINE_BEND_BINS) & (tracked < k)]
             near = bend[track[bend] - np.polyval(coef, bend.astype(float)) <= _LINE_HELD_M]
             held_to = int(near[-1]) if near.size else int(prev[-1])
