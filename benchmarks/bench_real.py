@@ -336,16 +336,18 @@ def build_and_judge(
 
 def _pose_error(run_dir: Path) -> float | None:
     """Sideways RMS (metres) of the run's measured poses against its noise-free ones
-    (``truth_trajectory.csv``): every point and sample is placed from these poses, so an
-    error of the map that moves with them is a floor no fit removes. None without them."""
+    (``truth_trajectory.csv``, the same frames): every point and sample is placed from
+    these poses, so an error of the map that moves with them is a floor no fit removes.
+    None without them."""
+    from roadtwin.io import read_trajectory
+
     truth_csv = run_dir / "truth_trajectory.csv"
     if not truth_csv.exists():
         return None
-    measured = np.loadtxt(run_dir / "trajectory.csv", delimiter=",", skiprows=1, ndmin=2)
-    truth = np.loadtxt(truth_csv, delimiter=",", skiprows=1, ndmin=2)
-    n = min(measured.shape[0], truth.shape[0])
-    dx, dy = (measured[:n, 2:4] - truth[:n, 2:4]).T
-    yaw = truth[:n, 5]
+    measured, truth = read_trajectory(run_dir / "trajectory.csv"), read_trajectory(truth_csv)
+    _, i, j = np.intersect1d(measured.frame, truth.frame, return_indices=True)
+    dx, dy = (measured.xy[i] - truth.xy[j]).T
+    yaw = truth.yaw[j]
     sideways = -dx * np.sin(yaw) + dy * np.cos(yaw)
     return float(np.sqrt(np.mean(sideways**2)))
 

@@ -639,8 +639,8 @@ def fit_median_edge(
                 edges,
                 level_road,
                 config=cfg,
-                across=functools.partial(_across, frame, outer_pts, side),
-                lines=functools.partial(_lines, frame, lane_pts, side),
+                across=functools.partial(_in_frame, frame, outer_pts, -side),
+                lines=functools.partial(_in_frame, frame, lane_pts, side),
             )
             has_steps = bool(steps.stations.size)
         if has_steps or spans.size:
@@ -705,8 +705,8 @@ def fit_median_edge(
         edges,
         level_road,
         config=cfg,
-        across=functools.partial(_across, frame, outer_pts, side),
-        lines=functools.partial(_lines, frame, lane_pts, side),
+        across=functools.partial(_in_frame, frame, outer_pts, -side),
+        lines=functools.partial(_in_frame, frame, lane_pts, side),
     )
     return MedianEdge(frame.xy, steps, frame.z, unseen)
 
@@ -733,26 +733,16 @@ def _without_excursions(
     return ~(inside & (u > bases[k] + _EXCURSION_POINT_M)), level_road, spans
 
 
-def _across(
-    frame: PolylineFrame, outer_pts: FloatArray | None, side: float
+def _in_frame(
+    frame: PolylineFrame, points: FloatArray | None, sign: float
 ) -> tuple[FloatArray, FloatArray] | None:
-    """The other edge's points in ``frame``: stations and offsets away from the median
-    (metres), or None without them."""
-    if outer_pts is None or outer_pts.shape[0] == 0:
+    """Stations and ``sign`` times the offsets (metres) of ``points`` in ``frame`` (the
+    other edge's points away from the median with ``-side``, the lane samples towards it
+    with ``side``), or None without points."""
+    if points is None or points.shape[0] == 0:
         return None
-    s, t = frame.project(outer_pts)
-    return s, -side * t
-
-
-def _lines(
-    frame: PolylineFrame, lane_pts: FloatArray | None, side: float
-) -> tuple[FloatArray, FloatArray] | None:
-    """The lane samples in ``frame``: stations and offsets towards the median (metres),
-    or None without them."""
-    if lane_pts is None or lane_pts.shape[0] == 0:
-        return None
-    s, t = frame.project(lane_pts)
-    return s, side * t
+    s, t = frame.project(points)
+    return s, sign * t
 
 
 def _bin_sums(
