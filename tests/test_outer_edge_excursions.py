@@ -75,3 +75,37 @@ def test_a_gap_just_past_a_step_is_fitted_with_the_steps_side():
     d_edge, _, _, _ = fit_outer_edge(s, d, grid, hidden_steps=np.array([200.0]))
     gap = (grid > 202.0) & (grid < 229.0)
     np.testing.assert_allclose(d_edge[gap], 8.0 + 0.02 * (grid[gap] - 200.0), atol=0.1)
+
+
+def test_another_roads_edge_seen_just_after_a_gap_is_left_unseen():
+    """kotka-37952515-lane1-s21 with a noisier sensor: the edge hidden over 112 m before an
+    entry's nose, the first 4 m seen after the gap are the ramp's edge (1.5 and 7.6 m
+    outward), then the mainline's at its level before the gap. Bridged to the ramp's edge,
+    the edge lay 1.7 m off at the gap's end (edge 0.138 m); the span is left unseen
+    (0.049 m). Not mirrored: a span just before a gap keeps the step it makes (a loop
+    entry's edge seen for 2 m before a gap on krems-24746399-s11, left unseen, let the
+    ramp's converging edge into the fit across the gap: 0.041 -> 0.044 m)."""
+    level = np.full(CENTRES.size, 10.2)
+    level[(CENTRES > 100.0) & (CENTRES < 212.0)] = np.nan
+    level[(CENTRES > 212.0) & (CENTRES < 216.0)] = [11.7, 17.8]
+    level[CENTRES > 216.0] = 9.7
+    out = without_short_excursions(CENTRES, level, step_m=2.0)
+    span = (CENTRES > 212.0) & (CENTRES < 216.0)
+    assert np.isnan(out[span]).all()
+    np.testing.assert_array_equal(out[~span], level[~span])
+    mirrored = level[::-1]
+    np.testing.assert_array_equal(without_short_excursions(CENTRES, mirrored, step_m=2.0), mirrored)
+
+
+def test_an_exits_lane_seen_just_after_a_gap_is_kept():
+    """An exit's lane that opened before a gap (kotka-37952515-opp-s9 with a noisier
+    sensor): seen for 2 m after the gap at the level before it, then the edge steps in by
+    a lane at the gore. The span is the mainline's own edge."""
+    level = np.full(CENTRES.size, 13.75)
+    level[(CENTRES > 100.0) & (CENTRES < 180.0)] = np.nan
+    level[CENTRES == 181.0] = 14.05
+    level[CENTRES > 182.0] = 8.0
+    np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)
+    # a longer span seen next to the gap is a road's edge, too
+    level[(CENTRES > 180.0) & (CENTRES < 200.0)] = 16.0
+    np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)

@@ -37,6 +37,7 @@ _EXCURSION_AGREE_M = 0.6  # ... to within this of the level before is another ro
 _SPLIT_GAP_M = 10.0  # an occlusion gap of the outer edge this long splits its fit
 _GORE_AT_GAP_M = 5.0  # a seen step this close to a gap leaves the shoulder there unseen
 _GORE_LEVEL_M = 1.5  # ... if the edge beyond it is this much wider than across the gap
+_LEVEL_JUMP_M = 1.0  # the edge's level path jumps by more than this at a step
 
 
 def without_short_excursions(
@@ -70,7 +71,36 @@ def without_short_excursions(
             continue
         if abs(q[k + 1] - q[j]) <= _EXCURSION_AGREE_M:
             out[idx[j + 1] : idx[k] + 1] = np.nan
+    # an occlusion gap may hide the step out: a short span seen just after a gap, outward
+    # of the levels beyond its step back and across the gap
+    c = centres[idx]
+    hole = np.flatnonzero(np.diff(c) >= _SPLIT_GAP_M)  # idx[h] -> idx[h + 1] spans a gap
+    for k in down:
+        h = hole[hole < k]
+        if h.size and _gap_excursion(c, q, int(h[-1]) + 1, int(k)):
+            out[idx[int(h[-1]) + 1] : idx[k] + 1] = np.nan
     return out
+
+
+_GAP_EXCURSION_MAX_M = 10.0  # a span this short seen next to a gap may be another road's
+
+
+def _gap_excursion(c: FloatArray, q: FloatArray, first: int, last: int) -> bool:
+    """Whether the seen levels ``q[first..last]`` (metres, at stations ``c``; a gap ends
+    before ``first``, the level steps in after ``last``) are another road's edge: at most
+    ``_GAP_EXCURSION_MAX_M`` long and wholly outward, by more than ``_LEVEL_JUMP_M`` (a
+    step of the level path), of both the level beyond the step and the level before the
+    gap. The first edge seen after a gap near an entry's nose may be the ramp's for a few
+    metres (kotka-37952515-lane1-s21, noisier sensor: 1.5 and 7.6 m outward for 4 m; the
+    edge bridged to it across the 112 m gap lay 1.7 m off at its end). An exit's lane that
+    opened in the gap is seen at the level before the gap and kept. A span just before a
+    gap keeps the step it makes: left unseen, a loop entry's edge seen for 2 m before a gap
+    on krems-24746399-s11 let the ramp's converging edge into the fit across the gap."""
+    span = q[first : last + 1]
+    return bool(
+        c[last] - c[first] <= _GAP_EXCURSION_MAX_M
+        and np.all(span - max(q[last + 1], q[first - 1]) > _LEVEL_JUMP_M)
+    )
 
 
 def fit_outer_edge(
@@ -118,7 +148,7 @@ def fit_outer_edge(
     if not np.any(have):
         return np.full(grid.size, np.nan), np.zeros(0), used, np.zeros(grid.size, dtype=bool)
     qi = np.nonzero(have)[0]
-    jumps = np.nonzero(np.abs(np.diff(q[qi])) > 1.0)[0]
+    jumps = np.nonzero(np.abs(np.diff(q[qi])) > _LEVEL_JUMP_M)[0]
     breaks = 0.5 * (cgrid[qi[jumps]] + cgrid[qi[jumps + 1]])
     # refine each step with the points: the low level starts (step down, an exit gore)
     # or ends (step up, an entry gore) where the edge jumps (the high level goes on as
