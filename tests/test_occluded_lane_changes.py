@@ -322,6 +322,38 @@ def test_a_gap_beginning_at_an_exits_step_hides_a_shoulder_opening_from_the_gore
     np.testing.assert_array_equal(out, plain)
 
 
+def test_a_gore_placed_just_inside_a_gaps_start_hides_a_shoulder_opening_from_it():
+    """An exit's lane leaves at a gore placed 3 m into an 85 m gap of the outer edge (the
+    level seen up to 203 m is the exit lane's edge, 15.8 m; the edge past the gap at
+    13.9 m, the outermost line at 11.3 m). The gore is where the gap begins: the shoulder
+    opens from zero there, as at a step seen just before the gap. Kept at the 2.6 m seen
+    past the gap from the gore on, the edge lay 2 m off the truth's next to the gore
+    (kotka-37952515-opp-s4 and krems-102561705-lane1-s21, noisier sensor: edge 0.162 and
+    0.117 m). Mirrored: an entry's gore placed 3 m before a gap's end."""
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 400.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 11.3)]
+    d_edge = np.where(grid < 206.0, 15.8, 13.9)
+    covered = (grid < 203.0) | (grid > 288.0)
+    gore = np.array([206.0])
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, gore, gore, 60.0)
+    at = np.array([204.0, 207.0, 236.0, 270.0, 300.0])
+    expected = [15.8, 11.3 + 2.6 * (3 * (1 / 60) ** 2 - 2 * (1 / 60) ** 3), 12.6, 13.9, 13.9]
+    np.testing.assert_allclose(np.interp(at, grid, out), expected, atol=0.02)
+    # mirrored: an entry's gore 3 m before the end of a gap from 110 to 203 m
+    d_entry = np.where(grid < 200.0, 13.9, 15.8)
+    covered = (grid < 110.0) | (grid > 203.0)
+    gore = np.array([200.0])
+    out = _bridge_edge_gaps(d_entry, covered, tracks, grid, None, gore, gore, 60.0)
+    np.testing.assert_allclose(
+        np.interp([100.0, 130.0, 170.0, 199.0, 201.0], grid, out),
+        [13.9, 13.9, 12.6, 11.3, 15.8],
+        atol=0.02,
+    )
+
+
 def test_the_edge_beside_an_exits_nose_just_after_a_gap_is_not_the_shoulders():
     """a9-206615404-lane1-s21 with a noisier sensor: a deceleration lane opens (its line
     seen moving from 8.1 to 11.8 m), the edge is hidden from 125 to 257 m and seen again
