@@ -469,6 +469,38 @@ def test_a_line_bending_towards_an_inner_exit_is_no_outer_ramp_line():
     assert 575.0 < gores[0] < 585.0
 
 
+def test_a_line_closing_beside_a_seen_edge_is_an_acceleration_lanes_not_a_ramps():
+    """a9-206615404-s1 with a noisier sensor: the outer edge is hidden from 480 to 570 m
+    and from 605 to 640 m; an acceleration lane's outer line begins in the first gap at
+    11.7 m and closes onto the line at 8.1 m by 610 m, where the second gap hides the
+    meeting. Between the gaps the edge was seen 2.4 m beyond it, moving in with it: the
+    line closes a lane, no ramp line meets a gore there (one was made at 610 m, the line
+    cut back to it: the lane was dropped over 100 m, lane count 2 for 3). Where the edge
+    beside the line is the ramp's, a lane and a shoulder beyond it, the gore is placed."""
+    from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+    from roadtwin.mainline.markings import _Track
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 1000.5, cfg.grid_step_m)
+    through = _track(0, grid, 0.0, 8.1)
+    g = grid[grid >= 500.0]
+    d = 8.1 + 3.6 * np.clip((610.0 - g) / 110.0, 0.0, 1.0)
+    closing = _Track(1, 500.0, 1000.0, g, d, "broken", g.size, g)
+    covered = (grid < 480.0) | ((grid > 570.0) & (grid < 605.0)) | (grid > 640.0)
+    line = np.interp(grid, g, d, left=8.1)
+    for beyond, placed in ((2.4, False), (5.9, True)):
+        d_edge = np.where(grid < 480.0, 8.6, line + beyond)
+        out, gores = _snap_to_hidden_gores([through, closing], [], covered, grid, cfg, d_edge)
+        assert (gores.size == 1) is placed, beyond
+        if placed:
+            assert abs(gores[0] - 607.0) < 5.0
+        else:
+            assert out[1].lo == 500.0
+    # without the edge: the ramp line's rule alone (what it was)
+    _, gores = _snap_to_hidden_gores([through, closing], [], covered, grid, cfg)
+    assert gores.size == 1
+
+
 def test_a_line_starting_in_a_gap_with_a_drift_of_centimetres_is_no_ramp_line():
     """a9-10959882-s9 with a noisier sensor: the outer edge is hidden from 589 to 683 m;
     a deceleration lane's outer line, first tracked at 581 m, drifts 4 cm inwards over its

@@ -20,7 +20,13 @@ from .gores import (
     fuse_gore_estimates,
     marking_gore_interval,
 )
-from .markings import _ends_on_converging_line, _last_marking, _Track
+from .markings import (
+    _SHOULDER_MAX_M,
+    _WITH_EDGE_SHARE,
+    _ends_on_converging_line,
+    _last_marking,
+    _Track,
+)
 
 log = logging.getLogger(__name__)
 
@@ -86,13 +92,17 @@ def _snap_to_hidden_gores(
     covered: NDArray[np.bool_],
     grid: FloatArray,
     cfg: MainlineConfig,
+    d_edge: FloatArray | None = None,
 ) -> tuple[list[_Track], FloatArray]:
     """Place gores that an occlusion of the outer edge hid.
 
     A ramp line that meets (entry) or leaves (exit) the outermost mainline marking inside
     an occlusion gap marks the gore; an outer marking that starts or ends abruptly in the
     same gap is cut or extended to that station (ramp markings upstream of an entry gore
-    otherwise make the lane start early). Returns the tracks and the gore stations.
+    otherwise make the lane start early). A converging (diverging) line beside which the
+    outer edge ``d_edge`` (metres on ``grid``, same frame) was seen moving with it a
+    shoulder's width away is the outer line of a lane closing (opening) by a taper, no
+    ramp line (:func:`_moves_with_seen_edge`). Returns the tracks and the gore stations.
     """
     gores: list[float] = []
     at_lines: list[tuple[float, float]] = []  # (gore, offset) of the ramp lines cut
@@ -132,6 +142,7 @@ def _snap_to_hidden_gores(
                 and tr.s[par[0]] - tr.lo >= 5.0
                 and rel[0] - rel[par[0]] >= _RAMP_LINE_TURN_M
                 and hidden(float(tr.s[par[0]]))
+                and not _moves_with_seen_edge(tr, slice(0, par[0] + 1), covered, grid, d_edge)
             ):
                 i0 = par[0]
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
@@ -153,6 +164,7 @@ def _snap_to_hidden_gores(
                 and tr.hi - tr.s[par[-1]] >= 5.0
                 and rel[-1] - rel[par[-1]] >= _RAMP_LINE_TURN_M
                 and hidden(float(tr.s[par[-1]]))
+                and not _moves_with_seen_edge(tr, slice(par[-1], None), covered, grid, d_edge)
             ):
                 i1 = par[-1] + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
@@ -190,6 +202,43 @@ def _snap_to_hidden_gores(
         gores.append(s_gore)
         out = _cut_beside_gore(out, s_gore, d_g, step)
     return out, np.asarray(gores, dtype=float)
+
+
+_WITH_EDGE_SEEN_M = 10.0  # the edge seen beside this much of a moving line (metres) ...
+_WITH_EDGE_MOVE_M = 0.5  # ... while it moved sideways by this much (metres) ...
+
+
+def _moves_with_seen_edge(
+    tr: _Track,
+    part: slice,
+    covered: NDArray[np.bool_],
+    grid: FloatArray,
+    d_edge: FloatArray | None,
+) -> bool:
+    """Whether the outer edge (``d_edge``, metres on ``grid``; seen where ``covered``)
+    was seen beside the ``part`` of track ``tr`` that converges (diverges) over at least
+    ``_WITH_EDGE_SEEN_M``, a shoulder's width (0-``_SHOULDER_MAX_M``) beyond it and moving
+    with it: its gap to the line changed by less than ``_WITH_EDGE_SHARE`` of the line's
+    own move there (``_WITH_EDGE_MOVE_M`` at least). That line closes (opens) a lane by a
+    taper: an acceleration lane's outer line meeting the line inward, where a ramp's line
+    meeting it at a gore has the mainline's edge inside it and the ramp's lane beyond it
+    (a9-206615404-s1 with a noisier sensor: an acceleration lane's line, its start hidden,
+    seen for 32 m beside an edge 2.4 m out, was taken for the ramp's; a gore made where it
+    met the line inward dropped the lane over 100 m, lane count 2 for 3, edge 0.133 m)."""
+    if d_edge is None:
+        return False
+    s, d = tr.s[part], tr.d[part]
+    i = np.clip(np.rint((s - grid[0]) / (grid[1] - grid[0])).astype(np.int64), 0, grid.size - 1)
+    seen = covered[i] & np.isfinite(d_edge[i])
+    if np.count_nonzero(seen) * float(grid[1] - grid[0]) < _WITH_EDGE_SEEN_M:
+        return False
+    gap = d_edge[i][seen] - d[seen]
+    moved = float(np.ptp(d[seen]))
+    return bool(
+        moved >= _WITH_EDGE_MOVE_M
+        and np.all((gap > 0.0) & (gap < _SHOULDER_MAX_M))
+        and float(np.ptp(gap)) < _WITH_EDGE_SHARE * moved
+    )
 
 
 def _cut_beside_gore(

@@ -142,7 +142,7 @@ def fit_lanes(
         d_edge = np.full(grid.size, last + 2.5)
         breaks = np.zeros(0)
     else:
-        tracks, gores = _snap_to_hidden_gores(tracks, evidence, covered, grid, cfg)
+        tracks, gores = _snap_to_hidden_gores(tracks, evidence, covered, grid, cfg, d_edge)
         taper_length = _visible_taper_length(
             breaks, d_edge, tracks, s_outer[used], d_outer[used], grid
         )
