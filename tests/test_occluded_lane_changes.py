@@ -352,6 +352,14 @@ def test_a_gore_placed_just_inside_a_gaps_start_hides_a_shoulder_opening_from_it
         [13.9, 13.9, 12.6, 11.3, 15.8],
         atol=0.02,
     )
+    # a shoulder taper fitted at that gore (over 120 m) shapes it instead
+    # (melbourne-1019-s11+20: closed over 60 m, 0.45 m off the fitted 125 m taper's)
+    from roadtwin.mainline.gores import ShoulderTaper
+
+    taper = ShoulderTaper(200.0, 120.0, 2.6, True, 0.05)
+    out = _bridge_edge_gaps(d_entry, covered, tracks, grid, [taper], gore, gore, 60.0)
+    at = np.array([130.0, 170.0])
+    np.testing.assert_allclose(np.interp(at, grid, out), 11.3 + taper.width(at), atol=0.02)
 
 
 def test_the_edge_beside_an_exits_nose_just_after_a_gap_is_not_the_shoulders():
