@@ -338,3 +338,57 @@ def test_a_line_unseen_while_the_pattern_shifts_moves_with_it_across_the_gap():
     err = np.abs(np.interp(at, on[0].s, on[0].d) - line(at))
     # bridged straight in the reference frame: up to 1.3 m off
     assert float(np.max(err)) < 0.2, err
+
+
+def _swing_all_lines_seen_sparsely(rng, dash, period, keep, noise, s0=300.0, s1=345.0):
+    """Every seen line swings out by a lane over 45 m (a lane added beside the median
+    whose line there is not seen, and no outer edge: town06-auto-s3 with a noisier
+    sensor): broken lines sampled every metre, a share ``keep`` of the samples kept,
+    ``noise`` (metres) on each; a new line leaves the inner side."""
+    move = lambda s: LANE * _smoothstep(s, s0, s1)  # noqa: E731
+
+    def line(offset, start=0.0, phase=0.0):
+        s = np.arange(start, LENGTH, 1.0)
+        s = s[((s + phase) % period) < dash]
+        s = s[rng.random(s.size) < keep]
+        return s, offset(s) + rng.normal(0.0, noise, s.size)
+
+    lines = [line(lambda s, k=k: 1.0 + k * LANE + move(s), phase=5.0 * k) for k in (1, 2, 3)]
+    lines.append(line(lambda s: 1.0 + move(s), start=s0 + 10.0))
+    return _samples(lines), move
+
+
+@pytest.mark.parametrize(
+    ("keep", "noise", "dash", "period", "seed"),
+    [(0.7, 0.08, 6.0, 18.0, 0), (0.7, 0.08, 6.0, 18.0, 1), (0.5, 0.05, 3.0, 12.0, 3)],
+)
+def test_a_steady_lean_of_the_windows_the_rate_path_missed_is_a_shift(
+    keep, noise, dash, period, seed
+):
+    """Few dashes per window gain little sharpness at any rate: the rate path stays at 0
+    (its prior per window off 0, its cost for following an S), though window after window
+    piles up best at rates of one sign. Such a steady stretch is a shift when the line
+    patterns either side match and the lines are found moved inside it (town06-auto-s3
+    with a noisier sensor: nine windows at 0.015-0.145 m/m; the tracks swapped lines, lanes
+    3.5 m off over 40 m, edge 0.214 -> 0.049 m)."""
+    cfg = MainlineConfig()
+    (s, d), move = _swing_all_lines_seen_sparsely(
+        np.random.default_rng(seed), dash, period, keep, noise
+    )
+    frame = _frame(s, d, cfg)
+    assert frame is not None
+    at = np.array([100.0, 290.0, 355.0, 600.0])
+    np.testing.assert_allclose(frame.offset(at), move(at), atol=0.3)
+
+
+def test_a_lean_of_sparse_windows_by_chance_is_no_shift():
+    """The same lines with a third of the samples and 8 cm of noise: after the swing seven
+    windows lean the other way by chance (-0.02 to -0.2 m/m, 3.5 m in all) and a pattern
+    shifted by a lane matches itself; the lines seen before the stretch are not found
+    moved inside it, so no shift back is made there."""
+    cfg = MainlineConfig()
+    (s, d), move = _swing_all_lines_seen_sparsely(np.random.default_rng(1), 3.0, 12.0, 0.35, 0.08)
+    frame = _frame(s, d, cfg)
+    if frame is not None:
+        at = np.array([100.0, 600.0])
+        np.testing.assert_allclose(frame.offset(at), move(at), atol=0.3)
