@@ -1814,3 +1814,30 @@ def test_extreme_markings_are_held_over_the_half_window_at_the_run_ends():
     held = _held_at_ends(smooth, window)
     np.testing.assert_allclose(held[8:], 8.11, atol=1e-9)
     assert np.all(np.isnan(held[:8]))
+
+
+def test_a_broken_line_whose_next_dash_lies_past_the_runs_end_is_cut_by_it():
+    """A lane gain's broken line (6 m dashes, 12 m gaps) begins 53 m before the run's
+    end; its last dash ends 11 m before it, the next would lie past it. Too short for a
+    marking (60 m) unless the run's end cuts it: within two columns (10 m) it did not
+    count as cut, and the line was dropped (oakland-28393854-lane2-s22 with a noisier
+    sensor: the new lane made one 6.4 m wide with the next). Within its own longest gap
+    it does."""
+    from roadtwin.mainline.markings import _tracks_from_samples
+
+    cfg = MainlineConfig()
+    rng = np.random.default_rng(3)
+    end = 593.0
+    parts = [(np.arange(0.0, end, 0.25), off) for off in (1.0, 4.5, 8.0)]
+    s_new = np.arange(540.0, 582.0, 0.25)
+    parts.append((s_new[(s_new - 540.0) % 18.0 < 6.0], 11.5))
+    ss = np.concatenate([s for s, _ in parts])
+    dd = np.concatenate([np.full(s.size, off) for s, off in parts])
+    order = np.argsort(ss, kind="stable")
+    ss, dd = ss[order], dd[order] + rng.normal(0.0, 0.02, ss.size)
+    tracks, _ = _tracks_from_samples(ss, dd, np.arange(0.0, end + 0.5, 1.0), end, cfg)
+    new = [tr for tr in tracks if abs(float(np.median(tr.d)) - 11.5) < 0.2]
+    assert len(tracks) == 4
+    assert len(new) == 1
+    assert new[0].lo == pytest.approx(540.0, abs=1.0)
+    assert new[0].hi == pytest.approx(581.75, abs=1.0)

@@ -216,12 +216,15 @@ def _tracks_in_frame(
     col = cfg.lane_column_m
     s_first, s_last = float(np.min(s)), float(np.max(s))
 
-    def too_short(lo: float, hi: float) -> bool:
+    def too_short(lo: float, hi: float, gap: float = 0.0) -> bool:
         """Shorter than ``lane_min_track_m``, unless the run's start or end cuts it (then
-        it only has to be ``lane_min_cut_track_m`` long)."""
+        it only has to be ``lane_min_cut_track_m`` long): it lies within two columns of
+        it, or within ``gap`` (metres; the longest the line went unseen between its
+        samples, at most ``lane_min_cut_track_m``)."""
         if hi - lo >= cfg.lane_min_track_m:
             return False
-        cut = lo <= s_first + 2.0 * col or hi >= s_last - 2.0 * col
+        reach = max(2.0 * col, min(gap, cfg.lane_min_cut_track_m))
+        cut = lo <= s_first + reach or hi >= s_last - reach
         return not (cut and hi - lo >= cfg.lane_min_cut_track_m)
 
     cand: list[_Track] = []
@@ -268,7 +271,12 @@ def _tracks_in_frame(
             continue
         ss_all = s[sel]
         lo, hi = float(np.min(ss_all)), float(np.max(ss_all))
-        if too_short(lo, hi):
+        # a broken line's next dash may lie past the run's end: its own gaps tell how far
+        # (oakland-28393854-lane2-s22 with a noisier sensor: a lane gain's line seen for
+        # 42 m up to 10.1 m before the end, 9 m gaps between its dashes, was dropped and
+        # the new lane made one 6.4 m wide with the next)
+        unseen = float(np.max(np.diff(ss_all)))
+        if too_short(lo, hi, unseen):
             continue
         g = grid[(grid >= lo) & (grid <= hi)]
         if g.size < 4:
@@ -303,7 +311,7 @@ def _tracks_in_frame(
         if not keep_g.any():
             continue
         g_in = g[keep_g]
-        if too_short(float(g_in[0]), float(g_in[-1]) + cfg.grid_step_m):
+        if too_short(float(g_in[0]), float(g_in[-1]) + cfg.grid_step_m, unseen):
             continue
         g, fit = g[keep_g], fit[keep_g]
         lo, hi = float(g[0]), float(g[-1])
