@@ -273,8 +273,8 @@ def _tracks_in_frame(
         lo, hi = float(np.min(ss_all)), float(np.max(ss_all))
         # a broken line's next dash may lie past the run's end: its own gaps tell how far
         # (oakland-28393854-lane2-s22 with a noisier sensor: a lane gain's line seen for
-        # 42 m up to 10.1 m before the end, 9 m gaps between its dashes, was dropped and
-        # the new lane made one 6.4 m wide with the next)
+        # 42 m up to 10.1 m before the end, with longer gaps between its dashes, was
+        # dropped and the new lane made one 6.4 m wide with the next)
         unseen = float(np.max(np.diff(ss_all)))
         if too_short(lo, hi, unseen):
             continue
