@@ -282,6 +282,39 @@ def test_a_gore_placed_in_an_occlusion_gap_is_where_the_bridged_edge_steps():
     assert float(np.interp(320.0, grid, linear)) > 16.0  # what it was
 
 
+def _gore_beside_gap(inside):
+    """An exit's gore at 200 m and a gap of the outer edge up to 290 m beginning 3 m after
+    it (a step seen there) or, ``inside``, 3 m before it (a gore placed in the gap); an
+    entry's gore at 200 m at the end of a gap from 110 m, mirrored; the outer line at
+    11.3 m, the edge 15.8 m on the gore's lane side and 13.9 m beyond. The shoulder opens
+    from zero at the exit's gore over the default taper (60 m) to the 2.6 m seen past the
+    gap and closes to zero at the entry's (both checked here). Returns the entry's case
+    (grid, tracks, covered, edge)."""
+    from roadtwin.mainline.outer_edge import _bridge_edge_gaps
+
+    grid = np.arange(0.0, 400.5, MainlineConfig().grid_step_m)
+    tracks = [_track(0, grid, 0.0, 11.3)]
+    gore = np.array([200.0])
+    hidden = gore if inside else None
+    d_exit = np.where(grid < 200.0, 15.8, 13.9)
+    covered = (grid < (197.0 if inside else 203.0)) | (grid > 290.0)
+    out = _bridge_edge_gaps(d_exit, covered, tracks, grid, None, hidden, gore, 60.0)
+    at = np.array([199.0, 201.0, 230.0, 260.0, 280.0, 300.0])
+    opened = 11.3 + 2.6 * (3 * (1 / 60) ** 2 - 2 * (1 / 60) ** 3)
+    np.testing.assert_allclose(
+        np.interp(at, grid, out), [15.8, opened, 12.6, 13.9, 13.9, 13.9], atol=0.02
+    )
+    d_entry = np.where(grid < 200.0, 13.9, 15.8)
+    covered_entry = (grid < 110.0) | (grid > (203.0 if inside else 197.0))
+    out = _bridge_edge_gaps(d_entry, covered_entry, tracks, grid, None, hidden, gore, 60.0)
+    np.testing.assert_allclose(
+        np.interp([100.0, 130.0, 170.0, 199.0, 201.0], grid, out),
+        [13.9, 13.9, 12.6, 11.3, 15.8],
+        atol=0.02,
+    )
+    return grid, tracks, covered_entry, d_entry
+
+
 def test_a_gap_beginning_at_an_exits_step_hides_a_shoulder_opening_from_the_gore():
     """An exit's step seen at 200 m (the edge moves in from 15.8 m), the edge hidden from
     203 to 290 m and seen again at 13.9 m; the outermost line at 11.3 m all along. The hard
@@ -291,28 +324,11 @@ def test_a_gap_beginning_at_an_exits_step_hides_a_shoulder_opening_from_the_gore
     edge next to the gore). An entry's step just after a gap closes it the same way."""
     from roadtwin.mainline.outer_edge import _bridge_edge_gaps
 
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 400.5, cfg.grid_step_m)
-    tracks = [_track(0, grid, 0.0, 11.3)]
+    grid, tracks, covered, _ = _gore_beside_gap(inside=False)
     d_edge = np.where(grid < 200.0, 15.8, np.where(grid < 250.0, 12.8, 13.9))
-    covered = (grid < 203.0) | (grid > 290.0)
-    exits = np.array([200.0])
-    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, None, exits, 60.0)
-    at = np.array([199.0, 201.0, 230.0, 260.0, 280.0, 300.0])
-    expected = [15.8, 11.3 + 2.6 * (3 * (1 / 60) ** 2 - 2 * (1 / 60) ** 3), 12.6, 13.9, 13.9, 13.9]
-    np.testing.assert_allclose(np.interp(at, grid, out), expected, atol=0.02)
-    old = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    old = _bridge_edge_gaps(d_edge, (grid < 203.0) | (grid > 290.0), tracks, grid)
     assert float(np.interp(201.0, grid, old)) > 12.7  # what it was
-    # mirrored: an entry's step at 200 m just after a gap from 110 to 197 m
-    d_entry = np.where(grid < 200.0, 13.9, 15.8)
-    covered = (grid < 110.0) | (grid > 197.0)
     entries = np.array([200.0])
-    out = _bridge_edge_gaps(d_entry, covered, tracks, grid, None, None, entries, 60.0)
-    np.testing.assert_allclose(
-        np.interp([100.0, 130.0, 170.0, 199.0, 201.0], grid, out),
-        [13.9, 13.9, 12.6, 11.3, 15.8],
-        atol=0.02,
-    )
     # an exit's step just after a gap in which its lane opened: the edge beyond the step
     # is the shoulder's as before the gap, no entry (kotka-37952515-opp-s9, noisier
     # sensor): bridged as before
@@ -330,32 +346,13 @@ def test_a_gore_placed_just_inside_a_gaps_start_hides_a_shoulder_opening_from_it
     past the gap from the gore on, the edge lay 2 m off the truth's next to the gore
     (kotka-37952515-opp-s4 and krems-102561705-lane1-s21, noisier sensor: edge 0.162 and
     0.117 m). Mirrored: an entry's gore placed 3 m before a gap's end."""
+    from roadtwin.mainline.gores import ShoulderTaper
     from roadtwin.mainline.outer_edge import _bridge_edge_gaps
 
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 400.5, cfg.grid_step_m)
-    tracks = [_track(0, grid, 0.0, 11.3)]
-    d_edge = np.where(grid < 206.0, 15.8, 13.9)
-    covered = (grid < 203.0) | (grid > 288.0)
-    gore = np.array([206.0])
-    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, gore, gore, 60.0)
-    at = np.array([204.0, 207.0, 236.0, 270.0, 300.0])
-    expected = [15.8, 11.3 + 2.6 * (3 * (1 / 60) ** 2 - 2 * (1 / 60) ** 3), 12.6, 13.9, 13.9]
-    np.testing.assert_allclose(np.interp(at, grid, out), expected, atol=0.02)
-    # mirrored: an entry's gore 3 m before the end of a gap from 110 to 203 m
-    d_entry = np.where(grid < 200.0, 13.9, 15.8)
-    covered = (grid < 110.0) | (grid > 203.0)
+    grid, tracks, covered, d_entry = _gore_beside_gap(inside=True)
     gore = np.array([200.0])
-    out = _bridge_edge_gaps(d_entry, covered, tracks, grid, None, gore, gore, 60.0)
-    np.testing.assert_allclose(
-        np.interp([100.0, 130.0, 170.0, 199.0, 201.0], grid, out),
-        [13.9, 13.9, 12.6, 11.3, 15.8],
-        atol=0.02,
-    )
-    # a shoulder taper fitted at that gore (over 120 m) shapes it instead
+    # a shoulder taper fitted at the entry's gore (over 120 m) shapes it instead
     # (melbourne-1019-s11+20: closed over 60 m, 0.45 m off the fitted 125 m taper's)
-    from roadtwin.mainline.gores import ShoulderTaper
-
     taper = ShoulderTaper(200.0, 120.0, 2.6, True, 0.05)
     out = _bridge_edge_gaps(d_entry, covered, tracks, grid, [taper], gore, gore, 60.0)
     at = np.array([130.0, 170.0])
