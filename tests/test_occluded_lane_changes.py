@@ -762,3 +762,31 @@ def test_a_taper_fitted_at_a_hidden_gore_starts_from_the_shoulder_seen_closing()
     assert np.all(np.diff(width) <= 1e-9)  # closing all the way
     assert float(np.interp(785.0, grid, out)) - 8.4 < 2.0  # half way: 1.4 m, was 2.9 m
     assert float(np.interp(827.0, grid, out)) - 8.4 < 0.02
+
+
+def test_a_lane_wide_strip_beyond_a_gap_with_no_shoulder_before_it_begins_at_a_gore():
+    """soderleden-s7 with a noisier sensor: no hard shoulder (the edge on the outermost
+    line, 7.0 m), the outer edge hidden from 225 to 290 m, 3.5 m beyond the line after the
+    gap: an entry's acceleration lane whose own outer line is unpainted. Bridged as a strip
+    widening over the gap, the lane was a shoulder (lane count 94.9 %, edge 2.6 m off); a
+    gore is placed in the gap's middle, where the lane begins at full width. Not where the
+    strip was a shoulder before the gap, nor where the edge still moves beside the gap (a
+    taper the gap-taper fit follows), nor where a gore was placed already; mirrored for an
+    exit."""
+    from roadtwin.mainline.hidden_gores import _gores_at_lane_wide_strips
+
+    grid = np.arange(0.0, 600.5, MainlineConfig().grid_step_m)
+    tracks = [_track(0, grid, 0.0, 3.5), _track(1, grid, 0.0, 7.0)]
+    covered = (grid < 225.0) | (grid > 290.0)
+
+    def gores(before, after, placed=()):
+        d_edge = np.where(grid < 257.0, before, after)
+        return _gores_at_lane_wide_strips(d_edge, covered, tracks, grid, 3.5, np.asarray(placed))
+
+    assert gores(7.0, 10.5) == [pytest.approx(257.0, abs=1.0)]
+    assert gores(10.5, 7.0) == [pytest.approx(257.0, abs=1.0)]  # an exit's
+    assert gores(9.5, 13.0) == []  # a shoulder before the gap
+    assert gores(7.0, 8.0) == []  # a shoulder after it
+    assert gores(7.0, 10.5, placed=[250.0]) == []
+    moving = np.where(grid < 257.0, 7.0, 10.5 + 0.05 * np.clip(grid - 290.0, 0.0, None))
+    assert _gores_at_lane_wide_strips(moving, covered, tracks, grid, 3.5, np.zeros(0)) == []

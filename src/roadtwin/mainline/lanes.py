@@ -23,6 +23,7 @@ from ._common import (
 from .edge_levels import EdgeSteps
 from .edge_lines import split_edge_lines_at_steps
 from .hidden_gores import (
+    _gores_at_lane_wide_strips,
     _place_hidden_gores,
     _replace_line_gores,
     _seen_steps,
@@ -30,7 +31,7 @@ from .hidden_gores import (
     _visible_taper_length,
 )
 from .hidden_lanes import _add_hidden_lanes
-from .markings import _merge_collinear, _tracks_from_samples
+from .markings import _merge_collinear, _tracks_from_samples, typical_lane_width
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
@@ -159,6 +160,14 @@ def fit_lanes(
             grid,
             taper_length,
             _seen_steps(breaks, d_edge, grid),
+        )
+        placed += _gores_at_lane_wide_strips(
+            d_edge,
+            covered,
+            tracks,
+            grid,
+            typical_lane_width(tracks, grid),
+            np.asarray([*gores, *placed]),
         )
         # a placed gore replaces the ramp-line estimate of the same gore
         tracks, gores = _replace_line_gores(tracks, gores, placed, grid)
