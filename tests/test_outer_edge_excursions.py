@@ -109,3 +109,17 @@ def test_an_exits_lane_seen_just_after_a_gap_is_kept():
     # a longer span seen next to the gap is a road's edge, too
     level[(CENTRES > 180.0) & (CENTRES < 200.0)] = 16.0
     np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)
+
+
+def test_a_span_between_two_gaps_is_kept():
+    """a9-10959882-s1 with a noisier sensor: a deceleration lane's edge (14 m, the level
+    before it 10.4 m) seen for 4 m between two gaps of 93 and 85 m, the edge past the second
+    gap 8.5 m after the exit's gore. The step back in is not seen: the span is the
+    mainline's own edge (left unseen, the edge was bridged from 10.4 to 8.5 m across the
+    whole deceleration lane: edge 0.050 -> 0.370 m)."""
+    level = np.full(CENTRES.size, 10.4)
+    level[(CENTRES > 100.0) & (CENTRES < 193.0)] = np.nan
+    level[(CENTRES > 193.0) & (CENTRES < 197.0)] = 14.0
+    level[(CENTRES > 197.0) & (CENTRES < 282.0)] = np.nan
+    level[CENTRES > 282.0] = 8.5
+    np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)

@@ -93,12 +93,15 @@ def _gap_excursion(c: FloatArray, q: FloatArray, first: int, last: int) -> bool:
     gap. The first edge seen after a gap near an entry's nose may be the ramp's for a few
     metres (kotka-37952515-lane1-s21, noisier sensor: 1.5 and 7.6 m outward for 4 m; the
     edge bridged to it across the 112 m gap lay 1.7 m off at its end). An exit's lane that
-    opened in the gap is seen at the level before the gap and kept. A span just before a
+    opened in the gap is seen at the level before the gap and kept, and so is a span with
+    a gap on both sides (the step back in unseen: a9-10959882-s1 with a noisier sensor, a
+    deceleration lane's edge seen for 4 m between gaps of 93 and 85 m). A span just before a
     gap keeps the step it makes: left unseen, a loop entry's edge seen for 2 m before a gap
     on krems-24746399-s11 let the ramp's converging edge into the fit across the gap."""
     span = q[first : last + 1]
     return bool(
         c[last] - c[first] <= _GAP_EXCURSION_MAX_M
+        and c[last + 1] - c[last] < _SPLIT_GAP_M
         and np.all(span - max(q[last + 1], q[first - 1]) > _LEVEL_JUMP_M)
     )
 
