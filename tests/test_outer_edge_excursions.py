@@ -118,8 +118,8 @@ def test_a_span_between_two_gaps_is_kept():
     mainline's own edge (left unseen, the edge was bridged from 10.4 to 8.5 m across the
     whole deceleration lane: edge 0.050 -> 0.370 m)."""
     level = np.full(CENTRES.size, 10.4)
-    level[(CENTRES > 100.0) & (CENTRES < 193.0)] = np.nan
-    level[(CENTRES > 193.0) & (CENTRES < 197.0)] = 14.0
-    level[(CENTRES > 197.0) & (CENTRES < 282.0)] = np.nan
+    level[(CENTRES > 100.0) & (CENTRES < 192.0)] = np.nan
+    level[(CENTRES > 192.0) & (CENTRES < 197.0)] = 14.0
+    level[(CENTRES > 196.0) & (CENTRES < 282.0)] = np.nan
     level[CENTRES > 282.0] = 8.5
     np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)
