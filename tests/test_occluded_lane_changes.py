@@ -790,3 +790,9 @@ def test_a_lane_wide_strip_beyond_a_gap_with_no_shoulder_before_it_begins_at_a_g
     assert gores(7.0, 10.5, placed=[250.0]) == []
     moving = np.where(grid < 257.0, 7.0, 10.5 + 0.05 * np.clip(grid - 290.0, 0.0, None))
     assert _gores_at_lane_wide_strips(moving, covered, tracks, grid, 3.5, np.zeros(0)) == []
+    # the acceleration lane's end taper just after the gap (soderleden-lane1-s21+260)
+    closing = np.where(
+        grid < 257.0, 7.0, np.maximum(10.5 - 0.1 * np.clip(grid - 292.0, 0.0, None), 7.0)
+    )
+    found = _gores_at_lane_wide_strips(closing, covered, tracks, grid, 3.5, np.zeros(0))
+    assert found == [pytest.approx(257.0, abs=1.0)]

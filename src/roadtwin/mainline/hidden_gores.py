@@ -391,12 +391,15 @@ def _gores_at_lane_wide_strips(
     ``grid``, seen where ``covered``; gaps of ``_STRIP_GAP_M`` or more inside the run)
     across which the outermost marking goes on while the strip beyond it goes from no
     shoulder (under ``_NO_SHOULDER_M``) to a lane (``lane_m`` less 0.4 m, metres) or back,
-    the edge flat on both sides (an entry's acceleration lane, an exit's deceleration lane,
-    their own outer line unseen or unpainted). None where a gore is already placed in the
-    gap (``gores``). The lane begins (ends) at full width at a gore somewhere in the gap;
-    nothing seen says where: its middle. Bridged as a widening strip instead, the lane was
-    a shoulder over the gap and beyond (soderleden-s7 with a noisier sensor: an entry
-    hidden over 65 m, lane count 94.9 %, edge 2.6 m off)."""
+    the edge flat on the shoulderless side and not going on to widen (narrow) on the other
+    (an entry's acceleration lane, an exit's deceleration lane, their own outer line unseen
+    or unpainted; one that closes again just after the gap is still one: soderleden-
+    lane1-s21 with a noisier sensor, a 70 m gap up to the acceleration lane's end taper).
+    None where a gore is already placed in the gap (``gores``). The lane begins (ends) at
+    full width at a gore somewhere in the gap; nothing seen says where: its middle.
+    Bridged as a widening strip instead, the lane was a shoulder over the gap and beyond
+    (soderleden-s7 with a noisier sensor: an entry hidden over 65 m, lane count 94.9 %,
+    edge 2.6 m off)."""
     d_last = _last_marking(tracks, grid)
     out: list[float] = []
     for a, b in true_runs(~covered):
@@ -410,11 +413,16 @@ def _gores_at_lane_wide_strips(
         if abs(d_last[i1] - d_last[i0]) > _NO_SHOULDER_M:
             continue
         hw0, hw1 = d_edge[i0] - d_last[i0], d_edge[i1] - d_last[i1]
-        flat0 = abs(d_edge[i0] - d_edge[max(i0 - _FLAT_STATIONS, 0)]) < _NO_SHOULDER_M
-        flat1 = abs(d_edge[min(i1 + _FLAT_STATIONS, grid.size - 1)] - d_edge[i1]) < _NO_SHOULDER_M
+        # how far the edge moved outward over the stations before / after the gap
+        out0 = d_edge[i0] - d_edge[max(i0 - _FLAT_STATIONS, 0)]
+        out1 = d_edge[min(i1 + _FLAT_STATIONS, grid.size - 1)] - d_edge[i1]
+        # the lane opens: no shoulder, flat, before the gap; after it the strip is a lane
+        # wide and does not go on widening (a taper) -- it may close again (its end)
         opens = hw0 < _NO_SHOULDER_M and hw1 > lane_m - 0.4
+        opens &= abs(out0) < _NO_SHOULDER_M and out1 < _NO_SHOULDER_M
         closes = hw1 < _NO_SHOULDER_M and hw0 > lane_m - 0.4
-        if (opens or closes) and flat0 and flat1:
+        closes &= abs(out1) < _NO_SHOULDER_M and out0 > -_NO_SHOULDER_M
+        if opens or closes:
             out.append(float(0.5 * (grid[a] + grid[b - 1])))
     return out
 
