@@ -86,6 +86,12 @@ sensor's smoothed line starting 2 cm "converging" made an exit's deceleration la
 75 m late, a9-10959882-s9+80)."""
 
 
+def _grid_index(s: FloatArray | float, grid: FloatArray, step: float) -> NDArray[np.int64]:
+    """Index of the station of ``grid`` (spaced ``step``, metres) nearest to each of ``s``
+    (metres), clipped to the grid."""
+    return np.clip(np.rint((np.asarray(s) - grid[0]) / step).astype(np.int64), 0, grid.size - 1)
+
+
 def _snap_to_hidden_gores(
     tracks: list[_Track],
     evidence: list[tuple[float, float]],
@@ -118,7 +124,7 @@ def _snap_to_hidden_gores(
             gap[a:b] = False
 
     def hidden(s_at: float) -> bool:
-        i = int(np.clip(np.rint((s_at - grid[0]) / step), 0, grid.size - 1))
+        i = int(_grid_index(s_at, grid, step))
         return bool(gap[max(i - 10, 0) : i + 11].any())
 
     # a marking that starts (ends) inside such a gap while still converging (diverging)
@@ -177,7 +183,7 @@ def _snap_to_hidden_gores(
     for s_gore, d_g in at_lines:
         out = _cut_beside_gore(out, s_gore, d_g, step)
     for s_g, d_g in evidence:
-        i_g = int(np.clip(np.rint((s_g - grid[0]) / step), 0, grid.size - 1))
+        i_g = int(_grid_index(s_g, grid, step))
         # inside (or within 10 m of) a gap of the outer-edge points
         lo_i, hi_i = max(i_g - 10, 0), min(i_g + 11, grid.size)
         if not gap[lo_i:hi_i].any():
@@ -228,7 +234,7 @@ def _moves_with_seen_edge(
     if d_edge is None:
         return False
     s, d = tr.s[part], tr.d[part]
-    i = np.clip(np.rint((s - grid[0]) / (grid[1] - grid[0])).astype(np.int64), 0, grid.size - 1)
+    i = _grid_index(s, grid, float(grid[1] - grid[0]))
     seen = covered[i] & np.isfinite(d_edge[i])
     if np.count_nonzero(seen) * float(grid[1] - grid[0]) < _WITH_EDGE_SEEN_M:
         return False
@@ -376,7 +382,9 @@ def _place_hidden_gores(
 
 
 _NO_SHOULDER_M = 0.5  # an edge this near the outermost line has no shoulder (metres)
-_STRIP_GAP_M = 10.0  # an occlusion gap of the outer edge at least this long (metres)
+_STRIP_GAP_M = 10.0  # an occlusion gap of the outer edge at least this long (metres; as
+# outer_edge._SPLIT_GAP_M, which this module cannot import: outer_edge imports it)
+_FLAT_STATIONS = 20  # grid stations either side of a gap over which the edge is flat
 
 
 def _gores_at_lane_wide_strips(
@@ -425,9 +433,6 @@ def _gores_at_lane_wide_strips(
         if opens or closes:
             out.append(float(0.5 * (grid[a] + grid[b - 1])))
     return out
-
-
-_FLAT_STATIONS = 20  # grid stations either side of a gap over which the edge is flat
 
 
 def _visible_taper_length(

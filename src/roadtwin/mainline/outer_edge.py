@@ -303,7 +303,7 @@ def _shoulder_at_gore(
     hw0: float,
     hw1: float,
     taper_length_m: float,
-    fitted: FloatArray,
+    tapered: NDArray[np.bool_],
 ) -> bool:
     """The edge (``out``, filled in place) over the gap ``a:b`` and from a gore just
     before / after it to it, where an exit's step lies just before the gap or an entry's
@@ -317,14 +317,12 @@ def _shoulder_at_gore(
     krems-102561705-lane1-s21 with a noisier sensor: an exit's gore placed 1-4 m into a
     gap of 80 m, the shoulder kept at the width seen past the gap from the gore on, 2 m
     off the truth's beside it; edge 0.162 -> 0.112 and 0.117 -> 0.057 m), unless a
-    shoulder taper was fitted at it (``fitted``: their gores' stations, metres): that
-    shapes it (melbourne-1019-s11+20: an entry's taper fitted over 125 m, closed over the
-    last 60 m instead, 0.45 m off). Returns whether a gore was there (see
+    shoulder taper was fitted at it (``tapered``, one per step of ``seen``): that shapes
+    it (melbourne-1019-s11+20: an entry's taper fitted over 125 m, closed over the last
+    60 m instead, 0.45 m off). Returns whether a gore was there (see
     :func:`_bridge_edge_gaps`)."""
     near_start, near_end = seen.beside(grid, a, b, inside_m=_GORE_AT_GAP_M)
     inside = (seen.stations > grid[a]) & (seen.stations < grid[b - 1])
-    step = float(grid[1] - grid[0])
-    tapered = np.array([np.any(np.abs(fitted - st) <= step) for st in seen.stations], dtype=bool)
     near_start &= ~(inside & tapered)
     near_end &= ~(inside & tapered)
     exits = seen.stations[near_start & (seen.before - d_edge[b] > _GORE_LEVEL_M)]
@@ -422,7 +420,16 @@ def _bridge_edge_gaps(
     )
     out = d_edge.copy()
     lane_m = typical_lane_width(tracks, grid)
+    # the seen steps at which a shoulder taper was fitted (within a grid step)
     fitted_at = np.array([tp.s_gore for tp in tapers or ()], dtype=float)
+    tapered = (
+        np.zeros(0, dtype=bool)
+        if seen is None
+        else np.any(
+            np.abs(fitted_at[None, :] - seen.stations[:, None]) <= float(grid[1] - grid[0]),
+            axis=1,
+        )
+    )
     for a, b in true_runs(~covered):
         if a == 0 or b >= grid.size or b - a < 5:
             continue
@@ -437,7 +444,7 @@ def _bridge_edge_gaps(
         ok = np.isfinite(inner)
         hw = (1 - x) * hw0 + x * hw1
         if seen is not None and _shoulder_at_gore(
-            out, d_edge, d_last, grid, a, b, seen, hw0, hw1, taper_length_m, fitted_at
+            out, d_edge, d_last, grid, a, b, seen, hw0, hw1, taper_length_m, tapered
         ):
             continue
         # a lane that starts/ends inside the gap (a gore): each side keeps its own width,

@@ -251,8 +251,9 @@ def common_shift(
         kept = checked(rate[a:b], a, b, follow=False)
         rate[a:b] = 0.0 if kept is None else kept
     # then the steady stretches no shift found so far touches
-    for a, b in _steady_stretches(sharp, RATES, (rate != 0.0) | (shaped != 0.0)):
-        kept = checked(_best_rates(sharp, RATES)[a:b], a, b, follow=True)
+    best = _best_rates(sharp, RATES)
+    for a, b in _steady_stretches(sharp, RATES, best, (rate != 0.0) | (shaped != 0.0)):
+        kept = checked(best[a:b], a, b, follow=True)
         if kept is not None:
             rate[a:b] = kept
     if not np.any(rate != 0.0) and not np.any(shaped != 0.0):
@@ -520,7 +521,7 @@ def _rate_path(sharp: FloatArray, rates: FloatArray) -> FloatArray:
     ``RATE_CHANGE`` per unit change between windows (Viterbi)."""
     n_win, n_rate = sharp.shape
     zero = int(np.argmin(np.abs(rates)))
-    gain = np.log(sharp + 0.05) - np.log(sharp[:, zero : zero + 1] + 0.05)
+    gain = _log_gain(sharp, rates)
     gain -= np.where(np.arange(n_rate) == zero, 0.0, RATE_PRIOR)[None, :]
     change = RATE_CHANGE * np.abs(rates[:, None] - rates[None, :])  # (to, from)
     score = gain[0].copy()
@@ -537,6 +538,13 @@ def _rate_path(sharp: FloatArray, rates: FloatArray) -> FloatArray:
     return rates[path].copy()
 
 
+def _log_gain(sharp: FloatArray, rates: FloatArray) -> FloatArray:
+    """``(windows, rates)``: the log-sharpness (``sharp``, :func:`_sharpness`) each rate of
+    ``rates`` gains over rate 0 in each window."""
+    zero = int(np.argmin(np.abs(rates)))
+    return np.log(sharp + 0.05) - np.log(sharp[:, zero : zero + 1] + 0.05)
+
+
 def _best_rates(sharp: FloatArray, rates: FloatArray) -> FloatArray:
     """Each window's rate of ``rates`` (m/m) at which its lines pile up most sharply
     (``sharp``: see :func:`_sharpness`)."""
@@ -544,11 +552,12 @@ def _best_rates(sharp: FloatArray, rates: FloatArray) -> FloatArray:
 
 
 def _steady_stretches(
-    sharp: FloatArray, rates: FloatArray, taken: NDArray[np.bool_]
+    sharp: FloatArray, rates: FloatArray, best: FloatArray, taken: NDArray[np.bool_]
 ) -> list[tuple[int, int]]:
     """Window ranges ``a:b`` of ``STEADY_WINDOWS`` or more, none ``taken``, whose lines
     pile up best at rates of one sign (``STEADY_RATE`` or more, gaining ``STEADY_GAIN``
-    log-sharpness over rate 0) that add up to ``MIN_TOTAL_M``.
+    log-sharpness over rate 0) that add up to ``MIN_TOTAL_M`` (``best``: each window's
+    best rate, :func:`_best_rates`).
 
     A few dashes per window gain little sharpness at any rate; the rate path pays
     ``RATE_PRIOR`` per window off 0 and ``RATE_CHANGE`` for following the S of a fast
@@ -559,10 +568,7 @@ def _steady_stretches(
     must be found moved inside it (:func:`_lines_follow`): with sparse dashes the best
     rates of a few windows may lean one way by chance, and a pattern shifted by a lane
     matches itself."""
-    zero = int(np.argmin(np.abs(rates)))
-    # the log-sharpness gained over rate 0 at each window's best rate
-    best_gain = np.log(np.max(sharp, axis=1) + 0.05) - np.log(sharp[:, zero] + 0.05)
-    best = _best_rates(sharp, rates)
+    best_gain = np.max(_log_gain(sharp, rates), axis=1)
     found: list[tuple[int, int]] = []
     for sign in (1.0, -1.0):
         one_way = (sign * best >= STEADY_RATE) & (best_gain >= STEADY_GAIN) & ~taken
