@@ -356,11 +356,15 @@ def edge_steps(
                 # size and what was seen at the gap's ends
                 if lines is not None and line_pts is None:
                     line_pts = lines()
+                held_to = None
                 if line_pts is not None:
                     outer, exit_ = max(before, after), after < before
                     station = edge_line_departure(*line_pts, gap, outer, forward=exit_)
+                    if station is None:
+                        inner = min(before, after)
+                        held_to = lines_held_to(*line_pts, gap, outer, inner, forward=exit_)
                 if station is None:
-                    station = _step_across_gap(gap, change, centres, level)
+                    station = _step_across_gap(gap, change, centres, level, held_to=held_to)
             if station is None:
                 continue
             # sized from either side of the gap (nothing of the step was seen in it)
@@ -498,15 +502,25 @@ def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArra
 
 
 def _step_across_gap(
-    gap: tuple[float, float], level_change: float, centres: FloatArray, level: FloatArray
+    gap: tuple[float, float],
+    level_change: float,
+    centres: FloatArray,
+    level: FloatArray,
+    *,
+    held_to: float | None = None,
 ) -> float | None:
     """Station (metres) of a step whose level change (``level_change``, metres, between
     the levels either side) falls in the unseen stretch ``gap`` (the centres of the seen
     bins either side) where the carriageway's width changed with it
     (:func:`_width_changes`), or None where it is bridged as a taper.
 
-    The step lies at the gap's middle (nothing seen tells where in it the gore is), or at
-    the end of the gap where a ramp's edge was seen peeling off the higher level.
+    The step lies at the end of the gap where a ramp's edge was seen peeling off the
+    higher level; else at the middle of what is left of the gap beyond ``held_to`` (the
+    station up to which the edge's own line was seen holding its offset,
+    :func:`lines_held_to`: after it for an exit, before it for an entry; the lanes
+    were there, oakland-28393854-s7 with a noisier sensor put a 3-lane inner exit's step
+    35 m before its nose), or of the whole gap (nothing seen tells where in it the gore
+    is).
     """
     lo, hi = gap
     if abs(level_change) < _GAP_STEP_MIN_M or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
@@ -520,6 +534,12 @@ def _step_across_gap(
         return lo
     if level_change > 0.0 and _peels_off(centres, level, hi, 1.0):
         return hi
+    if held_to is not None:
+        lo, hi = (
+            (max(lo, min(held_to, hi)), hi)
+            if level_change < 0.0
+            else (lo, min(hi, max(held_to, lo)))
+        )
     return 0.5 * (lo + hi)
 
 
@@ -564,6 +584,78 @@ _LINE_BEND_BINS = 8  # ... before the last this many ...
 _LINE_LEAVES_M = 0.3  # ... the line this far outward of it in 3 bins has left it ...
 _LINE_HELD_M = 0.1  # ... its bend starting before the last bin this near it ...
 _LINE_BEYOND_M = 1.0  # ... and going on to this far beyond where it was held
+_LINES_CLEAR_M = 0.5  # lines this far outward of the edge's inner level lie between levels
+_LINES_APART_M = 0.6  # samples this far apart across (metres) belong to different lines
+_LINES_SIDE_M = 30.0  # a line between the levels is judged over this much next to the gap
+_LINES_SEEN_BINS = 4  # ... seen in this many bins there at least (a dashed line: 3 m of 12)
+_LINES_SEEN_SHARE = 0.25  # ... and in this share of the walk's bins up to where it is held
+
+
+def _walk_edge_line(
+    s: FloatArray, u: FloatArray, gap: tuple[float, float], outer_level: float, *, forward: bool
+) -> tuple[FloatArray, float, float, float] | None:
+    """The line along the edge walked into the unseen stretch ``gap`` of the edge
+    (arguments as :func:`edge_line_departure`): its offset per ``_LINE_BIN_M`` bin from the
+    gap's start (``forward``) or end (NaN where not seen, the walk ending where it is lost
+    for ``_LINE_LOST_BINS``), the offset it was held at next to the gap, the station the
+    walk starts from and its direction (+1 forward, -1 back). None where no line holding
+    one offset lies within ``_LINE_BAND_M`` inside the edge next to the gap."""
+    direction = 1.0 if forward else -1.0
+    start = gap[0] if forward else gap[1]
+    along = direction * (s - start)
+    band = (u > outer_level - _LINE_BAND_M[1]) & (u < outer_level - _LINE_BAND_M[0])
+    side = band & (along > -_LINE_SIDE_M) & (along <= 0.0)
+    n_side = int(_LINE_SIDE_M / _LINE_BIN_M)
+    if not side.any():
+        return None
+    b = np.floor(-along[side] / _LINE_BIN_M).astype(np.int64)
+    per_bin = np.full(n_side, -np.inf)
+    np.maximum.at(per_bin, np.clip(b, 0, n_side - 1), u[side])
+    seen = per_bin[np.isfinite(per_bin)]
+    if seen.size < n_side // 2 or 1.4826 * float(np.median(np.abs(seen - np.median(seen)))) > 0.1:
+        return None
+    held = float(np.median(seen))
+    return _walk_line(s, u, gap, held, 0.0, forward=forward), held, start, direction
+
+
+def _walk_line(
+    s: FloatArray,
+    u: FloatArray,
+    gap: tuple[float, float],
+    held: float,
+    slope: float,
+    *,
+    forward: bool,
+) -> FloatArray:
+    """A line walked bin by bin into ``gap`` from its start (``forward``) or back from its
+    end, from offset ``held`` (metres) with ``slope`` (metres per ``_LINE_BIN_M`` bin) at
+    that end: per bin its offset, NaN where not seen; the walk ends where the line is lost
+    for ``_LINE_LOST_BINS``. A sample within ``_LINE_GATE_M`` of the prediction (which
+    follows the line's slope) is the line's."""
+    direction = 1.0 if forward else -1.0
+    start, end = (gap[0], gap[1]) if forward else (gap[1], gap[0])
+    along = direction * (s - start)
+    n_bins = int(np.ceil(abs(end - start) / _LINE_BIN_M))
+    inside = (along > 0.0) & (along <= n_bins * _LINE_BIN_M)
+    k_of = np.floor(along[inside] / _LINE_BIN_M).astype(np.int64)
+    order = np.argsort(k_of, kind="stable")
+    k_sorted, u_sorted = k_of[order], u[inside][order]
+    first = np.searchsorted(k_sorted, np.arange(n_bins), side="left")
+    last = np.searchsorted(k_sorted, np.arange(n_bins), side="right")
+    pred, last_value, last_k = held + slope, held, -1
+    track = np.full(n_bins, np.nan)
+    for k in range(n_bins):
+        cand = u_sorted[first[k] : last[k]]
+        cand = cand[np.abs(cand - pred) < _LINE_GATE_M]
+        if not cand.size:
+            if k - last_k >= _LINE_LOST_BINS:
+                break
+            pred += slope
+            continue
+        value = float(np.median(cand))
+        slope = 0.5 * slope + 0.5 * (value - last_value) / (k - last_k)
+        track[k], pred, last_value, last_k = value, value + slope, value, k
+    return track
 
 
 def edge_line_departure(
@@ -589,41 +681,18 @@ def edge_line_departure(
     ``_LINE_BEND_BINS`` before the last bin within ``_LINE_HELD_M`` of that course; the
     line must have been seen in half the bins up to there.
     """
-    direction = 1.0 if forward else -1.0
-    start, end = (gap[0], gap[1]) if forward else (gap[1], gap[0])
-    along = direction * (s - start)
-    band = (u > outer_level - _LINE_BAND_M[1]) & (u < outer_level - _LINE_BAND_M[0])
-    side = band & (along > -_LINE_SIDE_M) & (along <= 0.0)
-    n_side = int(_LINE_SIDE_M / _LINE_BIN_M)
-    if not side.any():
+    walk = _walk_edge_line(s, u, gap, outer_level, forward=forward)
+    if walk is None:
         return None
-    b = np.floor(-along[side] / _LINE_BIN_M).astype(np.int64)
-    per_bin = np.full(n_side, -np.inf)
-    np.maximum.at(per_bin, np.clip(b, 0, n_side - 1), u[side])
-    seen = per_bin[np.isfinite(per_bin)]
-    if seen.size < n_side // 2 or 1.4826 * float(np.median(np.abs(seen - np.median(seen)))) > 0.1:
-        return None
-    held = float(np.median(seen))
-    n_bins = int(np.ceil(abs(end - start) / _LINE_BIN_M))
-    inside = (along > 0.0) & (along <= n_bins * _LINE_BIN_M)
-    k_of = np.floor(along[inside] / _LINE_BIN_M).astype(np.int64)
-    order = np.argsort(k_of, kind="stable")
-    k_sorted, u_sorted = k_of[order], u[inside][order]
-    first = np.searchsorted(k_sorted, np.arange(n_bins), side="left")
-    last = np.searchsorted(k_sorted, np.arange(n_bins), side="right")
-    pred, slope, last_value, last_k = held, 0.0, held, -1
-    track = np.full(n_bins, np.nan)
-    for k in range(n_bins):
-        cand = u_sorted[first[k] : last[k]]
-        cand = cand[np.abs(cand - pred) < _LINE_GATE_M]
-        if not cand.size:
-            if k - last_k >= _LINE_LOST_BINS:
-                break
-            pred += slope
-            continue
-        value = float(np.median(cand))
-        slope = 0.5 * slope + 0.5 * (value - last_value) / (k - last_k)
-        track[k], pred, last_value, last_k = value, value + slope, value, k
+    track, held, start, direction = walk
+    x0 = _departure_bin(track, held)
+    return None if x0 is None else float(start + direction * (x0 + 0.5) * _LINE_BIN_M)
+
+
+def _departure_bin(track: FloatArray, held: float) -> float | None:
+    """Where (bins of the walk, fractional) a walked line (:func:`_walk_line`, held at
+    ``held`` next to the gap) leaves outward, as :func:`edge_line_departure` tells it;
+    None where it does not."""
     tracked = np.flatnonzero(np.isfinite(track))
     for i, k in enumerate(tracked):
         # the line's course, straight over the bins before the last _LINE_BEND_BINS (a
@@ -652,8 +721,68 @@ def edge_line_departure(
             fit = tracked[(tracked >= held_to - _LINE_BEND_BINS) & (tracked <= nxt[-1])]
             x0 = _hinge_start(fit.astype(float), track[fit] - np.polyval(coef, fit.astype(float)))
             x0 = min(max(x0, held_to - _LINE_BEND_BINS), held_to)
-            return float(start + direction * (x0 + 0.5) * _LINE_BIN_M)
+            return x0
     return None
+
+
+def lines_held_to(
+    s: FloatArray,
+    u: FloatArray,
+    gap: tuple[float, float],
+    outer_level: float,
+    inner_level: float,
+    *,
+    forward: bool,
+) -> float | None:
+    """The station (metres) farthest into the unseen stretch ``gap`` of the edge up to
+    which a lane line lying between the edge's two levels (``outer_level`` on the wider
+    side of the gap, ``inner_level`` on the other; offsets towards the edge, metres) is
+    seen going on from where it was seen next to the gap, before it leaves outward
+    (:func:`_departure_bin`): the lanes between the levels are still there, so the
+    edge's step hidden in the gap lies beyond it (an exit's, walked from the gap's
+    start, ``forward``) or before it (an entry's, walked back from its end). A line is a
+    straight run of samples (residuals within 0.1 m) over the ``_LINES_SIDE_M`` next to
+    the gap, seen in ``_LINES_SEEN_BINS`` of its bins, and must be seen in
+    ``_LINES_SEEN_SHARE`` of the walk's bins up to where it is held (dashed lines are
+    seen on their dashes only). None where no such line is seen in the gap.
+
+    ``s``, ``u``: lane samples (stations, offsets towards the edge, metres, the edge
+    points' frame).
+    """
+    direction = 1.0 if forward else -1.0
+    start = gap[0] if forward else gap[1]
+    along = direction * (s - start)
+    side = (
+        (along > -_LINES_SIDE_M)
+        & (along <= 0.0)
+        & (u > inner_level + _LINES_CLEAR_M)
+        & (u < outer_level - _LINE_BAND_M[0])
+    )
+    if not side.any():
+        return None
+    order = np.argsort(u[side])
+    u_side, a_side = u[side][order], along[side][order]
+    groups = np.split(np.arange(u_side.size), np.flatnonzero(np.diff(u_side) > _LINES_APART_M) + 1)
+    best: float | None = None
+    for g in groups:
+        bins = np.floor(-a_side[g] / _LINE_BIN_M)
+        if np.unique(bins).size < _LINES_SEEN_BINS:
+            continue
+        coef = np.polyfit(a_side[g], u_side[g], 1)
+        resid = u_side[g] - np.polyval(coef, a_side[g])
+        if 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) > 0.1:
+            continue
+        held = float(np.polyval(coef, 0.0))
+        track = _walk_line(s, u, gap, held, float(coef[0]) * _LINE_BIN_M, forward=forward)
+        x0 = _departure_bin(track, held)
+        tracked = np.flatnonzero(np.isfinite(track))
+        if x0 is not None:
+            tracked = tracked[tracked <= x0]
+        if not tracked.size or tracked.size < _LINES_SEEN_SHARE * (tracked[-1] + 1):
+            continue
+        reach = (float(tracked[-1]) + 1.0) * _LINE_BIN_M
+        best = reach if best is None else max(best, reach)
+    return None if best is None else float(start + direction * best)
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:

@@ -33,7 +33,13 @@ from ._common import BoundaryTrack, true_runs
 
 FloatArray = NDArray[np.float64]
 
-__all__ = ["edge_moves", "shoulder_moves", "unseen_stretches", "with_edge_moves"]
+__all__ = [
+    "edge_moves",
+    "moves_beside_steps",
+    "shoulder_moves",
+    "unseen_stretches",
+    "with_edge_moves",
+]
 
 MIN_MOVE_M = 1.5
 """A seen line moving less than this (metres) inside the unseen stretch leaves the edge
@@ -55,6 +61,9 @@ put it leaves it there: the fit's bridging is as good as the line's noise (moves
 mm on the bundled scenarios, 0.8-1.3 m where a line wandered)."""
 LINE_NEAR_M = 0.3
 """A lane sample this close (metres) to a track is the track's."""
+LINE_SEEN_SHARE = 0.4
+"""The share of a stretch's 5 m bins in which a lane line beside a step must be seen
+(:func:`moves_beside_steps`; a dashed line is seen on its dashes only)."""
 KNOT_M = 4.0
 """Spacing (metres) of the lane-offset records that carry a move (linear in between)."""
 
@@ -178,6 +187,64 @@ def shoulder_moves(
         if float(np.max(np.abs(shift))) >= MIN_SHOULDER_MOVE_M:
             move[a:b] = shift
     return move
+
+
+def moves_beside_steps(
+    gaps: list[tuple[int, int]],
+    steps: FloatArray,
+    tracks: tuple[BoundaryTrack, ...],
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
+    """How far the median-side edge moves (metres towards the carriageway, on ``grid``)
+    across the part of an unseen stretch (``gaps``, :func:`unseen_stretches`) between
+    where the edge was last (first) seen and one of its ``steps`` (stations, metres)
+    inside the stretch: the innermost lane line seen through that part keeps the
+    distance from the edge it had where the edge was seen (the lanes beside it leave or
+    join only at the step). The edge fit bridges the stretch smoothly onto the level
+    beyond the step, which it measures in its own bent frame:
+    oakland-28393854-s7 with a noisier sensor bent 2.2 m over the 80 m before a 3-lane
+    inner exit whose nose was unseen, the lines beside it straight.
+
+    A line is a track (``tracks``) covering the part and the seen end, seen (lane samples
+    ``s_lane``, ``d_lane`` within :data:`LINE_NEAR_M`) in :data:`LINE_SEEN_SHARE` of its
+    5 m bins; a move under :data:`MIN_SHOULDER_MOVE_M` is left out. Returns the move and
+    the steps where a move ends (begins) at full size.
+    """
+    move = np.zeros(grid.size)
+    ends: list[float] = []
+    for a, b in gaps:
+        inside = steps[(steps > grid[a - 1]) & (steps < grid[b])]
+        if inside.size != 1:
+            continue
+        st = float(inside[0])
+        for seen_i, lo, hi in ((a - 1, float(grid[a - 1]), st), (b, st, float(grid[b]))):
+            if hi - lo < GAP_MIN_M:
+                continue
+            part = (grid > lo) & (grid < hi)
+            bins = np.arange(lo, hi + 5.0, 5.0)
+            in_part = (s_lane >= lo) & (s_lane <= hi)
+            best = None
+            for tr in tracks:
+                if tr.n_samples == 0 or tr.s_m[0] > lo or tr.s_m[-1] < hi:
+                    continue
+                width = float(np.interp(grid[seen_i], tr.s_m, tr.d_m)) - d_median[seen_i]
+                if width <= 0.0 or (best is not None and width >= best[1]):
+                    continue
+                near = in_part & (np.abs(d_lane - np.interp(s_lane, tr.s_m, tr.d_m)) < LINE_NEAR_M)
+                seen = np.histogram(s_lane[near], bins)[0] > 0
+                if seen.size and float(np.mean(seen)) >= LINE_SEEN_SHARE:
+                    best = (tr, width)
+            if best is None:
+                continue
+            tr, width = best
+            shift = np.interp(grid[part], tr.s_m, tr.d_m) - width - d_median[part]
+            if shift.size and float(np.max(np.abs(shift))) >= MIN_SHOULDER_MOVE_M:
+                move[part] = shift
+                ends.append(st)
+    return move, np.unique(np.asarray(ends, dtype=float))
 
 
 def with_edge_moves(

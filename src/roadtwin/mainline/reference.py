@@ -46,7 +46,13 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
-from .median_moves import edge_moves, shoulder_moves, unseen_stretches, with_edge_moves
+from .median_moves import (
+    edge_moves,
+    moves_beside_steps,
+    shoulder_moves,
+    unseen_stretches,
+    with_edge_moves,
+)
 from .seal import nonnegative_widths, seal_lane_borders
 
 log = logging.getLogger(__name__)
@@ -166,8 +172,9 @@ def _median_moves(
     d_lane: FloatArray,
 ) -> tuple[FloatArray, FloatArray] | None:
     """Where the median-side edge is unseen, how far it moves with the lines a first lane
-    fit (``tracks``) found (:mod:`.median_moves`): beside a gore, and across a stretch
-    where the inner shoulder's line is seen through (away from gores and steps). The move
+    fit (``tracks``) found (:mod:`.median_moves`): beside a gore, across a stretch
+    where the inner shoulder's line is seen through (away from gores and steps), and
+    between a step and where the edge was seen along the lines seen there. The move
     on ``grid`` (metres towards the carriageway) and the gore stations where it begins or
     ends at full size; None where it moves nowhere. ``s_edge``, ``d_edge`` and ``s_lane``,
     ``d_lane``: the median-side edge points and the lane samples in the lanes' frame
@@ -178,12 +185,23 @@ def _median_moves(
     near_step = np.zeros(grid.size, dtype=bool)
     for st in median.steps.stations:
         near_step |= np.abs(grid - st) <= 10.0 * step
-    gaps = [
+    unseen = [
         (a, b)
         for a, b in unseen_stretches(s_edge, d_edge, grid, d_median, _ON_EDGE_M)
-        if not np.any(at_gores[a - 1 : b + 1]) and not np.any(near_step[a - 1 : b + 1])
+        if not np.any(at_gores[a - 1 : b + 1])
     ]
-    move = at_gores + shoulder_moves(gaps, tracks, s_lane, d_lane, grid, d_median)
+    gaps = [(a, b) for a, b in unseen if not np.any(near_step[a - 1 : b + 1])]
+    beside, ends = moves_beside_steps(
+        [(a, b) for a, b in unseen if np.any(near_step[a - 1 : b + 1])],
+        median.steps.stations,
+        tracks,
+        s_lane,
+        d_lane,
+        grid,
+        d_median,
+    )
+    move = at_gores + beside + shoulder_moves(gaps, tracks, s_lane, d_lane, grid, d_median)
+    gores = np.union1d(gores, ends)
     return (move, gores) if np.any(move) else None
 
 

@@ -1,0 +1,136 @@
+"""A 3-lane inner exit whose nose lies in an occlusion of the median edge.
+
+oakland-28393854-s7 with a noisier sensor (bench_real ``--noisy --seed-offset 260``): the
+median edge was unseen from 1295 m to its 12 m step at the nose (1372 m) and its own line
+out of the sensor's reach; the step was put at the gap's middle, 38 m early, and the
+edge fit bent 2.2 m across the gap (edge 1.012 m, lanes 0.678 m RMSE). The lines of the
+exiting lanes were seen, dashed, running on at their offsets up to the nose: the step
+lies beyond them (:func:`lines_held_to`), and the edge keeps its distance from the
+innermost of them up to the step (:func:`moves_beside_steps`; edge 0.064 m, lanes
+0.082 m)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from roadtwin.config import MainlineConfig
+from roadtwin.mainline._common import BoundaryTrack
+from roadtwin.mainline.edge_levels import edge_level_path, edge_steps, lines_held_to
+from roadtwin.mainline.median_moves import moves_beside_steps, unseen_stretches
+
+GAP = (300.0, 380.0)  # the median edge unseen (stations, metres)
+NOSE_M = 376.0  # the exiting lanes' lines end here, the edge steps 12 m in
+
+
+def _dashed(offset: float, s0: float, s1: float, *, rng, period=12.0, dash=3.0) -> tuple:
+    """Samples every 0.5 m on the dashes (``dash`` of every ``period`` metres) of a line
+    at ``offset`` (metres towards the median) from ``s0`` to ``s1``, 4 cm noise."""
+    s = np.arange(s0, s1, 0.5)
+    s = s[np.mod(s, period) < dash]
+    return s, offset + rng.normal(0.0, 0.04, s.size)
+
+
+def _lines(*, bend: float = 0.0, seed: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    """The exiting lanes' lines (4.9 and 8.5 m inside the edge at 0) up to the nose, then
+    bending outward with the ramp by ``bend`` m/m when not 0, and the through lines (12
+    m and 15.7 m inside) all along; offsets towards the median."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for off in (-4.9, -8.5):
+        s, u = _dashed(off, 150.0, NOSE_M, rng=rng)
+        parts.append((s, u))
+        if bend:
+            s2, u2 = _dashed(0.0, NOSE_M, 450.0, rng=rng)
+            parts.append((s2, off + u2 + bend * (s2 - NOSE_M) ** 2 / 40.0))
+    for off in (-12.0, -15.7):
+        parts.append(_dashed(off, 150.0, 500.0, rng=rng))
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def test_the_lines_of_the_exiting_lanes_are_seen_up_to_the_nose():
+    s, u = _lines()
+    held = lines_held_to(s, u, GAP, 0.0, -12.0, forward=True)
+    assert held is not None
+    # dashes 3 m of 12: the last one seen ends 3 m before the nose at worst
+    assert NOSE_M - 5.0 <= held <= NOSE_M + 2.0
+
+
+def test_a_line_bending_away_is_held_only_to_its_bend():
+    bend_at = 330.0
+    rng = np.random.default_rng(4)
+    s, u = _dashed(0.0, 150.0, 450.0, rng=rng)
+    u = u - 4.9 + np.clip(s - bend_at, 0.0, None) ** 2 / 300.0
+    held = lines_held_to(s, u, GAP, 0.0, -12.0, forward=True)
+    assert held is not None
+    # its bend (150 m radius) fitted back to where it starts, within a dash period
+    assert bend_at - 2.0 <= held <= bend_at + 12.0
+
+
+def test_an_entry_is_walked_back_and_no_lines_give_nothing():
+    s, u = _lines()
+    # mirrored: the entry's lines are seen from the gap's end back to 2 * 340 - 376 m
+    held = lines_held_to(680.0 - s, u, GAP, 0.0, -12.0, forward=False)
+    assert held is not None
+    assert 680.0 - NOSE_M - 2.0 <= held <= 680.0 - NOSE_M + 5.0
+    through = u < -11.0
+    assert lines_held_to(s[through], u[through], GAP, 0.0, -12.0, forward=True) is None
+
+
+def test_edge_steps_puts_the_step_beyond_the_lines_seen_in_the_gap():
+    rng = np.random.default_rng(5)
+    s = np.arange(100.0, 600.0, 0.25)
+    u = np.where(s < NOSE_M, 0.0, -12.0) + rng.normal(0.0, 0.04, s.size)
+    keep = (s < GAP[0]) | (s > GAP[1])
+    s, u = s[keep], u[keep]
+    edges = np.arange(99.0, 603.0, 2.0)
+    cfg = MainlineConfig()
+    level = edge_level_path(s, u, edges, config=cfg)
+    s_o = np.arange(100.0, 600.0, 0.5)
+    other = (s_o, np.full(s_o.size, np.where(s_o < NOSE_M, 19.0, 7.0)))
+    lines = _lines()
+    without = edge_steps(s, u, edges, level, config=cfg, across=lambda: other)
+    assert without.stations.size == 1
+    assert abs(without.stations[0] - 0.5 * (GAP[0] + GAP[1])) < 3.0  # the gap's middle
+    steps = edge_steps(s, u, edges, level, config=cfg, across=lambda: other, lines=lambda: lines)
+    assert steps.stations.size == 1
+    assert NOSE_M - 4.0 <= steps.stations[0] <= GAP[1] + 2.0
+    assert steps.offsets[1] - steps.offsets[0] == pytest.approx(-12.0, abs=0.2)
+
+
+GRID = np.arange(0.0, 501.0, 1.0)
+
+
+def _track(track_id: int, d: np.ndarray) -> BoundaryTrack:
+    return BoundaryTrack(track_id, GRID, d, "broken", 500)
+
+
+def test_the_edge_keeps_its_distance_from_the_lines_up_to_the_step():
+    """Offsets ``d`` towards the carriageway: the fit's edge bent 2 m inward across the
+    gap (``d_median``), the lines 4.9 m and 8.5 m inside the true edge held straight."""
+    rng = np.random.default_rng(6)
+    bend = np.interp(GRID, [300.0, 376.0], [0.0, 2.0])
+    d_median = np.where(GRID < 376.0, bend, 12.0)
+    s_lane, d_lane = _lines(seed=7)
+    d_lane = -d_lane  # towards the carriageway
+    s_edge = np.concatenate([np.arange(100.0, 300.0, 0.5), np.arange(381.0, 500.0, 0.5)])
+    d_edge = np.interp(s_edge, GRID, d_median) + rng.normal(0.0, 0.03, s_edge.size)
+    gaps = unseen_stretches(s_edge, d_edge, GRID, d_median, 0.8)
+    assert len(gaps) == 1
+    to_nose = np.where(GRID < NOSE_M, 1.0, 0.0)
+    tracks = (_track(1, 4.9 * to_nose + 12.0 * (1 - to_nose)), _track(2, np.full(GRID.size, 12.0)))
+    move, ends = moves_beside_steps(gaps, np.array([376.0]), tracks, s_lane, d_lane, GRID, d_median)
+    assert ends.tolist() == [376.0]
+    part = (GRID > 300.0) & (GRID < 376.0)
+    # the edge moved back onto the true one (0) where it was bent, nowhere else
+    assert np.max(np.abs(d_median[part] + move[part])) < 1e-9
+    assert not np.any(move[~part])
+    # without a step inside the stretch (bridged as a taper): no move here
+    none, _ = moves_beside_steps(gaps, np.array([200.0]), tracks, s_lane, d_lane, GRID, d_median)
+    assert not np.any(none)
+    # the lines not seen through the stretch: no move
+    away = (s_lane < 300.0) | (s_lane > 380.0)
+    blind, _ = moves_beside_steps(
+        gaps, np.array([376.0]), tracks, s_lane[away], d_lane[away], GRID, d_median
+    )
+    assert not np.any(blind)
