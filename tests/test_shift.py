@@ -14,7 +14,7 @@ from roadtwin.mainline.markings import (
     _shift_frame,
     _tracks_from_samples,
 )
-from roadtwin.mainline.shift import OuterEdge
+from roadtwin.mainline.shift import OuterEdge, _lines_follow
 
 LENGTH = 700.0
 LANE = 3.5
@@ -392,3 +392,27 @@ def test_a_lean_of_sparse_windows_by_chance_is_no_shift():
     if frame is not None:
         at = np.array([100.0, 600.0])
         np.testing.assert_allclose(frame.offset(at), move(at), atol=0.3)
+
+
+@pytest.mark.parametrize("moves", [True, False])
+def test_the_innermost_line_seen_by_two_samples_before_a_swing_does_not_vote(moves):
+    """town06-auto-s2 with a noisier sensor (seed offset 260): in the 60 m before a lane
+    added beside the median the inner shoulder's line and the next line out were seen
+    by two samples each. The innermost line with three samples, a lane line, was taken
+    for the innermost and left out of the vote, the lines beyond lay beside the edge:
+    no line voted, the swing the outer edge witnessed was not taken and the new lane was
+    built at the outer edge (a route ending in a dead end)."""
+    rng = np.random.default_rng(4)
+    move = lambda s: LANE * _smoothstep(s, 300.0, 345.0)  # noqa: E731
+    parts = []
+    for k, (offset, n_before) in enumerate([(1.0, 2), (1.0 + LANE, 2), (1.0 + 2 * LANE, 20)]):
+        before = np.sort(rng.uniform(240.0, 300.0, n_before))
+        inside = np.arange(300.0, 346.0, 1.0)[k::2]  # a dash every other metre
+        shift = move(inside) if (moves and k > 0) else np.zeros(inside.size)
+        s_k = np.concatenate([before, inside])
+        d_k = offset + np.concatenate([np.zeros(before.size), shift])
+        parts.append((s_k, d_k + rng.normal(0.0, 0.03, s_k.size), np.full(s_k.size, k)))
+    s, d, owner = (np.concatenate([p[i] for p in parts]) for i in range(3))
+    # the edge 1 m beyond the third lane line; lines within 2.5 m of it do not vote
+    follows = _lines_follow(s, d, owner.astype(np.int64), 300.0, 345.0, move, 1.0 + 3 * LANE - 1.5)
+    assert follows is moves

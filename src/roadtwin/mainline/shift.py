@@ -355,15 +355,18 @@ def _lines_follow(
     if not before.any():
         return False
     tracks, inverse, counts = np.unique(owner[before], return_inverse=True, return_counts=True)
-    lines = np.sort(
-        [np.median(d[before][inverse == k]) for k in range(tracks.size) if counts[k] >= 3]
-    )
+    medians = np.array([np.median(d[before][inverse == k]) for k in range(tracks.size)])
+    # the innermost line stays in every case: it does not vote, however few of its dashes
+    # were seen (town06-auto-s2 with a noisier sensor: the inner shoulder's line had two
+    # samples, the next line out was taken for the innermost and no line was left to vote)
+    innermost = float(np.min(medians))
+    lines = np.sort(medians[counts >= 3])
     # one line seen as two tracks votes once
     lines = (
         lines[np.concatenate([[True], np.diff(lines) >= 2.0 * FOLLOW_M])] if lines.size else lines
     )
-    # neither the innermost (it stays in every case) nor the lines beside the edge vote
-    lines = lines[1:][lines[1:] <= inside_of]
+    # nor do the lines beside the edge
+    lines = lines[(lines >= innermost + 2.0 * FOLLOW_M) & (lines <= inside_of)]
     # only where the moved lines lie apart from where they were and from the next line's
     # place (a shift by a lane brings each line to the next one's)
     s_in, d_in = s[(s >= s_a) & (s <= s_b)], d[(s >= s_a) & (s <= s_b)]
