@@ -16,7 +16,13 @@ import pytest
 
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline._common import BoundaryTrack
-from roadtwin.mainline.edge_levels import edge_level_path, edge_steps, lines_held_to
+from roadtwin.mainline.edge_levels import (
+    _hinge_start,
+    _step_across_gap,
+    edge_level_path,
+    edge_steps,
+    lines_held_to,
+)
 from roadtwin.mainline.median_moves import moves_beside_steps, unseen_stretches
 
 GAP = (300.0, 380.0)  # the median edge unseen (stations, metres)
@@ -52,19 +58,27 @@ def test_the_lines_of_the_exiting_lanes_are_seen_up_to_the_nose():
     s, u = _lines()
     held = lines_held_to(s, u, GAP, 0.0, -12.0, forward=True)
     assert held is not None
-    # dashes 3 m of 12: the last one seen ends 3 m before the nose at worst
-    assert NOSE_M - 5.0 <= held <= NOSE_M + 2.0
+    # dashes 3 m of 12: the last one seen ends 3 m before the nose at worst; lost there,
+    # the lines did not leave
+    assert NOSE_M - 5.0 <= held[0] <= NOSE_M + 2.0
+    assert held[1] is False
 
 
-def test_a_line_bending_away_is_held_only_to_its_bend():
+@pytest.mark.parametrize("dashed", [True, False])
+def test_a_line_bending_away_is_held_only_to_its_bend(dashed):
     bend_at = 330.0
     rng = np.random.default_rng(4)
-    s, u = _dashed(0.0, 150.0, 450.0, rng=rng)
+    s, u = _dashed(0.0, 150.0, 450.0, rng=rng, dash=3.0 if dashed else 12.0)
     u = u - 4.9 + np.clip(s - bend_at, 0.0, None) ** 2 / 300.0
     held = lines_held_to(s, u, GAP, 0.0, -12.0, forward=True)
     assert held is not None
-    # its bend (150 m radius) fitted back to where it starts, within a dash period
-    assert bend_at - 2.0 <= held <= bend_at + 12.0
+    if dashed:
+        # a dash every 12 m: lost in its bend (150 m radius), within a dash period of it
+        assert bend_at - 2.0 <= held[0] <= bend_at + 12.0
+    else:
+        # seen leaving: the bend's start
+        assert held[1] is True
+        assert bend_at - 4.0 <= held[0] <= bend_at + 4.0
 
 
 def test_an_entry_is_walked_back_and_no_lines_give_nothing():
@@ -72,7 +86,7 @@ def test_an_entry_is_walked_back_and_no_lines_give_nothing():
     # mirrored: the entry's lines are seen from the gap's end back to 2 * 340 - 376 m
     held = lines_held_to(680.0 - s, u, GAP, 0.0, -12.0, forward=False)
     assert held is not None
-    assert 680.0 - NOSE_M - 2.0 <= held <= 680.0 - NOSE_M + 5.0
+    assert 680.0 - NOSE_M - 2.0 <= held[0] <= 680.0 - NOSE_M + 5.0
     through = u < -11.0
     assert lines_held_to(s[through], u[through], GAP, 0.0, -12.0, forward=True) is None
 
@@ -134,3 +148,27 @@ def test_the_edge_keeps_its_distance_from_the_lines_up_to_the_step():
         gaps, np.array([376.0]), tracks, s_lane[away], d_lane[away], GRID, d_median
     )
     assert not np.any(blind)
+
+
+def test_a_two_lane_step_is_a_step_where_lines_were_seen_into_the_gap():
+    """melbourne-921-s2 with a noisier sensor (seed offset 260): a 2-lane inner exit
+    (7.25 m) in a 74 m gap of the median edge; a change under 7.5 m is bridged unless
+    lines between the levels were seen into the gap (bridged, the edge lay 4 m off; with
+    the step at the line's departure edge 0.368 -> 0.128 m, lanes 0.381 -> 0.183 m)."""
+    centres = np.arange(500.0, 700.0, 2.0) + 1.0
+    level = np.where(centres < 546.0, 0.0, np.where(centres > 620.0, -7.25, np.nan))
+    gap = (546.0, 620.0)
+    assert _step_across_gap(gap, -7.25, centres, level) is None
+    assert _step_across_gap(gap, -7.25, centres, level, held=(579.0, True)) == 579.0
+    assert _step_across_gap(gap, -7.25, centres, level, held=(570.0, False)) == 595.0
+    # a lane's width is not a step however the lines were seen (the car's lane change)
+    assert _step_across_gap(gap, -3.5, centres, level, held=(579.0, True)) is None
+
+
+@pytest.mark.parametrize("power", [1.0, 2.0])
+def test_the_hinge_fits_a_line_leaving_straight_or_on_a_curve(power):
+    """A ramp's line leaves on a curve or straight at an angle: a curve fitted to a
+    straight departure puts its start bins early."""
+    x = np.arange(0.0, 30.0)
+    off = 0.02 * np.clip(x - 12.0, 0.0, None) ** power * (3.0 if power == 1.0 else 1.0)
+    assert _hinge_start(x, off) == pytest.approx(12.0, abs=0.5)

@@ -356,15 +356,15 @@ def edge_steps(
                 # size and what was seen at the gap's ends
                 if lines is not None and line_pts is None:
                     line_pts = lines()
-                held_to = None
+                held = None
                 if line_pts is not None:
                     outer, exit_ = max(before, after), after < before
                     station = edge_line_departure(*line_pts, gap, outer, forward=exit_)
                     if station is None:
                         inner = min(before, after)
-                        held_to = lines_held_to(*line_pts, gap, outer, inner, forward=exit_)
+                        held = lines_held_to(*line_pts, gap, outer, inner, forward=exit_)
                 if station is None:
-                    station = _step_across_gap(gap, change, centres, level, held_to=held_to)
+                    station = _step_across_gap(gap, change, centres, level, held=held)
             if station is None:
                 continue
             # sized from either side of the gap (nothing of the step was seen in it)
@@ -484,6 +484,8 @@ _GAP_STEP_MIN_M = 7.5  # a smaller change (two lanes and a shoulder) is bridged:
 # outer entry hidden in it), or two lanes fanning out on the median side over the gap
 # (melbourne-921-s2 and -408-opp, noisier: a step there put the edge 0.2-0.4 m off);
 # a fork of three or more lanes cannot be bridged (oakland-28393854-lane1: 1.5 m off)
+_GAP_STEP_HELD_MIN_M = 5.0  # ... where lines between the levels are seen in the gap, a
+# change of one and a half lanes or more is a step (two lanes fanning out move the lines)
 
 
 def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArray:
@@ -507,7 +509,7 @@ def _step_across_gap(
     centres: FloatArray,
     level: FloatArray,
     *,
-    held_to: float | None = None,
+    held: tuple[float, bool] | None = None,
 ) -> float | None:
     """Station (metres) of a step whose level change (``level_change``, metres, between
     the levels either side) falls in the unseen stretch ``gap`` (the centres of the seen
@@ -515,15 +517,20 @@ def _step_across_gap(
     (:func:`_width_changes`), or None where it is bridged as a taper.
 
     The step lies at the end of the gap where a ramp's edge was seen peeling off the
-    higher level; else at the middle of what is left of the gap beyond ``held_to`` (the
-    station up to which the edge's own line was seen holding its offset,
-    :func:`lines_held_to`: after it for an exit, before it for an entry; the lanes
-    were there, oakland-28393854-s7 with a noisier sensor put a 3-lane inner exit's step
-    35 m before its nose), or of the whole gap (nothing seen tells where in it the gore
-    is).
+    higher level; else where a line between the levels seen into the gap left outward
+    (``held``, :func:`lines_held_to`: a ramp's line leaving, or joining for an entry),
+    or at the middle of what is left of the gap beyond where such lines were seen going
+    on (after it for an exit, before it for an entry: the lanes were there,
+    oakland-28393854-s7 with a noisier sensor put a 3-lane inner exit's step 35 m before
+    its nose), or of the whole gap (nothing seen tells where in it the gore is). A change
+    under ``_GAP_STEP_MIN_M`` is a step only where such lines were seen in the gap and
+    it is ``_GAP_STEP_HELD_MIN_M`` at least (a 2-lane inner exit beside which the lines
+    ran on into the gap, melbourne-921-s2 with a noisier sensor: bridged, the edge was
+    4 m off).
     """
     lo, hi = gap
-    if abs(level_change) < _GAP_STEP_MIN_M or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
+    small = abs(level_change) < (_GAP_STEP_MIN_M if held is None else _GAP_STEP_HELD_MIN_M)
+    if small or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
         # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
         # unseen is mapped as one that tapers over the gap, and the lane structure
         # around stays as seen
@@ -534,12 +541,11 @@ def _step_across_gap(
         return lo
     if level_change > 0.0 and _peels_off(centres, level, hi, 1.0):
         return hi
-    if held_to is not None:
-        lo, hi = (
-            (max(lo, min(held_to, hi)), hi)
-            if level_change < 0.0
-            else (lo, min(hi, max(held_to, lo)))
-        )
+    if held is not None:
+        at = min(max(held[0], lo), hi)
+        if held[1]:
+            return at
+        lo, hi = (at, hi) if level_change < 0.0 else (lo, at)
     return 0.5 * (lo + hi)
 
 
@@ -585,10 +591,12 @@ _LINE_LEAVES_M = 0.3  # ... the line this far outward of it in 3 bins has left i
 _LINE_HELD_M = 0.1  # ... its bend starting before the last bin this near it ...
 _LINE_BEYOND_M = 1.0  # ... and going on to this far beyond where it was held
 _LINES_CLEAR_M = 0.5  # lines this far outward of the edge's inner level lie between levels
-_LINES_APART_M = 0.6  # samples this far apart across (metres) belong to different lines
-_LINES_SIDE_M = 30.0  # a line between the levels is judged over this much next to the gap
+_LINES_APART_M = 0.3  # samples this far apart across (metres) belong to different lines
+_LINES_SPREAD_M = 0.15  # ... and a line's samples lie this close to a straight course
+_LINES_SIDE_M = 60.0  # a line between the levels is judged over this much next to the gap
 _LINES_SEEN_BINS = 4  # ... seen in this many bins there at least (a dashed line: 3 m of 12)
 _LINES_SEEN_SHARE = 0.25  # ... and in this share of the walk's bins up to where it is held
+_LINES_LOST_BINS = 12  # ... lost for this many bins in a row (two dash periods), it ends
 
 
 def _walk_edge_line(
@@ -626,11 +634,12 @@ def _walk_line(
     slope: float,
     *,
     forward: bool,
+    lost_bins: int = _LINE_LOST_BINS,
 ) -> FloatArray:
     """A line walked bin by bin into ``gap`` from its start (``forward``) or back from its
     end, from offset ``held`` (metres) with ``slope`` (metres per ``_LINE_BIN_M`` bin) at
     that end: per bin its offset, NaN where not seen; the walk ends where the line is lost
-    for ``_LINE_LOST_BINS``. A sample within ``_LINE_GATE_M`` of the prediction (which
+    for ``lost_bins``. A sample within ``_LINE_GATE_M`` of the prediction (which
     follows the line's slope) is the line's."""
     direction = 1.0 if forward else -1.0
     start, end = (gap[0], gap[1]) if forward else (gap[1], gap[0])
@@ -648,7 +657,7 @@ def _walk_line(
         cand = u_sorted[first[k] : last[k]]
         cand = cand[np.abs(cand - pred) < _LINE_GATE_M]
         if not cand.size:
-            if k - last_k >= _LINE_LOST_BINS:
+            if k - last_k >= lost_bins:
                 break
             pred += slope
             continue
@@ -733,7 +742,7 @@ def lines_held_to(
     inner_level: float,
     *,
     forward: bool,
-) -> float | None:
+) -> tuple[float, bool] | None:
     """The station (metres) farthest into the unseen stretch ``gap`` of the edge up to
     which a lane line lying between the edge's two levels (``outer_level`` on the wider
     side of the gap, ``inner_level`` on the other; offsets towards the edge, metres) is
@@ -741,10 +750,11 @@ def lines_held_to(
     (:func:`_departure_bin`): the lanes between the levels are still there, so the
     edge's step hidden in the gap lies beyond it (an exit's, walked from the gap's
     start, ``forward``) or before it (an entry's, walked back from its end). A line is a
-    straight run of samples (residuals within 0.1 m) over the ``_LINES_SIDE_M`` next to
+    straight run of samples (``_LINES_SPREAD_M``) over the ``_LINES_SIDE_M`` next to
     the gap, seen in ``_LINES_SEEN_BINS`` of its bins, and must be seen in
     ``_LINES_SEEN_SHARE`` of the walk's bins up to where it is held (dashed lines are
-    seen on their dashes only). None where no such line is seen in the gap.
+    seen on their dashes only). None where no such line is seen in the gap; else the
+    station and whether that line left outward there (a ramp's line: its gore is there).
 
     ``s``, ``u``: lane samples (stations, offsets towards the edge, metres, the edge
     points' frame).
@@ -763,39 +773,56 @@ def lines_held_to(
     order = np.argsort(u[side])
     u_side, a_side = u[side][order], along[side][order]
     groups = np.split(np.arange(u_side.size), np.flatnonzero(np.diff(u_side) > _LINES_APART_M) + 1)
-    best: float | None = None
+    best: tuple[float, bool] | None = None
     for g in groups:
         bins = np.floor(-a_side[g] / _LINE_BIN_M)
         if np.unique(bins).size < _LINES_SEEN_BINS:
             continue
         coef = np.polyfit(a_side[g], u_side[g], 1)
         resid = u_side[g] - np.polyval(coef, a_side[g])
-        if 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) > 0.1:
+        if 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) > _LINES_SPREAD_M:
             continue
         held = float(np.polyval(coef, 0.0))
-        track = _walk_line(s, u, gap, held, float(coef[0]) * _LINE_BIN_M, forward=forward)
+        track = _walk_line(
+            s,
+            u,
+            gap,
+            held,
+            float(coef[0]) * _LINE_BIN_M,
+            forward=forward,
+            lost_bins=_LINES_LOST_BINS,
+        )
         x0 = _departure_bin(track, held)
         tracked = np.flatnonzero(np.isfinite(track))
         if x0 is not None:
             tracked = tracked[tracked <= x0]
         if not tracked.size or tracked.size < _LINES_SEEN_SHARE * (tracked[-1] + 1):
             continue
-        reach = (float(tracked[-1]) + 1.0) * _LINE_BIN_M
-        best = reach if best is None else max(best, reach)
-    return None if best is None else float(start + direction * best)
+        reach = (x0 + 0.5 if x0 is not None else float(tracked[-1]) + 1.0) * _LINE_BIN_M
+        if best is None or reach > best[0]:
+            best = (reach, x0 is not None)
+    return None if best is None else (float(start + direction * best[0]), best[1])
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:
     """The ``x0`` (bins, in steps of a quarter bin over ``x``'s range) whose hinge
-    ``c * max(x - x0, 0)^2`` (``c`` by least squares) fits the offsets ``off`` (metres
-    from a line's straight course) best."""
+    ``c * max(x - x0, 0)^p`` (``c`` by least squares, ``p`` 2 for a line leaving on a
+    curve or 1 for one leaving straight at an angle, whichever fits better) fits the
+    offsets ``off`` (metres from a line's straight course) best. A curve fitted to a line
+    leaving at an angle puts its start bins early (melbourne-921-s2 with a noisier
+    sensor: 10 m before the gore)."""
     x0 = np.arange(float(x[0]), float(x[-1]), 0.25)
     if not x0.size:
         return float(x[0])
-    q = np.clip(x[None, :] - x0[:, None], 0.0, None) ** 2
-    c = np.sum(q * off[None, :], axis=1) / np.maximum(np.sum(q * q, axis=1), 1e-12)
-    sse = np.sum((off[None, :] - c[:, None] * q) ** 2, axis=1)
-    return float(x0[int(np.argmin(sse))])
+    best, best_sse = float(x0[0]), np.inf
+    for power in (2.0, 1.0):
+        q = np.clip(x[None, :] - x0[:, None], 0.0, None) ** power
+        c = np.sum(q * off[None, :], axis=1) / np.maximum(np.sum(q * q, axis=1), 1e-12)
+        sse = np.sum((off[None, :] - c[:, None] * q) ** 2, axis=1)
+        k = int(np.argmin(sse))
+        if sse[k] < best_sse:
+            best, best_sse = float(x0[k]), float(sse[k])
+    return best
 
 
 _PEEL_NEAR_M = 10.0  # the level this near a gap's end ...
