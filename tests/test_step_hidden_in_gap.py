@@ -18,6 +18,7 @@ from roadtwin.config import MainlineConfig
 from roadtwin.mainline._common import BoundaryTrack
 from roadtwin.mainline.edge_levels import (
     _hinge_start,
+    _ramp_edge_meets,
     _step_across_gap,
     edge_level_path,
     edge_steps,
@@ -172,3 +173,40 @@ def test_the_hinge_fits_a_line_leaving_straight_or_on_a_curve(power):
     x = np.arange(0.0, 30.0)
     off = 0.02 * np.clip(x - 12.0, 0.0, None) ** power * (3.0 if power == 1.0 else 1.0)
     assert _hinge_start(x, off) == pytest.approx(12.0, abs=0.5)
+
+
+def _entry_points(*, ramp: bool, meets_at: float = 0.0, seed: int = 8):
+    """Median-side edge points (stations, offsets away from the carriageway, metres)
+    before a gap starting at 400 m: the edge at 0, stray points up to 1 m out, and with
+    ``ramp`` a loop entry's two edges coming in: its near edge onto ``meets_at`` at the
+    gap (0.25 m/m), its far edge 5 m beyond it."""
+    rng = np.random.default_rng(seed)
+    s = np.arange(300.0, 400.0, 0.4)
+    parts = [(s, rng.normal(0.0, 0.05, s.size))]
+    stray = rng.uniform(300.0, 400.0, 40)
+    parts.append((stray, rng.uniform(0.4, 1.0, stray.size)))
+    if ramp:
+        r = np.arange(370.0, 400.0, 0.5)
+        near = meets_at + 0.25 * (400.0 - r) + rng.normal(0.0, 0.05, r.size)
+        parts += [(r, near), (r, near + 5.0)]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+def test_a_ramp_edge_meeting_the_edge_at_a_gap_puts_the_nose_there():
+    """town06-auto-s1 with a noisier sensor (seed offset 200): a 1-lane loop entry on the
+    median side, the edge unseen for 86 m after its nose; a 4 m change was bridged as a
+    taper over the gap (edge 3.9 m off) though the ramp's edge was seen coming in onto
+    the edge right before it (edge 0.334 -> 0.193 m, lanes 0.169 -> 0.109 m)."""
+    s, u = _entry_points(ramp=True)
+    assert _ramp_edge_meets(s, u, 400.0, 0.0, -1.0)
+    assert not _ramp_edge_meets(*_entry_points(ramp=False), 400.0, 0.0, -1.0)
+    # a ramp's edge that runs on 4 m out (no nose at the gap) does not meet it
+    assert not _ramp_edge_meets(*_entry_points(ramp=True, meets_at=4.0), 400.0, 0.0, -1.0)
+    # looked for after the gap (an exit's side): nothing there
+    assert not _ramp_edge_meets(s, u, 400.0, 0.0, 1.0)
+    centres = np.arange(300.0, 560.0, 2.0) + 1.0
+    level = np.where(centres < 400.0, 0.0, np.where(centres > 486.0, 4.0, np.nan))
+    gap = (400.0, 486.0)
+    assert _step_across_gap(gap, 4.0, centres, level) is None
+    assert _step_across_gap(gap, 4.0, centres, level, ramp_at=400.0) == 400.0
+    assert _step_across_gap(gap, 1.5, centres, level, ramp_at=400.0) is None

@@ -364,7 +364,13 @@ def edge_steps(
                         inner = min(before, after)
                         held = lines_held_to(*line_pts, gap, outer, inner, forward=exit_)
                 if station is None:
-                    station = _step_across_gap(gap, change, centres, level, held=held)
+                    # an entry's ramp edge coming in onto the old level just before the
+                    # gap, an exit's leaving the new one just after it: the nose is there
+                    at = gap[0] if change > 0.0 else gap[1]
+                    meets = _ramp_edge_meets(s, u, at, min(before, after), -np.sign(change))
+                    station = _step_across_gap(
+                        gap, change, centres, level, held=held, ramp_at=at if meets else None
+                    )
             if station is None:
                 continue
             # sized from either side of the gap (nothing of the step was seen in it)
@@ -486,6 +492,16 @@ _GAP_STEP_MIN_M = 7.5  # a smaller change (two lanes and a shoulder) is bridged:
 # a fork of three or more lanes cannot be bridged (oakland-28393854-lane1: 1.5 m off)
 _GAP_STEP_HELD_MIN_M = 5.0  # ... where lines between the levels are seen in the gap, a
 # change of one and a half lanes or more is a step (two lanes fanning out move the lines)
+_GAP_STEP_RAMP_MIN_M = 2.5  # ... where a ramp's edge meets the edge at the gap, most of a lane
+_MEET_REACH_M = 25.0  # a ramp's edge meeting the edge at a gap's end: its points this near
+_MEET_OUT_M = (0.4, 15.0)  # ... lying this far outward of the edge's level ...
+_MEET_ON_M = 0.3  # ... on one straight line within this ...
+_MEET_POINTS = 8  # ... this many at least ...
+_MEET_BIN_M = 2.5  # ... spread over this many metres along ...
+_MEET_BINS = 4  # ... in this many of them at least ...
+_MEET_MAX_POINTS = 120  # (points tried as the line's ends)
+_MEET_SLOPE = 0.1  # ... come in onto it by this much per metre at least ...
+_MEET_AT_M = 2.0  # ... to within this (metres) at the gap's end
 
 
 def _bin_medians(s: FloatArray, u: FloatArray, edges_s: FloatArray) -> FloatArray:
@@ -510,6 +526,7 @@ def _step_across_gap(
     level: FloatArray,
     *,
     held: tuple[float, bool] | None = None,
+    ramp_at: float | None = None,
 ) -> float | None:
     """Station (metres) of a step whose level change (``level_change``, metres, between
     the levels either side) falls in the unseen stretch ``gap`` (the centres of the seen
@@ -526,9 +543,14 @@ def _step_across_gap(
     under ``_GAP_STEP_MIN_M`` is a step only where such lines were seen in the gap and
     it is ``_GAP_STEP_HELD_MIN_M`` at least (a 2-lane inner exit beside which the lines
     ran on into the gap, melbourne-921-s2 with a noisier sensor: bridged, the edge was
-    4 m off).
+    4 m off). At ``ramp_at`` (an end of the gap where a ramp's edge was seen meeting the
+    lower level, :func:`_ramp_edge_meets`) a change of ``_GAP_STEP_RAMP_MIN_M`` or more
+    is a step there: the ramp's nose (town06-auto-s1 with a noisier sensor, a 1-lane
+    inner entry bridged as a taper over the 86 m gap after it: the edge 3.9 m off).
     """
     lo, hi = gap
+    if ramp_at is not None and abs(level_change) >= _GAP_STEP_RAMP_MIN_M:
+        return ramp_at
     small = abs(level_change) < (_GAP_STEP_MIN_M if held is None else _GAP_STEP_HELD_MIN_M)
     if small or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
         # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
@@ -547,6 +569,49 @@ def _step_across_gap(
             return at
         lo, hi = (at, hi) if level_change < 0.0 else (lo, at)
     return 0.5 * (lo + hi)
+
+
+def _ramp_edge_meets(
+    s: FloatArray, u: FloatArray, end: float, level: float, direction: float
+) -> bool:
+    """Whether edge points beyond the gap's ``end`` (``direction`` -1: before its start,
+    +1: after its end; stations ``s``, offsets ``u`` away from the carriageway, metres)
+    run in onto ``level`` towards the gap, meeting it there: the edge of a ramp that
+    joins (leaves) at its nose, whose lane the mainline gains (loses) beyond. Among the
+    points within ``_MEET_REACH_M`` of the end lying outward of the level
+    (``_MEET_OUT_M``; the ramp's far edge and stray points lie there too), of the
+    straight lines through two of them that come in by ``_MEET_SLOPE`` per metre at
+    least and lie within ``_MEET_AT_M`` of the level at the end, the one most lie on
+    (``_MEET_ON_M``) must hold ``_MEET_POINTS`` spread over ``_MEET_BINS`` stretches of
+    ``_MEET_BIN_M``, and its least-squares fit to them must still come in so."""
+    dist = direction * (s - end)
+    out = u - level
+    near = (dist >= 0.0) & (dist < _MEET_REACH_M) & (out > _MEET_OUT_M[0]) & (out < _MEET_OUT_M[1])
+    x, y = dist[near], out[near]
+    if x.size < _MEET_POINTS:
+        return False
+    if x.size > _MEET_MAX_POINTS:  # every k-th along: the pairs stay few
+        keep = np.argsort(x, kind="stable")[:: math.ceil(x.size / _MEET_MAX_POINTS)]
+        x, y = x[keep], y[keep]
+    i, j = np.triu_indices(x.size, k=1)
+    ok = x[j] - x[i] > 1.0
+    i, j = i[ok], j[ok]
+    slope = (y[j] - y[i]) / (x[j] - x[i])
+    at_end = y[i] - slope * x[i]
+    # only lines that come in onto the level (the ramp's far edge, parallel to its near
+    # one, meets it nowhere)
+    ok = (slope >= _MEET_SLOPE) & (at_end <= _MEET_AT_M)
+    if not ok.any():
+        return False
+    slope, at_end = slope[ok], at_end[ok]
+    on = np.abs(y[None, :] - (at_end[:, None] + slope[:, None] * x[None, :])) < _MEET_ON_M
+    best = int(np.argmax(np.count_nonzero(on, axis=1)))
+    xs = x[on[best]]
+    spread = np.unique((xs / _MEET_BIN_M).astype(np.int64)).size
+    if xs.size < _MEET_POINTS or spread < _MEET_BINS:
+        return False
+    fit_slope, fit_at = np.polyfit(xs, y[on[best]], 1)
+    return bool(fit_slope >= _MEET_SLOPE and fit_at <= _MEET_AT_M)
 
 
 def _width_changes(
