@@ -210,3 +210,17 @@ def test_a_ramp_edge_meeting_the_edge_at_a_gap_puts_the_nose_there():
     assert _step_across_gap(gap, 4.0, centres, level) is None
     assert _step_across_gap(gap, 4.0, centres, level, ramp_at=400.0) == 400.0
     assert _step_across_gap(gap, 1.5, centres, level, ramp_at=400.0) is None
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_dashed_line_leaving_at_a_small_angle_is_held_to_where_it_leaves(seed):
+    """melbourne-408-opp-s4 with a noisier sensor (seed offset 260): a 2-lane inner exit's
+    line leaves at 1:20 and is seen on its dashes only; walked on along its bend it was
+    held 20-35 m past the gore in some of the fit's passes (the step 18 m late)."""
+    rng = np.random.default_rng(seed)
+    s, u = _dashed(0.0, 480.0, 640.0, rng=rng)
+    u = u - 4.5 + 0.05 * np.clip(s - 577.0, 0.0, None)
+    held = lines_held_to(s, u, (540.0, 610.0), 0.0, -7.5, forward=True)
+    assert held is not None
+    assert held[1] is True
+    assert 577.0 - 8.0 <= held[0] <= 577.0 + 8.0

@@ -662,6 +662,9 @@ _LINES_SIDE_M = 60.0  # a line between the levels is judged over this much next 
 _LINES_SEEN_BINS = 4  # ... seen in this many bins there at least (a dashed line: 3 m of 12)
 _LINES_SEEN_SHARE = 0.25  # ... and in this share of the walk's bins up to where it is held
 _LINES_LOST_BINS = 12  # ... lost for this many bins in a row (two dash periods), it ends
+_LINES_ON_COURSE_M = 0.15  # ... and it holds its course while this near it
+_LINES_GATE_GROWTH_M = 0.1  # ... its walk's gate grows by this per bin unseen ...
+_LINE_GATE_MAX_M = 1.0  # ... up to this (lines lie 3 m apart and more)
 
 
 def _walk_edge_line(
@@ -700,12 +703,15 @@ def _walk_line(
     *,
     forward: bool,
     lost_bins: int = _LINE_LOST_BINS,
+    gate_growth: float = 0.0,
 ) -> FloatArray:
     """A line walked bin by bin into ``gap`` from its start (``forward``) or back from its
     end, from offset ``held`` (metres) with ``slope`` (metres per ``_LINE_BIN_M`` bin) at
     that end: per bin its offset, NaN where not seen; the walk ends where the line is lost
     for ``lost_bins``. A sample within ``_LINE_GATE_M`` of the prediction (which
-    follows the line's slope) is the line's."""
+    follows the line's slope) is the line's; the gate grows by ``gate_growth`` (metres)
+    per bin the line went unseen, up to ``_LINE_GATE_MAX_M`` (a dashed line bending away
+    lies farther from a straight prediction at its next dash)."""
     direction = 1.0 if forward else -1.0
     start, end = (gap[0], gap[1]) if forward else (gap[1], gap[0])
     along = direction * (s - start)
@@ -720,7 +726,8 @@ def _walk_line(
     track = np.full(n_bins, np.nan)
     for k in range(n_bins):
         cand = u_sorted[first[k] : last[k]]
-        cand = cand[np.abs(cand - pred) < _LINE_GATE_M]
+        gate = min(_LINE_GATE_M + gate_growth * (k - last_k - 1), _LINE_GATE_MAX_M)
+        cand = cand[np.abs(cand - pred) < gate]
         if not cand.size:
             if k - last_k >= lost_bins:
                 break
@@ -856,8 +863,11 @@ def lines_held_to(
             float(coef[0]) * _LINE_BIN_M,
             forward=forward,
             lost_bins=_LINES_LOST_BINS,
+            gate_growth=_LINES_GATE_GROWTH_M,
         )
         x0 = _departure_bin(track, held)
+        if x0 is None:
+            x0 = _off_course_bin(track, held, float(coef[0]) * _LINE_BIN_M)
         tracked = np.flatnonzero(np.isfinite(track))
         if x0 is not None:
             tracked = tracked[tracked <= x0]
@@ -867,6 +877,27 @@ def lines_held_to(
         if best is None or reach > best[0]:
             best = (reach, x0 is not None)
     return None if best is None else (float(start + direction * best[0]), best[1])
+
+
+def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | None:
+    """Where (bins of the walk) a walked line (:func:`_walk_line`) that kept following a
+    gentle bend leaves its straight course (``held`` at the gap, ``slope`` metres per
+    bin, from beside the gap) outward: two tracked bins in a row more than
+    ``_LINE_LEAVES_M`` out, the line held up to the last bin before them within
+    ``_LINES_ON_COURSE_M`` of the course. None where it does not leave. A ramp's line
+    leaving at a small angle is walked on far beyond its gore (melbourne-408-opp-s4 with
+    a noisier sensor: the step 18-35 m late, the pass's frame deciding whether the bend
+    was told as a departure)."""
+    tracked = np.flatnonzero(np.isfinite(track))
+    if tracked.size < 3:
+        return None
+    dev = track[tracked] - (held + slope * (tracked + 0.5))
+    off = dev > _LINE_LEAVES_M
+    first = np.flatnonzero(off[:-1] & off[1:])
+    if not first.size:
+        return None
+    on = np.flatnonzero(dev[: first[0]] <= _LINES_ON_COURSE_M)
+    return float(tracked[on[-1]]) + 0.5 if on.size else None
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:
