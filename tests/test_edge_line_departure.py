@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from roadtwin.config import MainlineConfig
-from roadtwin.mainline.edge_levels import edge_level_path, edge_line_departure, edge_steps
+from roadtwin.mainline.edge_levels import edge_level_path, edge_steps
+from roadtwin.mainline.gap_evidence import edge_line_departure
 
 GAP = (500.0, 656.0)
 GORE_M = 602.0

@@ -16,14 +16,8 @@ import pytest
 
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline._common import BoundaryTrack
-from roadtwin.mainline.edge_levels import (
-    _hinge_start,
-    _ramp_edge_meets,
-    _step_across_gap,
-    edge_level_path,
-    edge_steps,
-    lines_held_to,
-)
+from roadtwin.mainline.edge_levels import _step_across_gap, edge_level_path, edge_steps
+from roadtwin.mainline.gap_evidence import _hinge_start, lines_held_to, ramp_edge_meets
 from roadtwin.mainline.median_moves import moves_beside_steps, unseen_stretches
 
 GAP = (300.0, 380.0)  # the median edge unseen (stations, metres)
@@ -198,12 +192,12 @@ def test_a_ramp_edge_meeting_the_edge_at_a_gap_puts_the_nose_there():
     taper over the gap (edge 3.9 m off) though the ramp's edge was seen coming in onto
     the edge right before it (edge 0.334 -> 0.193 m, lanes 0.169 -> 0.109 m)."""
     s, u = _entry_points(ramp=True)
-    assert _ramp_edge_meets(s, u, 400.0, 0.0, -1.0)
-    assert not _ramp_edge_meets(*_entry_points(ramp=False), 400.0, 0.0, -1.0)
+    assert ramp_edge_meets(s, u, 400.0, 0.0, -1.0)
+    assert not ramp_edge_meets(*_entry_points(ramp=False), 400.0, 0.0, -1.0)
     # a ramp's edge that runs on 4 m out (no nose at the gap) does not meet it
-    assert not _ramp_edge_meets(*_entry_points(ramp=True, meets_at=4.0), 400.0, 0.0, -1.0)
+    assert not ramp_edge_meets(*_entry_points(ramp=True, meets_at=4.0), 400.0, 0.0, -1.0)
     # looked for after the gap (an exit's side): nothing there
-    assert not _ramp_edge_meets(s, u, 400.0, 0.0, 1.0)
+    assert not ramp_edge_meets(s, u, 400.0, 0.0, 1.0)
     centres = np.arange(300.0, 560.0, 2.0) + 1.0
     level = np.where(centres < 400.0, 0.0, np.where(centres > 486.0, 4.0, np.nan))
     gap = (400.0, 486.0)
