@@ -49,6 +49,7 @@ _LINES_SEEN_BINS = 4  # ... seen in this many bins there at least (a dashed line
 _LINES_SEEN_SHARE = 0.25  # ... and in this share of the walk's bins up to where it is held
 _LINES_LOST_BINS = 12  # ... lost for this many bins in a row (two dash periods), it ends
 _LINES_ON_COURSE_M = 0.15  # ... and it holds its course while this near it
+_LINES_LEAVE_RATE = 0.03  # ... it leaves it at this angle (m/m) at least ...
 _LINES_GATE_GROWTH_M = 0.1  # ... its walk's gate grows by this per bin unseen ...
 _LINE_GATE_MAX_M = 1.0  # ... up to this (lines lie 3 m apart and more)
 
@@ -271,10 +272,13 @@ def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | Non
     gentle bend leaves its straight course (``held`` at the gap, ``slope`` metres per
     bin, from beside the gap) outward: two tracked bins in a row more than
     ``_LINE_LEAVES_M`` out, the line held up to the last bin before them within
-    ``_LINES_ON_COURSE_M`` of the course. None where it does not leave. A ramp's line
-    leaving at a small angle is walked on far beyond its gore (melbourne-408-opp-s4 with
-    a noisier sensor: the step 18-35 m late, the pass's frame deciding whether the bend
-    was told as a departure)."""
+    ``_LINES_ON_COURSE_M`` of the course, moving away from it at ``_LINES_LEAVE_RATE``
+    or more from there (a frame bent across the gap by the fit's bridge drifts from a
+    straight line at 0.01 m/m: melbourne-921-s2 with a noisier sensor, a departure told
+    27 m before the gore). None where it does not leave. A ramp's line leaving at a small
+    angle is walked on far beyond its gore (melbourne-408-opp-s4 with a noisier sensor:
+    the step 18-35 m late, the pass's frame deciding whether the bend was told as a
+    departure)."""
     tracked = np.flatnonzero(np.isfinite(track))
     if tracked.size < 3:
         return None
@@ -284,7 +288,12 @@ def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | Non
     if not first.size:
         return None
     on = np.flatnonzero(dev[: first[0]] <= _LINES_ON_COURSE_M)
-    return float(tracked[on[-1]]) + 0.5 if on.size else None
+    if not on.size:
+        return None
+    # it leaves at an angle, faster than a frame bent across the gap drifts from it
+    span = slice(int(on[-1]), int(first[0]) + 2)
+    rate = np.polyfit(tracked[span] * _LINE_BIN_M, dev[span], 1)[0]
+    return float(tracked[on[-1]]) + 0.5 if rate >= _LINES_LEAVE_RATE else None
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:
