@@ -823,6 +823,49 @@ def test_a_driving_lane_refitted_up_to_1_m_wider_or_narrower_after_a_section_bor
     )
 
 
+def test_a_lane_split_by_a_line_first_seen_inside_it_goes_on_as_the_widest():
+    """melbourne-408-opp-s4 with a noisier sensor (seed offset 260): where two lanes are
+    added beside the median a new line was first seen 1.34 m inside the innermost lane,
+    and the lanes after the border (1.34, 0 and 2.08 m) spanned it exactly; no border met
+    another within 0.3 m, the lane led nowhere (a route failed) and two lanes began at
+    full width from nothing. The lane goes on as the widest of them, the others open from
+    zero: every border stays where it was."""
+    from roadtwin.mainline.section_links import _link_sections
+    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+
+    def lane(lid, w, kind="driving"):
+        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+
+    first = LaneSection(
+        0.0,
+        right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.42), lane(-3, 3.4), lane(-4, 1.0, "shoulder")),
+    )
+    second = LaneSection(
+        100.0,
+        right=(
+            lane(-1, 1.0, "shoulder"),
+            lane(-2, 1.34),
+            lane(-3, 0.0),
+            lane(-4, 2.08),
+            lane(-5, 3.4),
+            lane(-6, 1.0, "shoulder"),
+        ),
+    )
+    linked = _link_sections([first, second], [[], []], at_step=[False, False])
+    after = linked[1].right
+    assert after[3].predecessor == -2
+    assert linked[0].right[1].successor == -4
+    widths = [float(ln.width.value(np.array([0.0]))[0]) for ln in after]
+    assert widths == pytest.approx([1.0, 0.0, 0.0, 3.42, 3.4, 1.0], abs=1e-9)
+    # a lane that goes on at its borders is not split
+    plain = LaneSection(
+        100.0,
+        right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.42), lane(-3, 3.4), lane(-4, 1.0, "shoulder")),
+    )
+    again = _link_sections([first, plain], [[], []], at_step=[False, False])[1].right
+    assert [ln.predecessor for ln in again] == [-1, -2, -3, -4]
+
+
 def test_a_driving_lane_goes_on_where_the_inner_shoulders_line_is_first_seen():
     """melbourne-921-s2 past its inner exit: the innermost lane is 3.74 m wide from the
     median-side edge (its shoulder's line not seen) and from 647 m a 0.57 m shoulder and a

@@ -120,6 +120,44 @@ def _link_refitted_outer_lanes(
             used.add(j)
 
 
+def _link_split_lanes(
+    prev_lanes: tuple[Lane, ...],
+    cur_lanes: tuple[Lane, ...],
+    b_prev: FloatArray,
+    b_cur: FloatArray,
+    w_prev: FloatArray,
+    mapping: dict[int, int],
+    used: set[int],
+) -> set[int]:
+    """Link a driving lane that ends unlinked at a border where two or more unlinked
+    lanes after it span it exactly (its borders met within ``_LINK_TOLERANCE_M``): a line
+    first seen inside it there, a new lane's that leaves its inner border (lanes added
+    beside the median, the new line's dashes found late). The lane goes on as the widest
+    driving one of them; the others open from zero width (returned: their indices), so
+    that no border moves at the border. Left as it was, the lane led nowhere and the
+    lanes after it began from nothing at 1.3 and 2.1 m (melbourne-408-opp-s4 with a
+    noisier sensor, a route failed)."""
+    opens: set[int] = set()
+    for j in range(len(prev_lanes)):
+        if j in used or prev_lanes[j].type != "driving" or w_prev[j] < 0.3:
+            continue
+        i0 = np.flatnonzero(np.abs(b_cur[:-1] - b_prev[j]) <= _LINK_TOLERANCE_M)
+        i1 = np.flatnonzero(np.abs(b_cur[1:] - b_prev[j + 1]) <= _LINK_TOLERANCE_M)
+        if not i0.size or not i1.size or i1[0] <= i0[0]:
+            continue
+        run = range(int(i0[0]), int(i1[0]) + 1)
+        if any(i in mapping for i in run):
+            continue
+        driving = [i for i in run if cur_lanes[i].type == "driving"]
+        if not driving:
+            continue
+        widest = max(driving, key=lambda i: float(b_cur[i + 1] - b_cur[i]))
+        mapping[widest] = j
+        used.add(j)
+        opens.update(i for i in run if i != widest)
+    return opens
+
+
 def _link_sections(
     sections: list[LaneSection],
     bounds_per: list[list[tuple[object, object]]],
@@ -146,6 +184,7 @@ def _link_sections(
         at_step = [True] * len(sections)
     preds: list[dict[int, int]] = [{} for _ in sections]
     succs: list[dict[int, int]] = [{} for _ in sections]
+    opens: list[set[int]] = [set() for _ in sections]  # lanes that must open from zero
     for n in range(1, len(sections)):
         prev_lanes, cur_lanes = _side_lanes(sections[n - 1]), _side_lanes(sections[n])
         prev_len = sections[n].s0 - sections[n - 1].s0
@@ -211,6 +250,7 @@ def _link_sections(
             )
             _link_first_free(i, open_prev & meets, mapping, used)
         _link_refitted_outer_lanes(prev_lanes, cur_lanes, b_prev, b_cur, mapping, used)
+        opens[n] = _link_split_lanes(prev_lanes, cur_lanes, b_prev, b_cur, w_prev, mapping, used)
         for i, j in mapping.items():
             hard_shoulder = (prev_lanes[j].type == "shoulder" and j == len(prev_lanes) - 1) or (
                 cur_lanes[i].type == "shoulder" and i == len(cur_lanes) - 1
@@ -245,10 +285,15 @@ def _link_sections(
         lanes = tuple(
             _nonnegative(_open_from_zero(ln, sec_len), ln, span)
             if n > 0
-            and (not at_step[n] or _between_linked(lanes, i, "predecessor"))
-            and ln.predecessor is None
-            and preds[n]
-            and abs(float(ln.width.value(np.array([0.0]))[0])) < _RESIDUAL_WIDTH_M
+            and (
+                i in opens[n]
+                or (
+                    (not at_step[n] or _between_linked(lanes, i, "predecessor"))
+                    and ln.predecessor is None
+                    and preds[n]
+                    and abs(float(ln.width.value(np.array([0.0]))[0])) < _RESIDUAL_WIDTH_M
+                )
+            )
             else ln
             for i, ln in enumerate(lanes)
         )
