@@ -491,8 +491,8 @@ _GAP_STEP_MIN_M = 7.5  # a smaller change (two lanes and a shoulder) is bridged:
 # outer entry hidden in it), or two lanes fanning out on the median side over the gap
 # (melbourne-921-s2 and -408-opp, noisier: a step there put the edge 0.2-0.4 m off);
 # a fork of three or more lanes cannot be bridged (oakland-28393854-lane1: 1.5 m off)
-_GAP_STEP_HELD_MIN_M = 5.0  # ... where lines between the levels are seen in the gap, a
-# change of one and a half lanes or more is a step (two lanes fanning out move the lines)
+_GAP_STEP_HELD_MIN_M = 5.0  # ... where a line between the levels is seen leaving in the
+# gap, a change of one and a half lanes or more is a step
 _GAP_STEP_RAMP_MIN_M = 2.5  # ... where a ramp's edge meets the edge at the gap, most of a lane
 
 
@@ -532,19 +532,22 @@ def _step_across_gap(
     were seen going on (after it for an exit, before it for an entry: the lanes were
     there, oakland-28393854-s7 with a noisier sensor put a 3-lane inner exit's step 35 m
     before its nose), or of the whole gap (nothing seen tells where in it the gore is).
-    A change under ``_GAP_STEP_MIN_M`` is a step only where such lines were seen in the
-    gap and it is ``_GAP_STEP_HELD_MIN_M`` at least (a 2-lane inner exit beside which the
-    lines ran on into the gap, melbourne-921-s2 with a noisier sensor: bridged, the edge
-    was 4 m off). At ``ramp_at`` (an end of the gap where a ramp's edge was seen meeting
-    the lower level, :func:`~.gap_evidence.ramp_edge_meets`) a change of
-    ``_GAP_STEP_RAMP_MIN_M`` or more is a step there: the ramp's nose (town06-auto-s1
-    with a noisier sensor, a 1-lane inner entry bridged as a taper over the 86 m gap
-    after it: the edge 3.9 m off).
+    A change under ``_GAP_STEP_MIN_M`` is a step only where such a line was seen leaving
+    in the gap and it is ``_GAP_STEP_HELD_MIN_M`` at least (a 2-lane inner exit whose
+    line left in the gap, melbourne-921-s2+260 with a noisier sensor: bridged, the edge
+    was 4 m off; lines seen running on alone are no such evidence: two lanes fanning out
+    beside the median, melbourne-921-s2+20, were taken for a step, a lane 6.8 m wide).
+    At ``ramp_at`` (an end of the gap where a ramp's edge was seen meeting the lower
+    level, :func:`~.gap_evidence.ramp_edge_meets`) a change of ``_GAP_STEP_RAMP_MIN_M``
+    or more is a step there: the ramp's nose (town06-auto-s1 with a noisier sensor, a
+    1-lane inner entry bridged as a taper over the 86 m gap after it: the edge 3.9 m
+    off).
     """
     lo, hi = gap
     if ramp_at is not None and abs(level_change) >= _GAP_STEP_RAMP_MIN_M:
         return ramp_at
-    small = abs(level_change) < (_GAP_STEP_MIN_M if held is None else _GAP_STEP_HELD_MIN_M)
+    departed = held is not None and held[1]
+    small = abs(level_change) < (_GAP_STEP_HELD_MIN_M if departed else _GAP_STEP_MIN_M)
     if small or abs(level_change) <= _GAP_TAPER_RATE * (hi - lo):
         # bridged, the edge closes (opens) no faster than a lane's taper: a lane ending
         # unseen is mapped as one that tapers over the gap, and the lane structure

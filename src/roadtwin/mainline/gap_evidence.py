@@ -48,8 +48,8 @@ _LINES_SIDE_M = 60.0  # a line between the levels is judged over this much next 
 _LINES_SEEN_BINS = 4  # ... seen in this many bins there at least (a dashed line: 3 m of 12)
 _LINES_SEEN_SHARE = 0.25  # ... and in this share of the walk's bins up to where it is held
 _LINES_LOST_BINS = 12  # ... lost for this many bins in a row (two dash periods), it ends
-_LINES_ON_COURSE_M = 0.15  # ... and it holds its course while this near it
 _LINES_LEAVE_RATE = 0.03  # ... it leaves it at this angle (m/m) at least ...
+_LINES_DRIFT_RATE = 0.02  # ... from a course the frame tilts by this (m/m) at most ...
 _LINES_GATE_GROWTH_M = 0.1  # ... its walk's gate grows by this per bin unseen ...
 _LINE_GATE_MAX_M = 1.0  # ... up to this (lines lie 3 m apart and more)
 
@@ -269,31 +269,39 @@ def lines_held_to(
 
 def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | None:
     """Where (bins of the walk) a walked line (:func:`_walk_line`) that kept following a
-    gentle bend leaves its straight course (``held`` at the gap, ``slope`` metres per
-    bin, from beside the gap) outward: two tracked bins in a row more than
-    ``_LINE_LEAVES_M`` out, the line held up to the last bin before them within
-    ``_LINES_ON_COURSE_M`` of the course, moving away from it at ``_LINES_LEAVE_RATE``
-    or more from there (a frame bent across the gap by the fit's bridge drifts from a
-    straight line at 0.01 m/m: melbourne-921-s2 with a noisier sensor, a departure told
-    27 m before the gore). None where it does not leave. A ramp's line leaving at a small
-    angle is walked on far beyond its gore (melbourne-408-opp-s4 with a noisier sensor:
-    the step 18-35 m late, the pass's frame deciding whether the bend was told as a
-    departure)."""
+    gentle bend leaves its course outward: the tracked offsets fitted as a straight
+    course (``held`` and ``slope``, metres per bin, from beside the gap, give its start;
+    a frame bent across the gap by the fit's bridge tilts it by up to
+    ``_LINES_DRIFT_RATE``) with a hinge, the line bending away by ``_LINES_LEAVE_RATE``
+    (m/m) or more after it and ending ``_LINE_LEAVES_M`` or more off the course, two
+    tracked bins beyond it. None where it does not leave. A ramp's line leaving at a
+    small angle was walked on far beyond its gore (melbourne-408-opp-s4 with a noisier
+    sensor: the step 18-35 m late), and a frame drifting 0.01 m/m against a straight line
+    is no departure (melbourne-921-s2: one told 27 m before the gore)."""
     tracked = np.flatnonzero(np.isfinite(track))
-    if tracked.size < 3:
+    if tracked.size < 5:
         return None
-    dev = track[tracked] - (held + slope * (tracked + 0.5))
-    off = dev > _LINE_LEAVES_M
-    first = np.flatnonzero(off[:-1] & off[1:])
-    if not first.size:
+    x = tracked.astype(float) + 0.5
+    y = track[tracked] - (held + slope * x)
+    k0 = np.arange(float(x[1]), float(x[-2]), 0.25)
+    if not k0.size:
         return None
-    on = np.flatnonzero(dev[: first[0]] <= _LINES_ON_COURSE_M)
-    if not on.size:
+    hinge = np.clip(x[None, :] - k0[:, None], 0.0, None)
+    # per candidate hinge: least squares of y = a + b x + c hinge (normal equations)
+    basis = np.stack([np.ones_like(hinge), np.broadcast_to(x, hinge.shape), hinge], axis=2)
+    gram = np.einsum("kni,knj->kij", basis, basis) + 1e-9 * np.eye(3)
+    params = np.linalg.solve(gram, np.einsum("kni,n->ki", basis, y)[:, :, None])[:, :, 0]
+    sse = np.sum((np.einsum("kni,ki->kn", basis, params) - y) ** 2, axis=1)
+    best = int(np.argmin(sse))
+    a, b, c = params[best]
+    after = x > k0[best]
+    per_bin_leave = _LINES_LEAVE_RATE * _LINE_BIN_M
+    per_bin_drift = _LINES_DRIFT_RATE * _LINE_BIN_M
+    if np.count_nonzero(after) < 2 or c < per_bin_leave or abs(b) > per_bin_drift:
         return None
-    # it leaves at an angle, faster than a frame bent across the gap drifts from it
-    span = slice(int(on[-1]), int(first[0]) + 2)
-    rate = np.polyfit(tracked[span] * _LINE_BIN_M, dev[span], 1)[0]
-    return float(tracked[on[-1]]) + 0.5 if rate >= _LINES_LEAVE_RATE else None
+    if float(y[-1] - (a + b * x[-1])) < _LINE_LEAVES_M:
+        return None
+    return float(k0[best])
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:
