@@ -27,6 +27,12 @@ from roadtwin.model import (
     chain_geometry,
 )
 
+
+def _flat_lane(lid: int, w: float, kind: str = "driving") -> Lane:
+    """A lane of constant width ``w`` (metres) for the section-link tests."""
+    return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+
+
 # ---------------------------------------------------------------------------
 # fixture: a known truth road sampled like a mapping run
 # ---------------------------------------------------------------------------
@@ -781,10 +787,9 @@ def test_a_driving_lane_refitted_up_to_1_m_wider_or_narrower_after_a_section_bor
     than the border tolerance, yet it is the same lane: linked, it continues with the
     width it had; unlinked, a car in it had nowhere to go."""
     from roadtwin.mainline.section_links import _link_sections
-    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+    from roadtwin.model import LaneSection
 
-    def lane(lid, w, kind="driving"):
-        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+    lane = _flat_lane
 
     first = LaneSection(
         0.0, right=(lane(-1, 1.0, "shoulder"), lane(-2, 3.5), lane(-3, 3.42), lane(-4, 0.5))
@@ -831,10 +836,9 @@ def test_a_lane_split_by_a_line_first_seen_inside_it_goes_on_as_the_widest():
     full width from nothing. The lane goes on as the widest of them, the others open from
     zero: every border stays where it was."""
     from roadtwin.mainline.section_links import _link_sections
-    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+    from roadtwin.model import LaneSection
 
-    def lane(lid, w, kind="driving"):
-        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+    lane = _flat_lane
 
     first = LaneSection(
         0.0,
@@ -873,10 +877,9 @@ def test_a_driving_lane_goes_on_where_the_inner_shoulders_line_is_first_seen():
     width apart), the lane led nowhere and a route failed. The lane goes on; the shoulder
     opens from zero width."""
     from roadtwin.mainline.section_links import _link_sections
-    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+    from roadtwin.model import LaneSection
 
-    def lane(lid, w, kind="driving"):
-        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+    lane = _flat_lane
 
     first = LaneSection(0.0, left=(lane(1, 3.74), lane(2, 3.33), lane(3, 2.55, "shoulder")))
     second = LaneSection(
@@ -1274,10 +1277,9 @@ def test_a_driving_lane_goes_on_where_only_its_outer_border_meets():
     (a route failed). Its outer border meets and its width differs by less than a metre:
     it goes on with the width it had."""
     from roadtwin.mainline.section_links import _link_sections
-    from roadtwin.model import CubicPiece, CubicProfile, Lane, LaneSection
+    from roadtwin.model import LaneSection
 
-    def lane(lid, w, kind="driving"):
-        return Lane(lid, kind, CubicProfile((CubicPiece(0.0, w),)))
+    lane = _flat_lane
 
     first = LaneSection(
         0.0,
