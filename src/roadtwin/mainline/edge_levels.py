@@ -368,7 +368,9 @@ def edge_steps(
                     # an entry's ramp edge coming in onto the old level just before the
                     # gap, an exit's leaving the new one just after it: the nose is there
                     at = gap[0] if change > 0.0 else gap[1]
-                    meets = ramp_edge_meets(s, u, at, min(before, after), -np.sign(change))
+                    meets = abs(change) >= _GAP_STEP_RAMP_MIN_M and ramp_edge_meets(
+                        s, u, at, min(before, after), -np.sign(change)
+                    )
                     station = _step_across_gap(
                         gap, change, centres, level, held=held, ramp_at=at if meets else None
                     )

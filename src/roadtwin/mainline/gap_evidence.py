@@ -242,20 +242,20 @@ def lines_held_to(
         resid = u_side[g] - np.polyval(coef, a_side[g])
         if 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) > _LINES_SPREAD_M:
             continue
-        held = float(np.polyval(coef, 0.0))
+        held, slope = float(np.polyval(coef, 0.0)), float(coef[0]) * _LINE_BIN_M
         track = _walk_line(
             s,
             u,
             gap,
             held,
-            float(coef[0]) * _LINE_BIN_M,
+            slope,
             forward=forward,
             lost_bins=_LINES_LOST_BINS,
             gate_growth=_LINES_GATE_GROWTH_M,
         )
         x0 = _departure_bin(track, held)
         if x0 is None:
-            x0 = _off_course_bin(track, held, float(coef[0]) * _LINE_BIN_M)
+            x0 = _off_course_bin(track, held, slope)
         tracked = np.flatnonzero(np.isfinite(track))
         if x0 is not None:
             tracked = tracked[tracked <= x0]

@@ -139,6 +139,18 @@ def unseen_stretches(
     return out
 
 
+def _seen_share(
+    tr: BoundaryTrack, s_lane: FloatArray, d_lane: FloatArray, lo: float, hi: float
+) -> float:
+    """The share of the 5 m bins from ``lo`` to ``hi`` (stations, metres) in which a lane
+    sample (``s_lane``, ``d_lane``) lies within :data:`LINE_NEAR_M` of the track ``tr``;
+    0 for an empty stretch."""
+    inside = (s_lane >= lo) & (s_lane <= hi)
+    near = inside & (np.abs(d_lane - np.interp(s_lane, tr.s_m, tr.d_m)) < LINE_NEAR_M)
+    seen = np.histogram(s_lane[near], np.arange(lo, hi + 5.0, 5.0))[0] > 0
+    return float(np.mean(seen)) if seen.size else 0.0
+
+
 def shoulder_moves(
     gaps: list[tuple[int, int]],
     tracks: tuple[BoundaryTrack, ...],
@@ -176,11 +188,7 @@ def shoulder_moves(
         tr, w0, w1 = best
         g = grid[a:b]
         line = np.interp(g, tr.s_m, tr.d_m)
-        inside = (s_lane >= grid[i0]) & (s_lane <= grid[i1])
-        near = inside & (np.abs(d_lane - np.interp(s_lane, tr.s_m, tr.d_m)) < LINE_NEAR_M)
-        bins = np.arange(grid[i0], grid[i1] + 5.0, 5.0)
-        seen = np.histogram(s_lane[near], bins)[0] > 0
-        if seen.size == 0 or float(np.mean(seen)) < SEEN_SHARE:
+        if _seen_share(tr, s_lane, d_lane, float(grid[i0]), float(grid[i1])) < SEEN_SHARE:
             continue
         x = (g - grid[i0]) / (grid[i1] - grid[i0])
         shift = line - ((1.0 - x) * w0 + x * w1) - d_median[a:b]
@@ -224,8 +232,6 @@ def moves_beside_steps(
             if hi - lo < GAP_MIN_M:
                 continue
             part = (grid > lo) & (grid < hi)
-            bins = np.arange(lo, hi + 5.0, 5.0)
-            in_part = (s_lane >= lo) & (s_lane <= hi)
             best = None
             for tr in tracks:
                 if tr.n_samples == 0 or tr.s_m[0] > lo or tr.s_m[-1] < hi:
@@ -233,9 +239,7 @@ def moves_beside_steps(
                 width = float(np.interp(grid[seen_i], tr.s_m, tr.d_m)) - d_median[seen_i]
                 if width <= 0.0 or (best is not None and width >= best[1]):
                     continue
-                near = in_part & (np.abs(d_lane - np.interp(s_lane, tr.s_m, tr.d_m)) < LINE_NEAR_M)
-                seen = np.histogram(s_lane[near], bins)[0] > 0
-                if seen.size and float(np.mean(seen)) >= LINE_SEEN_SHARE:
+                if _seen_share(tr, s_lane, d_lane, lo, hi) >= LINE_SEEN_SHARE:
                     best = (tr, width)
             if best is None:
                 continue
