@@ -54,17 +54,24 @@ def _outermost_at(tracks: list[_Track], k: int, station: float) -> bool:
     )
 
 
-def _beside_inner_line(tracks: list[_Track], k: int, tr: _Track) -> FloatArray:
+def _beside_inner_line(tracks: list[_Track], k: int, tr: _Track) -> tuple[FloatArray, FloatArray]:
     """Offsets (metres) of ``tr`` (track ``k`` of ``tracks``, maybe cut already) from the
     nearest line inward at each of its stations (lines of ``tracks`` nearer the median),
-    or its own offsets where some station has none: a ramp line converges onto (diverges
-    from) the mainline's lines, which may shift sideways as a whole meanwhile (a lane
-    gained on the median side: melbourne-921-s9 with a noisier sensor, an entry's line
-    moving out with the shift read as diverging, its gore hidden in a gap not placed and
-    the edge 4 m off)."""
+    and their rate of change along s (m/m), or its own offsets and slope where some
+    station has none: a ramp line converges onto (diverges from) the mainline's lines,
+    which may shift sideways as a whole meanwhile (a lane gained on the median side:
+    melbourne-921-s9 with a noisier sensor, an entry's line moving out with the shift read
+    as diverging, its gore hidden in a gap not placed and the edge 4 m off).
+
+    The rate is the line's slope less that of the line inward at each station, so a line
+    inward that begins or ends beside ``tr`` is no convergence (krems-46762523-opp-s4 with
+    a noisier sensor: the line between two lanes first seen 10 m after the one beside the
+    shoulder, whose offset from the nearest line inward so "fell" by 3.7 m: it was cut back
+    as a ramp line, the lanes merged into one 10 m wide and a route led nowhere)."""
+    own = (tr.d, np.gradient(tr.d, tr.s) if tr.s.size > 1 else np.zeros(tr.s.size))
     others = [t for j, t in enumerate(tracks) if j != k]
     if not others:
-        return tr.d
+        return own
     d = np.stack(
         [
             np.where((tr.s >= t.lo) & (tr.s <= t.hi), np.interp(tr.s, t.s, t.d), np.nan)
@@ -72,10 +79,25 @@ def _beside_inner_line(tracks: list[_Track], k: int, tr: _Track) -> FloatArray:
         ]
     )
     d[~(d < tr.d)] = -np.inf
-    inner = d.max(axis=0)
+    nearest = d.argmax(axis=0)
+    inner = d[nearest, np.arange(tr.s.size)]
     if not np.isfinite(inner).all():
-        return tr.d
-    return tr.d - inner
+        return own
+    slopes = np.stack(
+        [
+            np.interp(tr.s, t.s, np.gradient(t.d, t.s)) if t.s.size > 1 else np.zeros(tr.s.size)
+            for t in others
+        ]
+    )
+    return tr.d - inner, own[1] - slopes[nearest, np.arange(tr.s.size)]
+
+
+def _turn(rel_slope: FloatArray, s: FloatArray, i0: int, i1: int) -> float:
+    """How much (metres) the offset from the line inward grew from station index ``i0`` to
+    ``i1`` (>= ``i0``) of ``s``: the integral of ``rel_slope`` (m/m,
+    :func:`_beside_inner_line`)."""
+    part = slice(i0, i1 + 1)
+    return float(np.sum(np.diff(s[part]) * 0.5 * (rel_slope[part][1:] + rel_slope[part][:-1])))
 
 
 _MET_M = 0.3  # a ramp line this near the line inward has met it (metres)
@@ -84,6 +106,41 @@ _RAMP_LINE_TURN_M = 0.3
 from it; a line whose offset drifts by centimetres there is the mainline's (a noisier
 sensor's smoothed line starting 2 cm "converging" made an exit's deceleration lane start
 75 m late, a9-10959882-s9+80)."""
+
+
+_AT_GAP_M = 5.0  # a line first (last) seen this near a gap's start (end) ...
+_BEYOND_EDGE_M = 0.5  # ... this far beyond the edge seen next to it lies beside the road
+
+
+def _beyond_edge_at_gap(
+    tr: _Track,
+    first: bool,
+    gap: NDArray[np.bool_],
+    grid: FloatArray,
+    d_edge: FloatArray | None,
+) -> bool:
+    """Whether track ``tr`` begins (``first``; else ends) within ``_AT_GAP_M`` of the
+    start (end) of an occlusion gap of the outer edge (``gap`` on ``grid``) more than
+    ``_BEYOND_EDGE_M`` beyond the edge ``d_edge`` seen just before (after) the gap: the
+    line was there beside the road, its samples left out as beyond the edge where the edge
+    was seen. A ramp's line running beside the carriageway before its nose is the
+    mainline's nowhere up to where it meets the line inward (melbourne-1019-lane1-s21
+    with a noisier sensor: an entry's line, parallel 3 m beyond the edge before bending in,
+    made the edge bridged across the 110 m gap a shoulder's width beyond it, 5.9 m off).
+    """
+    if d_edge is None:
+        return False
+    tip = tr.lo if first else tr.hi
+    i = int(np.clip(np.searchsorted(grid, tip), 0, grid.size - 1))
+    if not gap[i]:
+        return False
+    runs = [(a, b) for a, b in true_runs(gap) if a <= i < b]
+    a, b = runs[0]
+    seen_at = a - 1 if first else b
+    near = tip - grid[a] if first else grid[b - 1] - tip
+    if seen_at < 0 or seen_at >= grid.size or near > _AT_GAP_M or not np.isfinite(d_edge[seen_at]):
+        return False
+    return float(tr.d[0] if first else tr.d[-1]) > float(d_edge[seen_at]) + _BEYOND_EDGE_M
 
 
 def _grid_index(s: FloatArray | float, grid: FloatArray, step: float) -> NDArray[np.int64]:
@@ -140,13 +197,24 @@ def _snap_to_hidden_gores(
         if tr.s.size < 20:
             continue
         if tr.lo > grid[0] + step and hidden(tr.lo) and _outermost_at(out, k, tr.lo):
-            rel = _beside_inner_line(tracks, k, tr)
-            par = np.flatnonzero((np.gradient(rel, tr.s) > -cfg.hidden_gore_slope) | (rel < _MET_M))
+            rel, rel_slope = _beside_inner_line(tracks, k, tr)
+            par = np.flatnonzero((rel_slope > -cfg.hidden_gore_slope) | (rel < _MET_M))
+            met = np.flatnonzero(rel < _MET_M)
             if (
+                _beyond_edge_at_gap(tr, True, gap, grid, d_edge)
+                and met.size
+                and hidden(float(tr.s[met[0]]))
+            ):
+                # a ramp's line up to where it meets the line inward, however it ran
+                i0 = min(int(met[0]), tr.s.size - 2)
+                tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
+                gores.append(tr.lo)
+                at_lines.append((tr.lo, float(tr.d[0])))
+            elif (
                 par.size
                 and par[0] > 0
                 and tr.s[par[0]] - tr.lo >= 5.0
-                and rel[0] - rel[par[0]] >= _RAMP_LINE_TURN_M
+                and -_turn(rel_slope, tr.s, 0, int(par[0])) >= _RAMP_LINE_TURN_M
                 and hidden(float(tr.s[par[0]]))
                 and not _moves_with_seen_edge(tr, slice(0, par[0] + 1), covered, grid, d_edge)
             ):
@@ -162,13 +230,23 @@ def _snap_to_hidden_gores(
             and _outermost_at(out, k, tr.hi)
             and not _ends_on_converging_line(out, k, tr.hi, float(tr.d[-1]))
         ):
-            rel = _beside_inner_line(tracks, k, tr)
-            par = np.flatnonzero((np.gradient(rel, tr.s) < cfg.hidden_gore_slope) | (rel < _MET_M))
+            rel, rel_slope = _beside_inner_line(tracks, k, tr)
+            par = np.flatnonzero((rel_slope < cfg.hidden_gore_slope) | (rel < _MET_M))
+            met = np.flatnonzero(rel < _MET_M)
             if (
+                _beyond_edge_at_gap(tr, False, gap, grid, d_edge)
+                and met.size
+                and hidden(float(tr.s[met[-1]]))
+            ):
+                i1 = max(int(met[-1]), 1) + 1
+                tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
+                gores.append(tr.hi)
+                at_lines.append((tr.hi, float(tr.d[-1])))
+            elif (
                 par.size
                 and par[-1] < tr.s.size - 1
                 and tr.hi - tr.s[par[-1]] >= 5.0
-                and rel[-1] - rel[par[-1]] >= _RAMP_LINE_TURN_M
+                and _turn(rel_slope, tr.s, int(par[-1]), tr.s.size - 1) >= _RAMP_LINE_TURN_M
                 and hidden(float(tr.s[par[-1]]))
                 and not _moves_with_seen_edge(tr, slice(par[-1], None), covered, grid, d_edge)
             ):

@@ -855,6 +855,8 @@ def _closes_with_edge(
 
 _DRIFT_PER_M = 0.04  # a hidden line may have moved sideways this much per metre of gap
 _DRIFT_MAX_LANE = 0.4  # ... and at most this share of a lane (lines are a lane apart)
+_HOLD_MARGIN_M = 0.5  # a bridged line this near the edge (metres) was no line there ...
+_HOLD_SEEN_M = 10.0  # ... unless as near where it was seen this far (metres) beside the gap
 
 
 def _merge_collinear(
@@ -873,9 +875,11 @@ def _merge_collinear(
     of any other: the lines beside it are a lane away, so the pair is unambiguous.
 
     With the outer edge ``d_edge`` on ``grid``: never across a stretch where the road is
-    too narrow to hold the marking (the edge comes within half a metre of the bridged
-    line): there the marking really ended and another began (an exit and a later entry at
-    the same offset), it was not hidden.
+    too narrow to hold the marking (over half of it the edge comes within
+    ``_HOLD_MARGIN_M`` of the bridged line, or within half the least distance seen
+    between edge and line over the ``_HOLD_SEEN_M`` beside the stretch: an edge line): there
+    the marking really ended and another began (an exit and a later entry at the same
+    offset), it was not hidden.
 
     ``with_inferred_only``: only pairs of which one is an inferred line (no samples): two
     observed tracks that were left apart after the first pass were split on purpose (at a
@@ -892,7 +896,23 @@ def _merge_collinear(
         x = (grid[inside] - a.hi) / max(b.lo - a.hi, 1e-9)
         line = (1.0 - x) * a.d[-1] + x * b.d[0]
         edge = d_edge[inside]
-        return not np.any(np.isfinite(edge) & (edge < line + 0.5))
+        known = np.isfinite(edge)
+        # over most of the gap: the edge bends into a step over a few metres
+        narrow = known & (edge < line + holds_margin(a, b))
+        return not (np.any(narrow) and np.count_nonzero(narrow) >= 0.5 * np.count_nonzero(known))
+
+    def holds_margin(a: _Track, b: _Track) -> float:
+        # an edge line runs this near the edge where it was seen: the edge as near
+        # in the gap is no narrowing (krems-46762523-opp-s4 with a noisier sensor: the
+        # line left as the edge line by a two-lane exit, broken at the gore, was not
+        # joined across it and a lane opened over 220 m to reach it)
+        near = []
+        for tr, part in ((a, a.s >= a.hi - _HOLD_SEEN_M), (b, b.s <= b.lo + _HOLD_SEEN_M)):
+            e = np.interp(tr.s[part], grid, d_edge)
+            ok = np.isfinite(e)
+            if np.any(ok):
+                near.append(float(np.min(e[ok] - tr.d[part][ok])))
+        return min(_HOLD_MARGIN_M, 0.5 * min(near)) if near else _HOLD_MARGIN_M
 
     def follows(a: _Track, b: _Track) -> bool:
         return b.lo > a.hi - 1.0 and b.lo - a.hi <= 5.0 * cfg.lane_max_gap_m

@@ -1,0 +1,136 @@
+"""Lines beside a gore that were cut or left apart although they were the mainline's.
+
+Runs with a noisier sensor (bench_real ``--noisy --seed-offset 320``).
+krems-46762523-opp-s4:
+
+* at the run's start the outer edge was unseen from 15 to 50 m; the line between the
+  outer two lanes was first seen at 10 m, the one between the inner two at 20 m. Measured
+  from the nearest line inward, the outer line "fell" by 3.7 m where that line began, and
+  it was cut back to 24 m as a ramp line converging onto a gore: the two lanes were one
+  10 m wide over the first 24 m and a route led nowhere;
+* at a two-lane exit the line left as the mainline's edge line was broken for 11 m at the
+  gore (the ramp's lines leave it there). Right after the gore the edge lies 0.2 m beyond
+  it, so the line was taken for one the road is too narrow to hold and the two parts were
+  not joined: a lane opened over 220 m to reach the second part (lanes 0.171 m RMSE).
+
+melbourne-1019-lane1-s21: an entry's line ran parallel 3 m beyond the edge, then bent in
+to meet the outermost line at the nose, all in a 110 m gap of the edge. Its samples were
+left out as beyond the edge up to the gap and kept in it: it was the outermost marking
+there and the edge bridged a shoulder's width beyond it, 5.9 m off (edge 0.988 m RMSE).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from roadtwin.config import MainlineConfig
+from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+from roadtwin.mainline.markings import _merge_collinear, _Track
+
+CFG = MainlineConfig()
+stations = np.arange(0.0, 400.5, CFG.grid_step_m)
+
+
+def _line(k: int, lo: float, hi: float, d: float, *, drift: float = 0.0) -> _Track:
+    """A line at ``d`` metres, drifting by ``drift`` m/m over its first 15 m."""
+    g = stations[(lo <= stations) & (stations <= hi)]
+    d_g = d + drift * np.minimum(g - lo, 15.0)
+    return _Track(k, float(g[0]), float(g[-1]), g, d_g, "broken", g.size, g)
+
+
+def test_a_line_inward_first_seen_later_is_no_convergence():
+    tracks = [
+        _line(0, 5.0, 400.0, 0.6),
+        _line(1, 10.0, 400.0, 7.96, drift=-0.005),  # the noisy smoothing's start
+        _line(2, 20.0, 400.0, 4.23),
+    ]
+    covered = (stations < 15.0) | (stations > 50.0)
+    out, gores = _snap_to_hidden_gores(tracks, [], covered, stations, CFG)
+    assert gores.size == 0
+    assert [tr.lo for tr in out] == [5.0, 10.0, 20.0]
+
+
+def test_a_ramp_line_converging_in_a_gap_is_still_cut_at_its_gore():
+    # the same outer line, converging by 3 m onto the line inward before it runs on
+    g = stations[stations >= 60.0]
+    d = 7.9 + 3.0 * np.clip((110.0 - g) / 50.0, 0.0, 1.0)
+    ramp = _Track(1, 60.0, 400.0, g, d, "broken", g.size, g)
+    tracks = [_line(0, 0.0, 400.0, 0.6), ramp, _line(2, 0.0, 400.0, 4.23)]
+    covered = (stations < 50.0) | (stations > 120.0)
+    out, gores = _snap_to_hidden_gores(tracks, [], covered, stations, CFG)
+    assert gores.size == 1
+    assert abs(gores[0] - 110.0) < 3.0
+    assert abs(out[1].lo - gores[0]) < 1e-9
+
+
+def _edge(after: float, *, step_at: float = 107.0, entry_at: float | None = None) -> np.ndarray:
+    """The outer edge: a lane and a shoulder beyond the line at 8.1 m up to the gore,
+    ``after`` metres beyond the reference line after it (a lane again from ``entry_at``)."""
+    edge = np.where(step_at > stations, 14.2, after)
+    if entry_at is not None:
+        edge = np.where(entry_at <= stations, 14.2, edge)
+    return edge
+
+
+def test_a_line_broken_at_a_gore_goes_on_as_the_edge_line():
+    before, after = _line(0, 0.0, 100.0, 8.09), _line(1, 111.0, 400.0, 8.10)
+    joined = _merge_collinear([before, after], CFG, stations, _edge(8.3))
+    assert len(joined) == 1
+    assert (joined[0].lo, joined[0].hi) == (0.0, 400.0)
+
+
+def test_a_line_across_a_road_too_narrow_for_it_stays_apart():
+    # an exit's lane line and a later entry's at the same offset: between them the road
+    # ends inside the line (real_a9), and where it goes on the edge is a lane beyond it
+    before, after = _line(0, 0.0, 100.0, 8.09), _line(1, 160.0, 400.0, 8.10)
+    apart = _merge_collinear([before, after], CFG, stations, _edge(7.8, entry_at=158.0))
+    assert len(apart) == 2
+    # the edge line of a road narrowing 0.2 m beyond it over the whole gap: apart too
+    # where the line was a lane away from the edge on both sides
+    apart = _merge_collinear([before, after], CFG, stations, _edge(8.3, entry_at=158.0))
+    assert len(apart) == 2
+
+
+def _entry_line(lo: float = 586.0, nose: float = 681.0) -> _Track:
+    """An entry's line 3 m beyond the edge (14.2 m) up to 610 m, then bending in to meet
+    the outermost line (11.6 m) at ``nose``, to 0.1 m."""
+    g = np.arange(lo, nose + 0.5, 1.0)
+    x = np.clip((g - 610.0) / (nose - 610.0), 0.0, 1.0)
+    d = 17.2 - (17.2 - 11.7) * (3.0 * x**2 - 2.0 * x**3)
+    return _Track(1, float(g[0]), float(g[-1]), g, d, "broken", g.size, g)
+
+
+def test_a_ramp_line_beside_the_road_in_a_gap_is_the_ramps_up_to_the_nose():
+    grid = np.arange(0.0, 900.5, 1.0)
+    outer = _Track(0, 0.0, 900.0, grid, np.full(grid.size, 11.6), "solid", grid.size, grid)
+    covered = (grid < 585.0) | (grid > 696.0)
+    d_edge = np.where(grid < 690.0, 14.2, 18.8)
+    out, gores = _snap_to_hidden_gores([outer, _entry_line()], [], covered, grid, CFG, d_edge)
+    assert gores.size == 1
+    assert 670.0 <= gores[0] <= 682.0
+    assert out[1].lo == gores[0]
+    # first seen inside the edge: a line of the road's own, kept
+    inside = _entry_line()
+    inside.d[:] -= 3.5
+    out, gores = _snap_to_hidden_gores([outer, inside], [], covered, grid, CFG, d_edge)
+    assert out[1].lo == 586.0
+    # the exit's mirror: a line leaving the outermost one, beside the road up to the gap's end
+    mirror = _entry_line()
+    exit_line = _Track(
+        1,
+        1800.0 - mirror.hi,
+        1800.0 - mirror.lo,
+        (1800.0 - mirror.s)[::-1],
+        mirror.d[::-1],
+        "broken",
+        mirror.n,
+        (1800.0 - mirror.s)[::-1],
+    )
+    grid2 = np.arange(0.0, 1800.5, 1.0)
+    outer2 = _Track(0, 0.0, 1800.0, grid2, np.full(grid2.size, 11.6), "solid", grid2.size, grid2)
+    covered2 = (grid2 < 1800.0 - 696.0) | (grid2 > 1800.0 - 585.0)
+    d_edge2 = np.where(grid2 > 1800.0 - 690.0, 14.2, 18.8)
+    out, gores = _snap_to_hidden_gores([outer2, exit_line], [], covered2, grid2, CFG, d_edge2)
+    assert gores.size == 1
+    assert out[1].hi == gores[0]
+    assert 1800.0 - 682.0 <= gores[0] <= 1800.0 - 670.0
