@@ -235,3 +235,21 @@ def test_a_line_drifting_in_a_bent_frame_does_not_leave():
     assert held is not None
     assert held[1] is False
     assert held[0] >= 590.0
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_a_line_already_leaving_where_the_gap_begins_has_left_there(seed):
+    """melbourne-408-opp-s9 with a noisier sensor (seed offset 320): a 2-lane inner exit's
+    line, seen on its dashes, leaves at 1:15 right where the median edge's gap begins and
+    bends on less steeply (3.3 m out 80 m on). The walk's slope, taken from the last step
+    within a dash, lost it 25 m in; walked on, it has no straight stretch before its
+    hinge: the step was bridged as a taper, the ramp was missed and the edge was 6 m
+    off."""
+    rng = np.random.default_rng(seed)
+    s, u = _dashed(0.0, 480.0, 680.0, rng=rng)
+    x = np.clip(s - 582.0, 0.0, None)
+    u = u - 4.5 + 0.065 * x - 0.0003 * x**2
+    held = lines_held_to(s, u, (582.0, 682.0), 0.0, -7.5, forward=True)
+    assert held is not None
+    assert held[1] is True
+    assert 582.0 - 2.0 <= held[0] <= 582.0 + 10.0

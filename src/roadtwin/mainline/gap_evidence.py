@@ -52,6 +52,8 @@ _LINES_LEAVE_RATE = 0.03  # ... it leaves it at this angle (m/m) at least ...
 _LINES_DRIFT_RATE = 0.02  # ... from a course the frame tilts by this (m/m) at most ...
 _LINES_GATE_GROWTH_M = 0.1  # ... its walk's gate grows by this per bin unseen ...
 _LINE_GATE_MAX_M = 1.0  # ... up to this (lines lie 3 m apart and more)
+_WALK_FIT_BINS = 10  # a walked line's slope: fitted to its bins seen over this many ...
+_WALK_FIT_SPAN_BINS = 3  # ... spanning this many at least (else the last step's, smoothed)
 
 
 def _walk_edge_line(
@@ -121,8 +123,19 @@ def _walk_line(
             pred += slope
             continue
         value = float(np.median(cand))
-        slope = 0.5 * slope + 0.5 * (value - last_value) / (k - last_k)
-        track[k], pred, last_value, last_k = value, value + slope, value, k
+        track[k] = value
+        recent = np.flatnonzero(np.isfinite(track[: k + 1]))
+        recent = recent[recent >= k - _WALK_FIT_BINS]
+        if k - recent[0] >= _WALK_FIT_SPAN_BINS:
+            # over the dashes seen lately: one dash's samples scatter by centimetres
+            # across a metre or two, and a slope from two of them (the last step) sent
+            # the prediction off a line bending away (melbourne-408-opp-s9 with a
+            # noisier sensor: an inner exit's line lost 25 m into the gap, its step
+            # bridged as a taper and the edge 6 m off)
+            slope = float(np.polyfit(recent.astype(float), track[recent], 1)[0])
+        else:
+            slope = 0.5 * slope + 0.5 * (value - last_value) / (k - last_k)
+        pred, last_value, last_k = value + slope, value, k
     return track
 
 
@@ -258,8 +271,11 @@ def lines_held_to(
             x0 = _off_course_bin(track, held, slope)
         tracked = np.flatnonzero(np.isfinite(track))
         if x0 is not None:
+            # (none before it: the line left right where the gap begins)
             tracked = tracked[tracked <= x0]
-        if not tracked.size or tracked.size < _LINES_SEEN_SHARE * (tracked[-1] + 1):
+        elif not tracked.size:
+            continue
+        if tracked.size and tracked.size < _LINES_SEEN_SHARE * (tracked[-1] + 1):
             continue
         reach = (x0 + 0.5 if x0 is not None else float(tracked[-1]) + 1.0) * _LINE_BIN_M
         if best is None or reach > best[0]:
@@ -297,11 +313,26 @@ def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | Non
     after = x > k0[best]
     per_bin_leave = _LINES_LEAVE_RATE * _LINE_BIN_M
     per_bin_drift = _LINES_DRIFT_RATE * _LINE_BIN_M
-    if np.count_nonzero(after) < 2 or c < per_bin_leave or abs(b) > per_bin_drift:
-        return None
+    if abs(b) > per_bin_drift or np.count_nonzero(after) < 2 or c < per_bin_leave:
+        return _leaving_from_start(x, y)
     if float(y[-1] - (a + b * x[-1])) < _LINE_LEAVES_M:
         return None
     return float(k0[best])
+
+
+def _leaving_from_start(x: FloatArray, y: FloatArray) -> float | None:
+    """Where (bins) a walked line already leaving its course where the gap begins left it:
+    ``y`` (metres off the course at bins ``x``) fitted as a straight line rising by
+    ``_LINES_LEAVE_RATE`` or more, its last offset ``_LINE_BEYOND_M`` out at least; the
+    bin where that line crosses the course (0 at the earliest). None where it does not
+    leave so. A ramp's line bending away right at the gap's start, ever less steeply, has
+    no straight stretch before a hinge (melbourne-408-opp-s9 with a noisier sensor: 3.3 m
+    off over 80 m, the inner exit's step bridged as a taper, the edge 6 m off); a frame
+    tilted by the bridge drifts by less (``_LINES_DRIFT_RATE``)."""
+    slope, at0 = np.polyfit(x, y, 1)
+    if slope < _LINES_LEAVE_RATE * _LINE_BIN_M or float(y[-1]) < _LINE_BEYOND_M:
+        return None
+    return float(max(-at0 / slope, 0.0))
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:
