@@ -28,7 +28,7 @@ from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
 from roadtwin.mainline.markings import _merge_collinear, _Track
 
 CFG = MainlineConfig()
-stations = np.arange(0.0, 400.5, CFG.grid_step_m)
+stations = np.arange(0.0, 900.5, CFG.grid_step_m)
 
 
 def _line(k: int, lo: float, hi: float, d: float, *, drift: float = 0.0) -> _Track:
@@ -134,3 +134,14 @@ def test_a_ramp_line_beside_the_road_in_a_gap_is_the_ramps_up_to_the_nose():
     assert gores.size == 1
     assert out[1].hi == gores[0]
     assert 1800.0 - 682.0 <= gores[0] <= 1800.0 - 670.0
+
+
+def test_an_edge_line_leaving_the_edge_where_a_lane_opens_stays_apart():
+    """oakland-28393854-lane1-s21 with a noisier sensor (seed offset 320): the edge line
+    (on the edge) went on, unseen for 30 m, as the line of a lane opening beside it by a
+    taper; joined, it was one track, no section began there and the new lane was typed a
+    shoulder over 190 m (lane count 96 -> 90 %)."""
+    before, after = _line(0, 0.0, 579.0, 12.14), _line(1, 610.0, 900.0, 12.08)
+    edge = 12.11 + np.clip((stations - 580.0) / 100.0, 0.0, 1.0) * 3.4
+    apart = _merge_collinear([before, after], CFG, stations, edge)
+    assert len(apart) == 2

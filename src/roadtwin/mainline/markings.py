@@ -857,6 +857,7 @@ _DRIFT_PER_M = 0.04  # a hidden line may have moved sideways this much per metre
 _DRIFT_MAX_LANE = 0.4  # ... and at most this share of a lane (lines are a lane apart)
 _HOLD_MARGIN_M = 0.5  # a bridged line this near the edge (metres) was no line there ...
 _HOLD_SEEN_M = 10.0  # ... unless as near where it was seen this far (metres) beside the gap
+_HOLD_STEP_M = 1.0  # ... at a gore in the gap: the edge moves this much (metres) per station
 
 
 def _merge_collinear(
@@ -875,11 +876,14 @@ def _merge_collinear(
     of any other: the lines beside it are a lane away, so the pair is unambiguous.
 
     With the outer edge ``d_edge`` on ``grid``: never across a stretch where the road is
-    too narrow to hold the marking (over half of it the edge comes within
-    ``_HOLD_MARGIN_M`` of the bridged line, or within half the least distance seen
-    between edge and line over the ``_HOLD_SEEN_M`` beside the stretch: an edge line): there
-    the marking really ended and another began (an exit and a later entry at the same
-    offset), it was not hidden.
+    too narrow to hold the marking (the edge comes within ``_HOLD_MARGIN_M`` of the
+    bridged line): there the marking really ended and another began (an exit and a later
+    entry at the same offset), it was not hidden; an edge line leaving the edge where a
+    lane opens beside it by a taper is a lane's border from there (a section starts). Where
+    the edge steps in the stretch (a gore), a line running on beside the new level as near
+    as where it was seen (half the least distance between edge and line over the
+    ``_HOLD_SEEN_M`` beside the stretch) over most of it is the line inward of the ramp's
+    lanes going on as the edge line.
 
     ``with_inferred_only``: only pairs of which one is an inferred line (no samples): two
     observed tracks that were left apart after the first pass were split on purpose (at a
@@ -897,7 +901,11 @@ def _merge_collinear(
         line = (1.0 - x) * a.d[-1] + x * b.d[0]
         edge = d_edge[inside]
         known = np.isfinite(edge)
-        # over most of the gap: the edge bends into a step over a few metres
+        if not np.any(np.abs(np.diff(edge[known])) > _HOLD_STEP_M):
+            return not np.any(known & (edge < line + _HOLD_MARGIN_M))
+        # the edge steps in the gap (a gore): the line inward of the ramp's lanes goes on
+        # as the edge line beside the new level, over most of the gap (the edge bends
+        # into the step over a few metres)
         narrow = known & (edge < line + holds_margin(a, b))
         return not (np.any(narrow) and np.count_nonzero(narrow) >= 0.5 * np.count_nonzero(known))
 
