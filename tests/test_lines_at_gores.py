@@ -22,9 +22,10 @@ there and the edge bridged a shoulder's width beyond it, 5.9 m off (edge 0.988 m
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from roadtwin.config import MainlineConfig
-from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
+from roadtwin.mainline.hidden_gores import _place_hidden_gores, _snap_to_hidden_gores
 from roadtwin.mainline.markings import _merge_collinear, _Track
 
 CFG = MainlineConfig()
@@ -145,3 +146,35 @@ def test_an_edge_line_leaving_the_edge_where_a_lane_opens_stays_apart():
     edge = 12.11 + np.clip((stations - 580.0) / 100.0, 0.0, 1.0) * 3.4
     apart = _merge_collinear([before, after], CFG, stations, edge)
     assert len(apart) == 2
+
+
+def test_an_entry_line_first_seen_after_the_gap_that_hid_its_nose_has_its_gore_in_it():
+    """melbourne-408-opp-s4 with a noisier sensor (seed offset 320): the outer edge was
+    unseen from 214 to 269 m, where an entry's nose lay (268 m), the shoulder narrowing
+    towards it; its lane's outer line was first seen at 283 m, but the edge right after
+    the gap already lay a lane and a shoulder beyond the line inward. The line's start
+    14 m past the gap put no gore in it: the lane was opened by a taper across the gap and
+    the edge bridged 4-5 m off (edge 0.420 -> 0.090 m RMSE)."""
+    grid = np.arange(0.0, 700.5, 1.0)
+    through = _Track(0, 0.0, 700.0, grid, np.full(grid.size, 7.76), "broken", grid.size, grid)
+    g = grid[grid >= 283.0]
+    outer = _Track(1, 283.0, 700.0, g, np.full(g.size, 11.32), "broken", g.size, g)
+    covered = (grid < 214.0) | (grid > 269.0)
+    rng = np.random.default_rng(3)
+    s_out = np.arange(0.0, 700.0, 0.5)
+    shoulder = 7.76 + np.clip(2.0 * (268.0 - s_out) / 120.0, 0.0, 2.0)
+    d_out = np.where(s_out < 268.0, shoulder, 13.69) + rng.normal(0.0, 0.04, s_out.size)
+    seen = (s_out < 214.0) | (s_out > 269.0)
+    out, placed, _ = _place_hidden_gores(
+        [through, outer], s_out[seen], d_out[seen], covered, grid, 60.0
+    )
+    assert len(placed) == 1
+    assert 214.0 <= placed[0] <= 269.0
+    assert out[1].lo == pytest.approx(placed[0], abs=1.0)
+    # where the edge after the gap is still the shoulder beside the line inward, the
+    # line's late start is its own (a lane opening later): nothing is placed
+    d_flat = np.where(s_out < 268.0, shoulder, 9.3)
+    _, placed, _ = _place_hidden_gores(
+        [through, outer], s_out[seen], d_flat[seen], covered, grid, 60.0
+    )
+    assert placed == []

@@ -404,7 +404,10 @@ def _place_hidden_gores(
                 tr = out[k]
                 s_tip = tr.lo if entry else tr.hi
                 beyond = tr.hi - s_b if entry else s_a - tr.lo
-                if not (s_a - step <= s_tip <= s_b + step) or tr.s.size < 20 or beyond < 20.0:
+                if tr.s.size < 20 or beyond < 20.0:
+                    continue
+                late = not (s_a - step <= s_tip <= s_b + step)
+                if late and not _lane_at_gap_end(tr, entry, s_a, s_b, s_out, d_out):
                     continue
                 if seen_steps is not None:
                     st, outward = seen_steps
@@ -434,6 +437,8 @@ def _place_hidden_gores(
                 if interval is None and taper is None:
                     continue
                 s_gore = fuse_gore_estimates(interval, taper, s_tip)
+                if late:  # its lane was there where the gap ends (begins)
+                    s_gore = min(max(s_gore, s_a), s_b)
                 if abs(s_gore - s_tip) > 40.0:
                     continue
                 out[k] = _move_track_end(tr, s_gore, grid, start=entry)
@@ -457,6 +462,36 @@ def _place_hidden_gores(
                     "none" if taper is None else f"{taper.s_gore:.1f}",
                 )
     return out, placed, tapers
+
+
+_LATE_TIP_M = 20.0  # a line first (last) seen this far after (before) a gap ...
+_AT_END_M = 10.0  # ... beside the edge seen this far past the gap's end (before its start)
+
+
+def _lane_at_gap_end(
+    tr: _Track, entry: bool, s_a: float, s_b: float, s_out: FloatArray, d_out: FloatArray
+) -> bool:
+    """Whether track ``tr``, first seen (``entry``; else last seen) within ``_LATE_TIP_M``
+    after the end (before the start) of the occlusion gap ``s_a``..``s_b`` of the outer
+    edge (metres), has its lane there already: the edge points (``s_out``, ``d_out``)
+    within ``_AT_END_M`` past that end lie beyond the line by more than
+    ``_NO_SHOULDER_M``. The lane began (ended) at a gore in the gap, its line's paint
+    starting later (melbourne-408-opp-s4 with a noisier sensor: an entry's line first seen
+    14 m after the gap that hid the nose, the lane was opened by a taper across the gap
+    and the edge bridged 4-5 m off)."""
+    s_tip = tr.lo if entry else tr.hi
+    late = (s_tip - s_b) if entry else (s_a - s_tip)
+    if not 0.0 < late <= _LATE_TIP_M:
+        return False
+    near = (
+        (s_out > s_b) & (s_out <= s_b + _AT_END_M)
+        if entry
+        else (s_out < s_a) & (s_out >= s_a - _AT_END_M)
+    )
+    if np.count_nonzero(near) < 5:
+        return False
+    d_tip = float(tr.d[0] if entry else tr.d[-1])
+    return float(np.median(d_out[near])) > d_tip + _NO_SHOULDER_M
 
 
 _NO_SHOULDER_M = 0.5  # an edge this near the outermost line has no shoulder (metres)
