@@ -246,10 +246,26 @@ def test_a_line_already_leaving_where_the_gap_begins_has_left_there(seed):
     hinge: the step was bridged as a taper, the ramp was missed and the edge was 6 m
     off."""
     rng = np.random.default_rng(seed)
-    s, u = _dashed(0.0, 480.0, 680.0, rng=rng)
+    # out of the sensor's reach 16 m before the gap ends
+    s, u = _dashed(0.0, 480.0, 666.0, rng=rng)
     x = np.clip(s - 582.0, 0.0, None)
     u = u - 4.5 + 0.065 * x - 0.0003 * x**2
     held = lines_held_to(s, u, (582.0, 682.0), 0.0, -7.5, forward=True)
     assert held is not None
     assert held[1] is True
     assert 582.0 - 2.0 <= held[0] <= 582.0 + 10.0
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_lines_fanning_out_seen_up_to_the_gaps_end_have_not_left(seed):
+    """oakland-28393854-s7 with a noisier sensor (seed offset 260): a 3-lane inner exit's
+    lines fan out from the through lanes at 0.03 m/m over the 80 m gap before the nose,
+    seen on up to its end: their lanes are still there, the step lies beyond (told
+    leaving where the gap began, the step was 75 m early and the edge 1.5 m off)."""
+    rng = np.random.default_rng(seed)
+    s, u = _dashed(0.0, 1200.0, 1400.0, rng=rng)
+    u = u - 8.4 + 0.03 * np.clip(s - 1294.0, 0.0, None)
+    held = lines_held_to(s, u, (1294.0, 1374.0), 0.0, -9.7, forward=True)
+    assert held is not None
+    assert held[1] is False
+    assert held[0] >= 1374.0 - 12.0

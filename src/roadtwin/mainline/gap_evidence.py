@@ -52,6 +52,7 @@ _LINES_LEAVE_RATE = 0.03  # ... it leaves it at this angle (m/m) at least ...
 _LINES_DRIFT_RATE = 0.02  # ... from a course the frame tilts by this (m/m) at most ...
 _LINES_GATE_GROWTH_M = 0.1  # ... its walk's gate grows by this per bin unseen ...
 _LINE_GATE_MAX_M = 1.0  # ... up to this (lines lie 3 m apart and more)
+_LINES_END_M = 12.0  # a line seen this near a gap's far end ran on across it (a dash period)
 _WALK_FIT_BINS = 10  # a walked line's slope: fitted to its bins seen over this many ...
 _WALK_FIT_SPAN_BINS = 3  # ... spanning this many at least (else the last step's, smoothed)
 
@@ -314,7 +315,11 @@ def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | Non
     per_bin_leave = _LINES_LEAVE_RATE * _LINE_BIN_M
     per_bin_drift = _LINES_DRIFT_RATE * _LINE_BIN_M
     if abs(b) > per_bin_drift or np.count_nonzero(after) < 2 or c < per_bin_leave:
-        return _leaving_from_start(x, y)
+        # seen on up to the gap's far end, its lane was still there: no ramp's line yet,
+        # whatever its drift (oakland-28393854-s7 with a noisier sensor: a 3-lane inner
+        # exit's lines fanning out 0.03 m/m over the 80 m before the nose)
+        seen_to_end = (track.size - 1 - tracked[-1]) * _LINE_BIN_M < _LINES_END_M
+        return None if seen_to_end else _leaving_from_start(x, y)
     if float(y[-1] - (a + b * x[-1])) < _LINE_LEAVES_M:
         return None
     return float(k0[best])
