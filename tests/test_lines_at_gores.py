@@ -178,3 +178,39 @@ def test_an_entry_line_first_seen_after_the_gap_that_hid_its_nose_has_its_gore_i
         [through, outer], s_out[seen], d_flat[seen], covered, grid, 60.0
     )
     assert placed == []
+
+
+def _exit_case(gap: tuple[float, float] = (431.0, 486.0)):
+    """An exit's mirror of the entry above: the outer line last seen at 417 m, the edge
+    unseen over ``gap`` (stations, metres), a lane and a shoulder beyond the line up to it."""
+    grid = np.arange(0.0, 700.5, 1.0)
+    through = _Track(0, 0.0, 700.0, grid, np.full(grid.size, 7.76), "broken", grid.size, grid)
+    g = grid[grid <= 417.0]
+    outer = _Track(1, 0.0, 417.0, g, np.full(g.size, 11.32), "broken", g.size, g)
+    covered = (grid < gap[0]) | (grid > gap[1])
+    rng = np.random.default_rng(5)
+    s_out = np.arange(0.0, 700.0, 0.5)
+    shoulder = 7.76 + np.clip(2.0 * (s_out - gap[0]) / 120.0, 0.0, 2.0)
+    d_out = np.where(s_out < gap[0], 13.69, shoulder) + rng.normal(0.0, 0.04, s_out.size)
+    seen = (s_out < gap[0]) | (s_out > gap[1])
+    return [through, outer], s_out[seen], d_out[seen], covered, grid
+
+
+def test_an_exit_line_last_seen_before_the_gap_has_its_gore_in_it():
+    """krems-46762523-s2 (seed offset 320): an exit's lane line ended 14 m before the gap
+    that hid the nose, the edge still a lane beyond it there: no gore, the lane closed by a
+    250 m taper (edge 0.229 -> 0.056 m with the gore in the gap). Not where a ramp's line
+    showed the gore in the gap (kotka-33042885-s3, seed offset 200: the gore moved off
+    it, 0.062 -> 0.073 m) nor at a gap of a metre after a seen step (melbourne-1019-s11,
+    seed offset 200: 0.093 -> 0.115 m)."""
+    tracks, s_out, d_out, covered, grid = _exit_case()
+    out, placed, _ = _place_hidden_gores(tracks, s_out, d_out, covered, grid, 60.0)
+    assert len(placed) == 1
+    assert 431.0 <= placed[0] <= 486.0
+    assert out[1].hi == pytest.approx(placed[0], abs=1.0)
+    _, placed, _ = _place_hidden_gores(
+        tracks, s_out, d_out, covered, grid, 60.0, line_gores=np.array([450.0])
+    )
+    assert placed == []
+    _, placed, _ = _place_hidden_gores(*_exit_case(gap=(431.0, 431.0))[:5], 60.0)
+    assert placed == []

@@ -373,6 +373,7 @@ def _place_hidden_gores(
     grid: FloatArray,
     taper_length_m: float | None = None,
     seen_steps: tuple[FloatArray, NDArray[np.bool_]] | None = None,
+    line_gores: FloatArray | None = None,
 ) -> tuple[list[_Track], list[float], list[ShoulderTaper]]:
     """Gore stations inside occlusion gaps of the outer edge.
 
@@ -387,6 +388,9 @@ def _place_hidden_gores(
     was seen to step outwards within ``_SEEN_STEP_M`` after an entry marking's tip
     (inwards before an exit marking's end), the lane's pavement begins (ends) there: that
     is its gore (a parallel entry's line starts far upstream of it), none is placed.
+    A marking first (last) seen just after (before) a gap is asked about too
+    (:func:`_lane_at_gap_end`), unless a ramp's line already showed a gore in the gap
+    (``line_gores``, stations from :func:`_snap_to_hidden_gores`, metres).
     Returns the tracks, the gore stations placed and the shoulder tapers.
     """
     out = list(tracks)
@@ -407,7 +411,11 @@ def _place_hidden_gores(
                 if tr.s.size < 20 or beyond < 20.0:
                     continue
                 late = not (s_a - step <= s_tip <= s_b + step)
-                if late and not _lane_at_gap_end(tr, entry, s_a, s_b, s_out, d_out):
+                if late and not (
+                    s_b - s_a >= _STRIP_GAP_M
+                    and not _any_between(line_gores, s_a, s_b)
+                    and _lane_at_gap_end(tr, entry, s_a, s_b, s_out, d_out)
+                ):
                     continue
                 if seen_steps is not None:
                     st, outward = seen_steps
@@ -478,7 +486,11 @@ def _lane_at_gap_end(
     ``_NO_SHOULDER_M``. The lane began (ended) at a gore in the gap, its line's paint
     starting later (melbourne-408-opp-s4 with a noisier sensor: an entry's line first seen
     14 m after the gap that hid the nose, the lane was opened by a taper across the gap
-    and the edge bridged 4-5 m off)."""
+    and the edge bridged 4-5 m off; an exit's, krems-46762523-s2: its lane closed by a
+    250 m taper, edge 0.229 -> 0.056 m). The caller asks it only where the gap is an
+    occlusion (``_STRIP_GAP_M`` long: melbourne-1019-s11 with a noisier sensor, seed
+    offset 200, an exit's step seen 9 m past its line's end, then a 1 m gap; a gore put
+    in that gap, edge 0.093 -> 0.115 m)."""
     s_tip = tr.lo if entry else tr.hi
     late = (s_tip - s_b) if entry else (s_a - s_tip)
     if not 0.0 < late <= _LATE_TIP_M:
@@ -492,6 +504,15 @@ def _lane_at_gap_end(
         return False
     d_tip = float(tr.d[0] if entry else tr.d[-1])
     return float(np.median(d_out[near])) > d_tip + _NO_SHOULDER_M
+
+
+def _any_between(stations: FloatArray | None, s0: float, s1: float) -> bool:
+    """Whether any of ``stations`` (metres; None: none) lies between ``s0`` and ``s1``
+    (metres, either order)."""
+    if stations is None:
+        return False
+    st = np.asarray(stations, dtype=float)
+    return bool(np.any((st >= min(s0, s1)) & (st <= max(s0, s1))))
 
 
 _NO_SHOULDER_M = 0.5  # an edge this near the outermost line has no shoulder (metres)

@@ -160,6 +160,7 @@ def fit_lanes(
             grid,
             taper_length,
             _seen_steps(breaks, d_edge, grid),
+            gores,
         )
         placed += _gores_at_lane_wide_strips(
             d_edge,
