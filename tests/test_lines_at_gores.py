@@ -214,3 +214,21 @@ def test_an_exit_line_last_seen_before_the_gap_has_its_gore_in_it():
     assert placed == []
     _, placed, _ = _place_hidden_gores(*_exit_case(gap=(431.0, 431.0))[:5], 60.0)
     assert placed == []
+
+
+def test_a_lane_line_meeting_the_line_inward_outside_the_gap_is_not_cut():
+    """krems-102561705-opp-s7 with a noisier sensor (seed offset 140): a new lane's line
+    split from the outermost one (5673 m), ran a lane out beside the seen edge for 150 m
+    and ended in a gap where the lane dropped, beyond the edge seen after it; taken for
+    an exit's line beside the road, it was cut back to its first metre (edge 0.079 ->
+    0.106 m). It met the line inward before the gap, where the edge lay beyond it."""
+    grid = np.arange(0.0, 1000.5, 1.0)
+    inner = _Track(0, 0.0, 1000.0, grid, np.full(grid.size, 7.95), "broken", grid.size, grid)
+    g = np.arange(673.0, 885.5, 1.0)
+    d = 8.05 + 3.4 * np.clip((g - 673.0) / 50.0, 0.0, 1.0)
+    line = _Track(1, 673.0, 885.0, g, d, "broken", g.size, g)
+    covered = ~(((grid >= 664.0) & (grid <= 692.0)) | ((grid >= 870.0) & (grid <= 888.0)))
+    d_edge = np.where(grid < 664.0, 10.5, np.where(grid > 888.0, 10.5, 14.2))
+    out, gores = _snap_to_hidden_gores([inner, line], [], covered, grid, CFG, d_edge)
+    assert (out[1].lo, out[1].hi) == (673.0, 885.0)
+    assert not np.any((gores > 660.0) & (gores < 690.0))

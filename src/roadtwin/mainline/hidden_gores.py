@@ -112,35 +112,40 @@ _AT_GAP_M = 5.0  # a line first (last) seen this near a gap's start (end) ...
 _BEYOND_EDGE_M = 0.5  # ... this far beyond the edge seen next to it lies beside the road
 
 
-def _beyond_edge_at_gap(
+def _beside_road_in_gap(
     tr: _Track,
     first: bool,
     gap: NDArray[np.bool_],
     grid: FloatArray,
     d_edge: FloatArray | None,
-) -> bool:
-    """Whether track ``tr`` begins (``first``; else ends) within ``_AT_GAP_M`` of the
-    start (end) of an occlusion gap of the outer edge (``gap`` on ``grid``) more than
-    ``_BEYOND_EDGE_M`` beyond the edge ``d_edge`` seen just before (after) the gap: the
-    line was there beside the road, its samples left out as beyond the edge where the edge
-    was seen. A ramp's line running beside the carriageway before its nose is the
-    mainline's nowhere up to where it meets the line inward (melbourne-1019-lane1-s21
-    with a noisier sensor: an entry's line, parallel 3 m beyond the edge before bending in,
-    made the edge bridged across the 110 m gap a shoulder's width beyond it, 5.9 m off).
+) -> tuple[float, float] | None:
+    """The occlusion gap of the outer edge (``gap`` on ``grid``; its first and last
+    stations, metres) whose start (end) track ``tr`` begins (``first``; else ends) within
+    ``_AT_GAP_M`` of, more than ``_BEYOND_EDGE_M`` beyond the edge ``d_edge`` seen just
+    before (after) the gap; None where it does not. The line was there beside the road,
+    its samples left out as beyond the edge where the edge was seen. A ramp's line running
+    beside the carriageway before its nose is the mainline's nowhere up to where it meets
+    the line inward in that gap (melbourne-1019-lane1-s21 with a noisier sensor: an
+    entry's line, parallel 3 m beyond the edge before bending in, made the edge bridged
+    across the 110 m gap a shoulder's width beyond it, 5.9 m off). A line meeting the line
+    inward outside the gap, where the edge was seen beyond it, is the road's own
+    (krems-102561705-opp-s7 with a noisier sensor: a lane opened by a new line and dropped
+    150 m on, its line cut back to its first metre).
     """
     if d_edge is None:
-        return False
+        return None
     tip = tr.lo if first else tr.hi
     i = int(np.clip(np.searchsorted(grid, tip), 0, grid.size - 1))
     if not gap[i]:
-        return False
-    runs = [(a, b) for a, b in true_runs(gap) if a <= i < b]
-    a, b = runs[0]
+        return None
+    a, b = next((a, b) for a, b in true_runs(gap) if a <= i < b)
     seen_at = a - 1 if first else b
     near = tip - grid[a] if first else grid[b - 1] - tip
     if seen_at < 0 or seen_at >= grid.size or near > _AT_GAP_M or not np.isfinite(d_edge[seen_at]):
-        return False
-    return float(tr.d[0] if first else tr.d[-1]) > float(d_edge[seen_at]) + _BEYOND_EDGE_M
+        return None
+    if float(tr.d[0] if first else tr.d[-1]) <= float(d_edge[seen_at]) + _BEYOND_EDGE_M:
+        return None
+    return float(grid[a]), float(grid[b - 1])
 
 
 def _grid_index(s: FloatArray | float, grid: FloatArray, step: float) -> NDArray[np.int64]:
@@ -200,11 +205,8 @@ def _snap_to_hidden_gores(
             rel, rel_slope = _beside_inner_line(tracks, k, tr)
             par = np.flatnonzero((rel_slope > -cfg.hidden_gore_slope) | (rel < _MET_M))
             met = np.flatnonzero(rel < _MET_M)
-            if (
-                _beyond_edge_at_gap(tr, True, gap, grid, d_edge)
-                and met.size
-                and hidden(float(tr.s[met[0]]))
-            ):
+            beside = _beside_road_in_gap(tr, True, gap, grid, d_edge)
+            if beside is not None and met.size and tr.s[met[0]] <= beside[1]:
                 # a ramp's line up to where it meets the line inward, however it ran
                 i0 = min(int(met[0]), tr.s.size - 2)
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
@@ -233,11 +235,8 @@ def _snap_to_hidden_gores(
             rel, rel_slope = _beside_inner_line(tracks, k, tr)
             par = np.flatnonzero((rel_slope < cfg.hidden_gore_slope) | (rel < _MET_M))
             met = np.flatnonzero(rel < _MET_M)
-            if (
-                _beyond_edge_at_gap(tr, False, gap, grid, d_edge)
-                and met.size
-                and hidden(float(tr.s[met[-1]]))
-            ):
+            beside = _beside_road_in_gap(tr, False, gap, grid, d_edge)
+            if beside is not None and met.size and tr.s[met[-1]] >= beside[0]:
                 i1 = max(int(met[-1]), 1) + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
                 gores.append(tr.hi)

@@ -913,14 +913,16 @@ def _merge_collinear(
         # an edge line runs this near the edge where it was seen: the edge as near
         # in the gap is no narrowing (krems-46762523-opp-s4 with a noisier sensor: the
         # line left as the edge line by a two-lane exit, broken at the gore, was not
-        # joined across it and a lane opened over 220 m to reach it)
+        # joined across it and a lane opened over 220 m to reach it); a line seen beyond
+        # the edge is no edge line (krems-24746399-opp-s12: a lane line ending at an exit
+        # joined to one beginning at an entry 290 m on, across a one-lane stretch)
         near = []
         for tr, part in ((a, a.s >= a.hi - _HOLD_SEEN_M), (b, b.s <= b.lo + _HOLD_SEEN_M)):
             e = np.interp(tr.s[part], grid, d_edge)
             ok = np.isfinite(e)
             if np.any(ok):
                 near.append(float(np.min(e[ok] - tr.d[part][ok])))
-        return min(_HOLD_MARGIN_M, 0.5 * min(near)) if near else _HOLD_MARGIN_M
+        return min(_HOLD_MARGIN_M, 0.5 * max(min(near), 0.0)) if near else _HOLD_MARGIN_M
 
     def follows(a: _Track, b: _Track) -> bool:
         return b.lo > a.hi - 1.0 and b.lo - a.hi <= 5.0 * cfg.lane_max_gap_m
