@@ -209,15 +209,21 @@ def test_a_ramp_edge_meeting_the_edge_at_a_gap_puts_the_nose_there():
     assert _step_across_gap(gap, 1.5, centres, level, ramp_at=400.0) is None
 
 
+def _held_line(seed, span, course, gap, *, inner=-7.5):
+    """:func:`lines_held_to` (an exit, walked forward) of one dashed line seen over
+    ``span`` (stations, metres) on ``course(s)`` (offsets towards the median, metres)."""
+    s, u = _dashed(0.0, *span, rng=np.random.default_rng(seed))
+    return lines_held_to(s, u + course(s), gap, 0.0, inner, forward=True)
+
+
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_a_dashed_line_leaving_at_a_small_angle_is_held_to_where_it_leaves(seed):
     """melbourne-408-opp-s4 with a noisier sensor (seed offset 260): a 2-lane inner exit's
     line leaves at 1:20 and is seen on its dashes only; walked on along its bend it was
     held 20-35 m past the gore in some of the fit's passes (the step 18 m late)."""
-    rng = np.random.default_rng(seed)
-    s, u = _dashed(0.0, 480.0, 640.0, rng=rng)
-    u = u - 4.5 + 0.05 * np.clip(s - 577.0, 0.0, None)
-    held = lines_held_to(s, u, (540.0, 610.0), 0.0, -7.5, forward=True)
+    held = _held_line(
+        seed, (480.0, 640.0), lambda s: -4.5 + 0.05 * np.clip(s - 577.0, 0.0, None), (540.0, 610.0)
+    )
     assert held is not None
     assert held[1] is True
     assert 577.0 - 8.0 <= held[0] <= 577.0 + 8.0
@@ -228,10 +234,9 @@ def test_a_line_drifting_in_a_bent_frame_does_not_leave():
     across the gap by its bridge, the exiting lanes' line drifted 0.5 m over 50 m
     (0.01 m/m) and was told leaving 27 m before the gore (edge 0.495 -> 0.762 m); a
     ramp's line leaves at an angle (the test above: 1:20)."""
-    rng = np.random.default_rng(6)
-    s, u = _dashed(0.0, 480.0, 640.0, rng=rng)
-    u = u - 4.5 + 0.01 * np.clip(s - 540.0, 0.0, None)
-    held = lines_held_to(s, u, (540.0, 600.0), 0.0, -7.5, forward=True)
+    held = _held_line(
+        6, (480.0, 640.0), lambda s: -4.5 + 0.01 * np.clip(s - 540.0, 0.0, None), (540.0, 600.0)
+    )
     assert held is not None
     assert held[1] is False
     assert held[0] >= 590.0
@@ -245,12 +250,13 @@ def test_a_line_already_leaving_where_the_gap_begins_has_left_there(seed):
     within a dash, lost it 25 m in; walked on, it has no straight stretch before its
     hinge: the step was bridged as a taper, the ramp was missed and the edge was 6 m
     off."""
-    rng = np.random.default_rng(seed)
+
+    def course(s):
+        x = np.clip(s - 582.0, 0.0, None)
+        return -4.5 + 0.065 * x - 0.0003 * x**2
+
     # out of the sensor's reach 16 m before the gap ends
-    s, u = _dashed(0.0, 480.0, 666.0, rng=rng)
-    x = np.clip(s - 582.0, 0.0, None)
-    u = u - 4.5 + 0.065 * x - 0.0003 * x**2
-    held = lines_held_to(s, u, (582.0, 682.0), 0.0, -7.5, forward=True)
+    held = _held_line(seed, (480.0, 666.0), course, (582.0, 682.0))
     assert held is not None
     assert held[1] is True
     assert 582.0 - 2.0 <= held[0] <= 582.0 + 10.0
@@ -262,10 +268,13 @@ def test_lines_fanning_out_seen_up_to_the_gaps_end_have_not_left(seed):
     lines fan out from the through lanes at 0.03 m/m over the 80 m gap before the nose,
     seen on up to its end: their lanes are still there, the step lies beyond (told
     leaving where the gap began, the step was 75 m early and the edge 1.5 m off)."""
-    rng = np.random.default_rng(seed)
-    s, u = _dashed(0.0, 1200.0, 1400.0, rng=rng)
-    u = u - 8.4 + 0.03 * np.clip(s - 1294.0, 0.0, None)
-    held = lines_held_to(s, u, (1294.0, 1374.0), 0.0, -9.7, forward=True)
+    held = _held_line(
+        seed,
+        (1200.0, 1400.0),
+        lambda s: -8.4 + 0.03 * np.clip(s - 1294.0, 0.0, None),
+        (1294.0, 1374.0),
+        inner=-9.7,
+    )
     assert held is not None
     assert held[1] is False
     assert held[0] >= 1374.0 - 12.0
