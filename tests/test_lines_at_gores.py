@@ -201,8 +201,8 @@ def test_an_exit_line_last_seen_before_the_gap_has_its_gore_in_it():
     that hid the nose, the edge still a lane beyond it there: no gore, the lane closed by a
     250 m taper (edge 0.229 -> 0.056 m with the gore in the gap). Not where a ramp's line
     showed the gore in the gap (kotka-33042885-s3, seed offset 200: the gore moved off
-    it, 0.062 -> 0.073 m) nor at a gap of a metre after a seen step (melbourne-1019-s11,
-    seed offset 200: 0.093 -> 0.115 m)."""
+    it, 0.062 -> 0.073 m), at a gap of a metre after a seen step (melbourne-1019-s11,
+    seed offset 200: 0.093 -> 0.115 m) or where a step was seen at the line's end."""
     tracks, s_out, d_out, covered, grid = _exit_case()
     out, placed, _ = _place_hidden_gores(tracks, s_out, d_out, covered, grid, 60.0)
     assert len(placed) == 1
@@ -213,6 +213,10 @@ def test_an_exit_line_last_seen_before_the_gap_has_its_gore_in_it():
     )
     assert placed == []
     _, placed, _ = _place_hidden_gores(*_exit_case(gap=(431.0, 431.0))[:5], 60.0)
+    assert placed == []
+    # the edge seen stepping in where the line ended (a9-206615404-s2, seed offset 200)
+    seen_step = (np.array([417.0]), np.array([False]))
+    _, placed, _ = _place_hidden_gores(tracks, s_out, d_out, covered, grid, 60.0, seen_step)
     assert placed == []
 
 

@@ -389,7 +389,8 @@ def _place_hidden_gores(
     is its gore (a parallel entry's line starts far upstream of it), none is placed.
     A marking first (last) seen just after (before) a gap is asked about too
     (:func:`_lane_at_gap_end`), unless a ramp's line already showed a gore in the gap
-    (``line_gores``, stations from :func:`_snap_to_hidden_gores`, metres).
+    (``line_gores``, stations from :func:`_snap_to_hidden_gores`, metres) or the edge was
+    seen stepping between the marking's tip and the gap.
     Returns the tracks, the gore stations placed and the shoulder tapers.
     """
     out = list(tracks)
@@ -413,6 +414,11 @@ def _place_hidden_gores(
                 if late and not (
                     s_b - s_a >= _STRIP_GAP_M
                     and not _any_between(line_gores, s_a, s_b)
+                    and not _any_between(
+                        None if seen_steps is None else seen_steps[0],
+                        s_tip,
+                        s_b if entry else s_a,
+                    )
                     and _lane_at_gap_end(tr, entry, s_a, s_b, s_out, d_out)
                 ):
                     continue
@@ -489,7 +495,9 @@ def _lane_at_gap_end(
     250 m taper, edge 0.229 -> 0.056 m). The caller asks it only where the gap is an
     occlusion (``_STRIP_GAP_M`` long: melbourne-1019-s11 with a noisier sensor, seed
     offset 200, an exit's step seen 9 m past its line's end, then a 1 m gap; a gore put
-    in that gap, edge 0.093 -> 0.115 m)."""
+    in that gap, edge 0.093 -> 0.115 m) and no step of the edge was seen between the
+    line's tip and the gap: that step is the gore (a9-206615404-s2, seed offset 200: one
+    seen where the line ended, 6 m before the gap; moved into it, 0.054 -> 0.068 m)."""
     s_tip = tr.lo if entry else tr.hi
     late = (s_tip - s_b) if entry else (s_a - s_tip)
     if not 0.0 < late <= _LATE_TIP_M:
