@@ -278,3 +278,25 @@ def test_lines_fanning_out_seen_up_to_the_gaps_end_have_not_left(seed):
     assert held is not None
     assert held[1] is False
     assert held[0] >= 1374.0 - 12.0
+
+
+def test_lines_drifting_with_the_lanes_that_stay_have_not_left():
+    """oakland-11197879-opp-s4 with a noisier sensor (seed offset 380): across a gap
+    where the median edge steps 8 m, the fit's bridged frame tilts every line alike, a
+    3-lane inner exit's line and the through lanes' lines 0.04-0.08 m/m; the exit's line,
+    lost before the gap's end, was told leaving where the gap began, 25 m before the nose
+    (edge 0.269 -> 0.787 m). Off course relative to a through line it has not; alone, a
+    line leaving so has."""
+    rng = np.random.default_rng(7)
+    gap = (1320.0, 1414.0)
+    s, u = _dashed(0.0, 1220.0, 1380.0, rng=rng)
+    tilt = 0.07 * np.clip(s - gap[0], 0.0, None)
+    s_t, u_t = _dashed(0.0, 1220.0, 1500.0, rng=rng)
+    tilt_t = 0.07 * np.clip(s_t - gap[0], 0.0, None)
+    both = (np.concatenate([s, s_t]), np.concatenate([u - 4.7 + tilt, u_t - 13.5 + tilt_t]))
+    held = lines_held_to(*both, gap, 0.0, -9.7, forward=True)
+    assert held is not None
+    assert held[1] is False
+    alone = lines_held_to(s, u - 4.7 + tilt, gap, 0.0, -9.7, forward=True)
+    assert alone is not None
+    assert alone[1] is True

@@ -53,6 +53,8 @@ _LINES_DRIFT_RATE = 0.02  # ... from a course the frame tilts by this (m/m) at m
 _LINES_GATE_GROWTH_M = 0.1  # ... its walk's gate grows by this per bin unseen ...
 _LINE_GATE_MAX_M = 1.0  # ... up to this (lines lie 3 m apart and more)
 _LINES_END_M = 12.0  # a line seen this near a gap's far end ran on across it (a dash period)
+_THROUGH_BAND_M = (2.5, 6.0)  # a line that stays: this far inside the edge's inner level ...
+_DRIFT_SPAN_BINS = 10  # ... its drift across the gap from bins seen over this many
 _WALK_FIT_BINS = 10  # a walked line's slope: fitted to its bins seen over this many ...
 _WALK_FIT_SPAN_BINS = 3  # ... spanning this many at least (else the last step's, smoothed)
 
@@ -235,28 +237,12 @@ def lines_held_to(
     """
     direction = 1.0 if forward else -1.0
     start = gap[0] if forward else gap[1]
-    along = direction * (s - start)
-    side = (
-        (along > -_LINES_SIDE_M)
-        & (along <= 0.0)
-        & (u > inner_level + _LINES_CLEAR_M)
-        & (u < outer_level - _LINE_BAND_M[0])
+    lines = _lines_beside(
+        s, u, gap, inner_level + _LINES_CLEAR_M, outer_level - _LINE_BAND_M[0], forward=forward
     )
-    if not side.any():
-        return None
-    order = np.argsort(u[side])
-    u_side, a_side = u[side][order], along[side][order]
-    groups = np.split(np.arange(u_side.size), np.flatnonzero(np.diff(u_side) > _LINES_APART_M) + 1)
+    drift: float | None = None
     best: tuple[float, bool] | None = None
-    for g in groups:
-        bins = np.floor(-a_side[g] / _LINE_BIN_M)
-        if np.unique(bins).size < _LINES_SEEN_BINS:
-            continue
-        coef = np.polyfit(a_side[g], u_side[g], 1)
-        resid = u_side[g] - np.polyval(coef, a_side[g])
-        if 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) > _LINES_SPREAD_M:
-            continue
-        held, slope = float(np.polyval(coef, 0.0)), float(coef[0]) * _LINE_BIN_M
+    for held, slope in lines:
         track = _walk_line(
             s,
             u,
@@ -270,6 +256,10 @@ def lines_held_to(
         x0 = _departure_bin(track, held)
         if x0 is None:
             x0 = _off_course_bin(track, held, slope)
+        if x0 is None and _lost_before_end(track):
+            if drift is None:
+                drift = _through_drift(s, u, gap, inner_level, forward=forward)
+            x0 = _leaving_from_start(track, held, slope, drift)
         tracked = np.flatnonzero(np.isfinite(track))
         if x0 is not None:
             # (none before it: the line left right where the gap begins)
@@ -282,6 +272,81 @@ def lines_held_to(
         if best is None or reach > best[0]:
             best = (reach, x0 is not None)
     return None if best is None else (float(start + direction * best[0]), best[1])
+
+
+def _lines_beside(
+    s: FloatArray, u: FloatArray, gap: tuple[float, float], lo: float, hi: float, *, forward: bool
+) -> list[tuple[float, float]]:
+    """The lines between offsets ``lo`` and ``hi`` (metres) over the ``_LINES_SIDE_M`` next
+    to the gap's start (``forward``) or end: runs of samples ``_LINES_APART_M`` apart
+    across at most, seen in ``_LINES_SEEN_BINS`` bins, on a straight course
+    (``_LINES_SPREAD_M``); per line, inner to outer, its offset at the gap and its slope
+    into it (metres per ``_LINE_BIN_M`` bin)."""
+    direction = 1.0 if forward else -1.0
+    along = direction * (s - (gap[0] if forward else gap[1]))
+    side = (along > -_LINES_SIDE_M) & (along <= 0.0) & (u > lo) & (u < hi)
+    if not side.any():
+        return []
+    order = np.argsort(u[side])
+    u_side, a_side = u[side][order], along[side][order]
+    groups = np.split(np.arange(u_side.size), np.flatnonzero(np.diff(u_side) > _LINES_APART_M) + 1)
+    lines = []
+    for g in groups:
+        bins = np.floor(-a_side[g] / _LINE_BIN_M)
+        if np.unique(bins).size < _LINES_SEEN_BINS:
+            continue
+        coef = np.polyfit(a_side[g], u_side[g], 1)
+        resid = u_side[g] - np.polyval(coef, a_side[g])
+        if 1.4826 * float(np.median(np.abs(resid - np.median(resid)))) > _LINES_SPREAD_M:
+            continue
+        lines.append((float(np.polyval(coef, 0.0)), float(coef[0]) * _LINE_BIN_M))
+    return lines
+
+
+def _through_drift(
+    s: FloatArray, u: FloatArray, gap: tuple[float, float], inner_level: float, *, forward: bool
+) -> float:
+    """How fast (metres per ``_LINE_BIN_M`` bin, outward positive) a line of the lanes that
+    stay drifts off its course across the gap: the nearest line a lane or more inside the
+    edge's inner level (``_THROUGH_BAND_M``; the one along the new level may be a ramp's)
+    walked across it, its slope there (a straight fit to bins seen over
+    ``_DRIFT_SPAN_BINS`` or more) less its slope beside the gap; 0 where none is seen so.
+    The frame across the gap is the fit's bridge, which tilts where the edge steps:
+    oakland-11197879-opp-s4 with a noisier sensor (seed offset 380), every line drifting
+    0.04-0.08 m/m in it, a 3-lane inner exit's line was told leaving where the gap began,
+    25 m before the nose (edge 0.269 -> 0.787 m, a failed route)."""
+    lines = _lines_beside(
+        s,
+        u,
+        gap,
+        inner_level - _THROUGH_BAND_M[1],
+        inner_level - _THROUGH_BAND_M[0],
+        forward=forward,
+    )
+    for held, slope in reversed(lines):
+        track = _walk_line(
+            s,
+            u,
+            gap,
+            held,
+            slope,
+            forward=forward,
+            lost_bins=_LINES_LOST_BINS,
+            gate_growth=_LINES_GATE_GROWTH_M,
+        )
+        tracked = np.flatnonzero(np.isfinite(track))
+        if tracked.size >= 5 and tracked[-1] - tracked[0] >= _DRIFT_SPAN_BINS:
+            return float(np.polyfit(tracked + 0.5, track[tracked], 1)[0]) - slope
+    return 0.0
+
+
+def _lost_before_end(track: FloatArray) -> bool:
+    """Whether a walked line (:func:`_walk_line`) was last seen ``_LINES_END_M`` or more
+    before the gap's far end: seen on up to it, its lane was still there, no ramp's line
+    yet, whatever its drift (oakland-28393854-s7 with a noisier sensor: a 3-lane inner
+    exit's lines fanning out 0.03 m/m over the 80 m before the nose)."""
+    tracked = np.flatnonzero(np.isfinite(track))
+    return bool(tracked.size) and (track.size - 1 - tracked[-1]) * _LINE_BIN_M >= _LINES_END_M
 
 
 def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | None:
@@ -314,30 +379,34 @@ def _off_course_bin(track: FloatArray, held: float, slope: float) -> float | Non
     after = x > k0[best]
     per_bin_leave = _LINES_LEAVE_RATE * _LINE_BIN_M
     per_bin_drift = _LINES_DRIFT_RATE * _LINE_BIN_M
-    if abs(b) > per_bin_drift or np.count_nonzero(after) < 2 or c < per_bin_leave:
-        # seen on up to the gap's far end, its lane was still there: no ramp's line yet,
-        # whatever its drift (oakland-28393854-s7 with a noisier sensor: a 3-lane inner
-        # exit's lines fanning out 0.03 m/m over the 80 m before the nose)
-        seen_to_end = (track.size - 1 - tracked[-1]) * _LINE_BIN_M < _LINES_END_M
-        return None if seen_to_end else _leaving_from_start(x, y)
+    if np.count_nonzero(after) < 2 or c < per_bin_leave or abs(b) > per_bin_drift:
+        return None
     if float(y[-1] - (a + b * x[-1])) < _LINE_LEAVES_M:
         return None
     return float(k0[best])
 
 
-def _leaving_from_start(x: FloatArray, y: FloatArray) -> float | None:
-    """Where (bins) a walked line already leaving its course where the gap begins left it:
-    ``y`` (metres off the course at bins ``x``) fitted as a straight line rising by
-    ``_LINES_LEAVE_RATE`` or more, its last offset ``_LINE_BEYOND_M`` out at least; the
-    bin where that line crosses the course (0 at the earliest). None where it does not
-    leave so. A ramp's line bending away right at the gap's start, ever less steeply, has
-    no straight stretch before a hinge (melbourne-408-opp-s9 with a noisier sensor: 3.3 m
-    off over 80 m, the inner exit's step bridged as a taper, the edge 6 m off); a frame
-    tilted by the bridge drifts by less (``_LINES_DRIFT_RATE``)."""
-    slope, at0 = np.polyfit(x, y, 1)
-    if slope < _LINES_LEAVE_RATE * _LINE_BIN_M or float(y[-1]) < _LINE_BEYOND_M:
+def _leaving_from_start(
+    track: FloatArray, held: float, slope: float, drift: float = 0.0
+) -> float | None:
+    """Where (bins) a walked line (:func:`_walk_line`, held at ``held`` with ``slope``
+    metres per bin beside the gap) already leaving its course where the gap begins left
+    it: its offsets off the course, less the lanes' own ``drift`` (metres per bin,
+    :func:`_through_drift`), fitted as a straight line rising by ``_LINES_LEAVE_RATE`` or
+    more, the last ``_LINE_BEYOND_M`` out at least; the bin where that line crosses the
+    course (0 at the earliest). None where it does not leave so. A ramp's line bending
+    away right at the gap's start, ever less steeply, has no straight stretch before a
+    hinge (melbourne-408-opp-s9 with a noisier sensor: 3.3 m off over 80 m, the inner
+    exit's step bridged as a taper, the edge 6 m off)."""
+    tracked = np.flatnonzero(np.isfinite(track))
+    if tracked.size < 5:
         return None
-    return float(max(-at0 / slope, 0.0))
+    x = tracked.astype(float) + 0.5
+    y = track[tracked] - (held + (slope + drift) * x)
+    rate, at0 = np.polyfit(x, y, 1)
+    if rate < _LINES_LEAVE_RATE * _LINE_BIN_M or float(y[-1]) < _LINE_BEYOND_M:
+        return None
+    return float(max(-at0 / rate, 0.0))
 
 
 def _hinge_start(x: FloatArray, off: FloatArray) -> float:
