@@ -243,16 +243,7 @@ def lines_held_to(
     drift: float | None = None
     best: tuple[float, bool] | None = None
     for held, slope in lines:
-        track = _walk_line(
-            s,
-            u,
-            gap,
-            held,
-            slope,
-            forward=forward,
-            lost_bins=_LINES_LOST_BINS,
-            gate_growth=_LINES_GATE_GROWTH_M,
-        )
+        track = _walk_lane_line(s, u, gap, held, slope, forward=forward)
         x0 = _departure_bin(track, held)
         if x0 is None:
             x0 = _off_course_bin(track, held, slope)
@@ -272,6 +263,29 @@ def lines_held_to(
         if best is None or reach > best[0]:
             best = (reach, x0 is not None)
     return None if best is None else (float(start + direction * best[0]), best[1])
+
+
+def _walk_lane_line(
+    s: FloatArray,
+    u: FloatArray,
+    gap: tuple[float, float],
+    held: float,
+    slope: float,
+    *,
+    forward: bool,
+) -> FloatArray:
+    """:func:`_walk_line` for a lane line (dashed: lost after ``_LINES_LOST_BINS``, its
+    gate growing by ``_LINES_GATE_GROWTH_M`` per bin unseen)."""
+    return _walk_line(
+        s,
+        u,
+        gap,
+        held,
+        slope,
+        forward=forward,
+        lost_bins=_LINES_LOST_BINS,
+        gate_growth=_LINES_GATE_GROWTH_M,
+    )
 
 
 def _lines_beside(
@@ -324,16 +338,7 @@ def _through_drift(
         forward=forward,
     )
     for held, slope in reversed(lines):
-        track = _walk_line(
-            s,
-            u,
-            gap,
-            held,
-            slope,
-            forward=forward,
-            lost_bins=_LINES_LOST_BINS,
-            gate_growth=_LINES_GATE_GROWTH_M,
-        )
+        track = _walk_lane_line(s, u, gap, held, slope, forward=forward)
         tracked = np.flatnonzero(np.isfinite(track))
         if tracked.size >= 5 and tracked[-1] - tracked[0] >= _DRIFT_SPAN_BINS:
             return float(np.polyfit(tracked + 0.5, track[tracked], 1)[0]) - slope
