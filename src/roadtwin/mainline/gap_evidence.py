@@ -23,6 +23,7 @@ carriageway (the edge points' frame, :func:`~.edge_levels.edge_level_path`).
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 from numpy.typing import NDArray
@@ -265,27 +266,8 @@ def lines_held_to(
     return None if best is None else (float(start + direction * best[0]), best[1])
 
 
-def _walk_lane_line(
-    s: FloatArray,
-    u: FloatArray,
-    gap: tuple[float, float],
-    held: float,
-    slope: float,
-    *,
-    forward: bool,
-) -> FloatArray:
-    """:func:`_walk_line` for a lane line (dashed: lost after ``_LINES_LOST_BINS``, its
-    gate growing by ``_LINES_GATE_GROWTH_M`` per bin unseen)."""
-    return _walk_line(
-        s,
-        u,
-        gap,
-        held,
-        slope,
-        forward=forward,
-        lost_bins=_LINES_LOST_BINS,
-        gate_growth=_LINES_GATE_GROWTH_M,
-    )
+# a lane line's walk: dashed, lost after _LINES_LOST_BINS, its gate growing per bin unseen
+_walk_lane_line = partial(_walk_line, lost_bins=_LINES_LOST_BINS, gate_growth=_LINES_GATE_GROWTH_M)
 
 
 def _lines_beside(
