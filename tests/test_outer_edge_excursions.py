@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from roadtwin.mainline.outer_edge import fit_outer_edge, without_short_excursions
+from roadtwin.mainline.outer_edge import (
+    fit_outer_edge,
+    ramp_edge_at_hidden_gores,
+    without_short_excursions,
+)
 
 CENTRES = np.arange(1.0, 400.0, 2.0)
 
@@ -123,3 +127,59 @@ def test_a_span_between_two_gaps_is_kept():
     level[(CENTRES > 196.0) & (CENTRES < 282.0)] = np.nan
     level[CENTRES > 282.0] = 8.5
     np.testing.assert_array_equal(without_short_excursions(CENTRES, level, step_m=2.0), level)
+
+
+def _entry_behind_gap(ramp: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Edge points of an entry whose gore (placed at 300 m from the lines) lies 14 m past
+    an occlusion gap (200-286 m): the shoulder at 7 m before the gap, the new lane's edge at
+    10.8 m from the gore on; between the gap and the gore the loop ramp's edge converging
+    from 12.4 m onto 10.8 m (``ramp``), or the new lane's edge already there."""
+    rng = np.random.default_rng(11)
+    s = np.concatenate([np.arange(0.0, 200.0, 0.5), np.arange(286.0, 450.0, 0.5)])
+    d = np.where(s < 250.0, 7.0, 10.8)
+    near = (s > 250.0) & (s < 300.0)
+    if ramp:
+        d[near] = 12.4 - 1.6 * (s[near] - 286.0) / 14.0
+    return s, d + rng.normal(0.0, 0.03, s.size)
+
+
+def test_a_ramps_edge_between_a_gap_and_a_hidden_entry_gore_is_not_the_roads():
+    """krems-24746399-s11 with a noisier sensor: the loop entry's edge, converging onto
+    the new lane's for the 14 m between an 86 m gap and the gore, was fitted as the
+    mainline's own edge and the edge bridged to it across the gap, 5 m off at its end."""
+    s, d = _entry_behind_gap(ramp=True)
+    grid = np.arange(0.0, 450.0, 1.0)
+    d_edge, _, used, covered = fit_outer_edge(s, d, grid, hidden_steps=np.array([300.0]))
+    assert not used[(s > 286.0) & (s < 299.0)].any()
+    assert not covered[(grid > 288.0) & (grid < 297.0)].any()
+    # the side before the gore is fitted on the shoulder seen before the gap alone (the
+    # gap itself is bridged later, from the lines)
+    assert np.max(np.abs(d_edge[(grid > 150.0) & (grid < 199.0)] - 7.0)) < 0.05
+    assert np.max(np.abs(d_edge[(grid > 301.0) & (grid < 440.0)] - 10.8)) < 0.05
+
+
+def test_the_new_lanes_edge_seen_before_a_hidden_gore_is_kept():
+    """The same gap and gore with the new lane's edge already at its level after the gap
+    (nothing comes in): those points are the road's and stay in the fit."""
+    s, d = _entry_behind_gap(ramp=False)
+    grid = np.arange(0.0, 450.0, 1.0)
+    _, _, used, covered = fit_outer_edge(s, d, grid, hidden_steps=np.array([300.0]))
+    assert used[(s > 286.0) & (s < 299.0)].all()
+    assert covered[(grid > 288.0) & (grid < 297.0)].all()
+
+
+def test_a_ramps_edge_leaving_between_a_hidden_exit_gore_and_a_gap_is_not_the_roads():
+    """The mirror on the level path: an exit's gore placed at 150 m, the path following the
+    ramp's edge out from 10.8 to 12.4 m up to a gap (164-250 m), the shoulder at 7 m after
+    it; and the same path where the level seen up to the gap holds (a lane's edge)."""
+    level = np.where(CENTRES < 150.0, 10.8, 7.0)
+    span = (CENTRES > 150.0) & (CENTRES < 164.0)
+    level[span] = 10.8 + 1.6 * (CENTRES[span] - 150.0) / 14.0
+    level[(CENTRES >= 164.0) & (CENTRES < 250.0)] = np.nan
+    ramp = ramp_edge_at_hidden_gores(CENTRES, level, np.array([150.0]))
+    np.testing.assert_array_equal(ramp, (CENTRES > 150.0) & (CENTRES < 251.0))
+    level[span] = 10.8
+    assert not ramp_edge_at_hidden_gores(CENTRES, level, np.array([150.0])).any()
+    # a gore farther than 30 m before the gap: the level beside it is not the ramp's
+    level[span] = 10.8 + 1.6 * (CENTRES[span] - 150.0) / 14.0
+    assert not ramp_edge_at_hidden_gores(CENTRES, level, np.array([120.0])).any()

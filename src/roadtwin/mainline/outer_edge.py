@@ -106,6 +106,51 @@ def _gap_excursion(c: FloatArray, q: FloatArray, first: int, last: int) -> bool:
     )
 
 
+_RAMP_SPAN_MAX_M = 30.0  # a ramp's edge seen between a gap and a hidden gore this close ...
+_RAMP_COMES_IN_M = 0.5  # ... coming in (going out) towards the gore by this much at least
+
+
+def ramp_edge_at_hidden_gores(
+    centres: FloatArray, level: FloatArray, gores: FloatArray
+) -> NDArray[np.bool_]:
+    """Bins of the level path (``level``, metres, outward positive, NaN unseen, on bins
+    centred at ``centres``) that hold a ramp's edge next to a gore hidden in an occlusion
+    gap: the seen span between a gap (``_SPLIT_GAP_M`` long at least) and a gore placed
+    after it within ``_RAMP_SPAN_MAX_M`` (``gores``, stations in metres; an entry), wholly
+    more than ``_GORE_LEVEL_M`` outward of the level before the gap and coming in by
+    ``_RAMP_COMES_IN_M`` towards the gore; mirrored for a gore placed before a gap (an
+    exit's ramp edge going out). There the mainline's shoulder closes to the gore (opens
+    from it), unseen; a loop entry's edge converging onto the new lane's edge for 14 m
+    after the gap (krems-24746399-s11+380, noisier sensor) was fitted as the mainline's
+    and the edge bridged to it across the 83 m gap, 5 m off at the gap's end."""
+    out = np.zeros(centres.size, dtype=bool)
+    idx = np.flatnonzero(np.isfinite(level))
+    if idx.size < 4:
+        return out
+    c, q = centres[idx], level[idx]
+    hole = np.flatnonzero(np.diff(c) >= _SPLIT_GAP_M)  # idx[h] -> idx[h + 1] spans a gap
+    for g in np.asarray(gores, dtype=float):
+        for h in hole:
+            for entry in (True, False):
+                if entry:  # the gap ends before the gore, the span runs up to it
+                    span = (c > c[h]) & (c < g)
+                    far = (c <= c[h]) & (c > c[h] - 20.0)
+                    ok = c[h + 1] < g <= c[h + 1] + _RAMP_SPAN_MAX_M
+                else:  # the gore before the gap, the span runs from it into the gap
+                    span = (c > g) & (c <= c[h])
+                    far = (c >= c[h + 1]) & (c < c[h + 1] + 20.0)
+                    ok = c[h] - _RAMP_SPAN_MAX_M <= g < c[h]
+                if not ok or np.count_nonzero(span) < 2 or np.count_nonzero(far) < 3:
+                    continue
+                qs = q[span]
+                base = float(np.median(q[far]))
+                towards = qs[0] - qs[-1] if entry else qs[-1] - qs[0]
+                if np.all(qs - base > _GORE_LEVEL_M) and towards >= _RAMP_COMES_IN_M:
+                    lo, hi = (c[h], g) if entry else (g, c[h + 1])
+                    out |= (centres > lo) & (centres < hi)
+    return out
+
+
 def fit_outer_edge(
     s: FloatArray,
     d: FloatArray,
@@ -146,6 +191,10 @@ def fit_outer_edge(
     # mainline's, guardrails and other roads seen through a gap must not pull it out
     q_raw = edge_level_path(s[ok], d[ok], cedges, config=cfg) if levels is None else levels
     q_raw = without_short_excursions(cgrid, q_raw, step_m=cfg.edge_step_m)
+    ramp_bins = np.zeros(cgrid.size, dtype=bool)
+    if hidden_steps is not None and len(hidden_steps):
+        ramp_bins = ramp_edge_at_hidden_gores(cgrid, q_raw, np.asarray(hidden_steps, float))
+        q_raw = np.where(ramp_bins, np.nan, q_raw)
     q = q_raw
     have = np.isfinite(q)
     if not np.any(have):
@@ -181,8 +230,8 @@ def fit_outer_edge(
         if np.any(sel_b):
             qf[sel_b] = moving_median(q_raw[sel_b], window=5)
     qf = _fill_nan(cgrid, qf)
-    ref = qf[np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)]
-    used = ok & (np.abs(d - ref) < 0.8)
+    i_bin = np.clip(np.rint((s - cgrid[0]) / bin_m).astype(np.int64), 0, cgrid.size - 1)
+    used = ok & (np.abs(d - qf[i_bin]) < 0.8) & ~ramp_bins[i_bin]
     covered = _covered(s[used], grid)
     # each side of a long occlusion gap is fitted on its own: one smooth fit across it bends
     # towards the level beyond (a gore hidden in the gap) metres before the gap, where the
