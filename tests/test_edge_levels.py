@@ -244,3 +244,45 @@ def test_a_noisier_sensors_scattered_levels_are_followed_not_left_unseen():
     assert np.nanmax(np.abs(level[after] - 10.5)) < 0.6
     before = c < 98.0
     assert np.nanmax(np.abs(level[before] - 7.0)) < 0.6
+
+
+def _entry_before_gap(seen_after_nose_m: float):
+    """An entry's nose at 500 m: the shoulder edge at 8.3 m before it, the new lane's edge
+    at 14.3 m (a noisier sensor: points every 0.3 m, 0.08 m scatter) seen for
+    ``seen_after_nose_m`` after it,
+    then nothing for 80 m (a truck beside the car), the edge at 10.8 m beyond (the lane
+    tapered away unseen)."""
+    rng = np.random.default_rng(21)
+    gap0 = 500.0 + seen_after_nose_m
+    kw = {"spacing": 0.3, "noise": 0.08}
+    parts = [
+        _line(rng, 0.0, 500.0, lambda s: np.full(s.size, 8.3), **kw),
+        _line(rng, 500.0, gap0, lambda s: np.full(s.size, 14.3), **kw),
+        _line(rng, gap0 + 80.0, 800.0, lambda s: np.full(s.size, 10.8), **kw),
+        # the ramp's edge converging onto the new lane's before the nose
+        _line(rng, 440.0, 500.0, lambda s: 14.3 + 0.03 * (500.0 - s), **kw),
+    ]
+    s = np.concatenate([p[0] for p in parts])
+    d = np.concatenate([p[1] for p in parts])
+    edges = np.arange(-1.0, 801.0, 2.0)
+    return 0.5 * (edges[1:] + edges[:-1]), edge_level_path(s, d, edges)
+
+
+def test_the_new_lanes_edge_seen_after_an_entrys_nose_is_followed():
+    """a9-206615404-s1+380 (noisier sensor): the new lane's edge seen for 24 m after the
+    nose (here 20 m), then an 80 m gap. Going on unseen at the shoulder's level under it
+    cost 0.6 per bin, following the scattered level and stepping up 0.2 less: the path
+    stayed at the shoulder, the lane's line outside it was dropped as a ramp's, and the
+    edge was 5.9 m off. An own edge hidden while another road's is seen is short-lived (a
+    vehicle beside the car hides both); beyond 5 bins going on unseen costs double."""
+    c, level = _entry_before_gap(20.0)
+    after_nose = (c > 502.0) & (c < 518.0)
+    assert np.all(np.abs(level[after_nose] - 14.3) < 0.3)
+    assert np.all(np.abs(level[(c > 420.0) & (c < 498.0)] - 8.3) < 0.3)
+
+
+def test_an_outer_level_seen_briefly_after_a_step_may_still_be_gone_around():
+    """The same with the outer level seen for 6 m only: stepping out to it and back costs
+    more than going on unseen under it for 3 bins, which stays the cheaper path."""
+    c, level = _entry_before_gap(6.0)
+    assert not np.any(np.abs(level[(c > 500.0) & (c < 506.0)] - 14.3) < 0.3)

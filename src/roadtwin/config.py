@@ -154,7 +154,7 @@ class MainlineConfig:
     points inside the chosen one in a bin (the mainline's edge is the innermost level)."""
     edge_skip_cost: float = 0.6
     """... cost of skipping a bin that holds edge points (the mainline's edge unseen there,
-    another road's edge seen instead)."""
+    another road's edge seen instead); doubled beyond the first five such bins in a row."""
     edge_level_sigma_m: float = 0.15
     """... lateral change of the edge between neighbouring 2 m bins that costs 1."""
     edge_step_m: float = 2.0

@@ -18,7 +18,11 @@ found by a beam Viterbi pass along the bins with costs for:
   with the bins since the state was last seen), a change beyond ``edge_step_m`` costs
   ``edge_step_cost`` (a gore step);
 * unseen: a state that carries its level through a bin holding points but none at its
-  level costs ``edge_skip_cost`` per bin (empty bins cost nothing).
+  level costs ``edge_skip_cost`` per bin, twice that beyond the first ``_SKIP_CHEAP_BINS``
+  such bins since it was last seen (empty bins cost nothing). A vehicle beside the car
+  hides the road's edge and what lies beyond alike; the edge unseen under another
+  road's for long is more likely not there: an entry's new lane, whose edge seen for
+  24 m after the nose was gone around at the shoulder's level (a9-206615404-s1+380).
 
 Offsets ``d`` are metres from the reference edge towards the carriageway (positive).
 """
@@ -43,6 +47,8 @@ _MAX_LEVELS = 6  # observed levels kept per bin (innermost first)
 _MAX_CARRIED = 6  # unseen (carried) states kept per bin
 _AFTER_STEP_AGE = 3.0  # a state that just stepped is as uncertain as one unseen for 3 bins
 _MIN_LEVEL_POINTS = 3.0  # points (over three bins) that make a level: fewer are noise
+_SKIP_CHEAP_BINS = 5  # an edge unseen under another road's for this many bins costs ...
+_SKIP_LONG_FACTOR = 2.0  # ... edge_skip_cost each, every bin after that this many times it
 
 
 def bin_levels(
@@ -148,6 +154,7 @@ def _beam_viterbi(bins: list[tuple[FloatArray, FloatArray]], cfg: MainlineConfig
     slope = np.zeros(0)
     cost = np.zeros(0)
     age = np.zeros(0)
+    skipped = np.zeros(0)  # bins holding points the state went on unseen through
     for i in range(n_bins):
         obs, emit = bins[i]
         has_points = obs.size > 0
@@ -165,18 +172,24 @@ def _beam_viterbi(bins: list[tuple[FloatArray, FloatArray]], cfg: MainlineConfig
             o_slope = np.where(stepped, 0.0, 0.5 * slope[k] + 0.5 * new_slope)
             # where a step lands is known to a metre, not to centimetres
             o_age = np.where(stepped, _AFTER_STEP_AGE, 0.0)
+            o_skipped = np.zeros(obs.size)
         elif obs.size:
             o_cost = emit + cfg.edge_skip_cost * i
             o_back = np.full(obs.size, -1, dtype=np.int64)
             o_slope = np.zeros(obs.size)
             o_age = np.zeros(obs.size)
+            o_skipped = np.zeros(obs.size)
         else:
             o_cost, o_back, o_slope = np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0)
             o_age = np.zeros(0)
+            o_skipped = np.zeros(0)
         # carried states: every previous state going on unseen (not onto an observed level)
         c_level = level + slope
         c_slope = 0.9 * slope
-        c_cost = cost + (cfg.edge_skip_cost if has_points else 0.0)
+        c_skipped = skipped + has_points
+        c_cost = cost + has_points * cfg.edge_skip_cost * np.where(
+            c_skipped > _SKIP_CHEAP_BINS, _SKIP_LONG_FACTOR, 1.0
+        )
         c_age = age + 1
         c_back = np.arange(level.size, dtype=np.int64)
         if obs.size and level.size:
@@ -184,15 +197,16 @@ def _beam_viterbi(bins: list[tuple[FloatArray, FloatArray]], cfg: MainlineConfig
             near = 3.0 * cfg.edge_level_sigma_m * (1.0 + 0.25 * c_age)
             keep = np.min(np.abs(c_level[:, None] - obs[None, :]), axis=1) >= near
             c_level, c_slope, c_cost = c_level[keep], c_slope[keep], c_cost[keep]
-            c_age, c_back = c_age[keep], c_back[keep]
+            c_age, c_back, c_skipped = c_age[keep], c_back[keep], c_skipped[keep]
         if c_level.size > _MAX_CARRIED:
             best = np.argsort(c_cost, kind="stable")[:_MAX_CARRIED]
             c_level, c_slope, c_cost = c_level[best], c_slope[best], c_cost[best]
-            c_age, c_back = c_age[best], c_back[best]
+            c_age, c_back, c_skipped = c_age[best], c_back[best], c_skipped[best]
         level = np.concatenate([obs, c_level])
         slope = np.concatenate([o_slope, c_slope])
         cost = np.concatenate([o_cost, c_cost])
         age = np.concatenate([o_age, c_age])
+        skipped = np.concatenate([o_skipped, c_skipped])
         hist_level.append(level)
         hist_seen.append(np.concatenate([np.ones(obs.size, bool), np.zeros(c_level.size, bool)]))
         hist_back.append(np.concatenate([o_back, c_back]))
