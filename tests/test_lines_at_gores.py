@@ -236,3 +236,37 @@ def test_a_lane_line_meeting_the_line_inward_outside_the_gap_is_not_cut():
     out, gores = _snap_to_hidden_gores([inner, line], [], covered, grid, CFG, d_edge)
     assert (out[1].lo, out[1].hi) == (673.0, 885.0)
     assert not np.any((gores > 660.0) & (gores < 690.0))
+
+
+def _lane_gain_in_gap(after: float) -> tuple[list[_Track], np.ndarray, np.ndarray]:
+    """Four lines, the outermost at 11.8 m; the outer edge unseen from 551 to 694 m, seen
+    at 14.9 m before and ``after`` metres beyond."""
+    tracks = [_line(k, 0.0, 900.0, d) for k, d in enumerate((1.2, 4.7, 8.3, 11.8))]
+    covered = (stations < 551.0) | (stations > 694.0)
+    d_edge = np.interp(stations, [551.0, 694.0], [14.9, after])
+    return tracks, covered, d_edge
+
+
+def test_a_line_leaving_where_the_edge_widens_is_a_lane_gains_not_a_gore():
+    """oakland-28393854-lane1-s21+380 (noisier sensor): a lane gained by a taper inside a
+    143 m gap of the edge; its new edge line, leaving the old one at 581 m, was cut off as
+    an exit's ramp line and the gore placed there stepped the edge out, the shoulder
+    before it closing to the gore (edge 0.337 m RMSE, 3.6 m off)."""
+    tracks, covered, d_edge = _lane_gain_in_gap(18.7)
+    _, gores = _snap_to_hidden_gores(tracks, [(581.0, 11.83, True)], covered, stations, CFG, d_edge)
+    assert gores.size == 0
+    # a line meeting the outermost one there is an entry's: the edge widens at its gore
+    _, gores = _snap_to_hidden_gores(
+        tracks, [(581.0, 11.83, False)], covered, stations, CFG, d_edge
+    )
+    np.testing.assert_allclose(gores, [581.0], atol=1.0)
+
+
+def test_a_line_leaving_where_the_edge_narrows_is_an_exits():
+    tracks, covered, d_edge = _lane_gain_in_gap(11.4)
+    _, gores = _snap_to_hidden_gores(tracks, [(581.0, 11.83, True)], covered, stations, CFG, d_edge)
+    np.testing.assert_allclose(gores, [581.0], atol=1.0)
+    _, gores = _snap_to_hidden_gores(
+        tracks, [(581.0, 11.83, False)], covered, stations, CFG, d_edge
+    )
+    assert gores.size == 0

@@ -1719,7 +1719,9 @@ def test_a_hidden_gore_cuts_only_the_markings_beside_it():
     through = _const_track(1, grid, 15.2, 0.0, 1000.0)
     outer = _const_track(2, grid, 18.7, 610.0, 1000.0)  # the ramp's line upstream of the gore
     covered = (grid < 630.0) | (grid > 660.0)
-    out, gores = _snap_to_hidden_gores([inner, through, outer], [(647.0, 15.2)], covered, grid, cfg)
+    out, gores = _snap_to_hidden_gores(
+        [inner, through, outer], [(647.0, 15.2, False)], covered, grid, cfg
+    )
     assert [round(float(g)) for g in gores] == [647]
     assert out[0].lo == pytest.approx(596.0)  # the inner line keeps its start
     assert out[1].lo == pytest.approx(0.0)

@@ -463,7 +463,7 @@ def test_a_line_bending_towards_an_inner_exit_is_no_outer_ramp_line():
     inner = _Track(0, 0.0, 594.0, g, bend, "solid", g.size, g)
     lines = [_track(k + 1, grid, 0.0, d) for k, d in enumerate((4.6, 8.0, 11.5))]
     covered = (grid < 589.0) | (grid > 663.0)
-    out, gores = _snap_to_hidden_gores([inner, *lines], [(595.0, 4.8)], covered, grid, cfg)
+    out, gores = _snap_to_hidden_gores([inner, *lines], [(595.0, 4.8, True)], covered, grid, cfg)
     assert gores.size == 0
     assert out[0].hi == 594.0
     # a bend of 1 m on the outermost line: an outer exit's ramp line, cut where parallel
@@ -684,9 +684,9 @@ def test_a_ramp_lines_tip_short_of_the_line_it_meets_still_places_the_gore():
     grid = np.arange(7000.0, 9000.5, cfg.grid_step_m)
     lines = [_track(k, grid, 7000.0, d) for k, d in enumerate((0.7, 4.3, 8.1))]
     covered = (grid < 7861.0) | (grid > 7912.0)
-    _, gores = _snap_to_hidden_gores(lines, [(7908.5, 9.38)], covered, grid, cfg)
+    _, gores = _snap_to_hidden_gores(lines, [(7908.5, 9.38, False)], covered, grid, cfg)
     np.testing.assert_allclose(gores, [7908.0], atol=1.0)
-    _, gores = _snap_to_hidden_gores(lines, [(7908.5, 10.1)], covered, grid, cfg)
+    _, gores = _snap_to_hidden_gores(lines, [(7908.5, 10.1, False)], covered, grid, cfg)
     assert gores.size == 0
 
 
@@ -796,3 +796,4 @@ def test_a_lane_wide_strip_beyond_a_gap_with_no_shoulder_before_it_begins_at_a_g
     )
     found = _gores_at_lane_wide_strips(closing, covered, tracks, grid, 3.5, np.zeros(0))
     assert found == [pytest.approx(257.0, abs=1.0)]
+

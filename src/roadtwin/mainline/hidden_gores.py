@@ -156,7 +156,7 @@ def _grid_index(s: FloatArray | float, grid: FloatArray, step: float) -> NDArray
 
 def _snap_to_hidden_gores(
     tracks: list[_Track],
-    evidence: list[tuple[float, float]],
+    evidence: list[tuple[float, float, bool]],
     covered: NDArray[np.bool_],
     grid: FloatArray,
     cfg: MainlineConfig,
@@ -259,11 +259,13 @@ def _snap_to_hidden_gores(
     # the ramp's lane the mainline's there and the edge 4 m off)
     for s_gore, d_g in at_lines:
         out = _cut_beside_gore(out, s_gore, d_g, step)
-    for s_g, d_g in evidence:
+    for s_g, d_g, leaves in evidence:
         i_g = int(_grid_index(s_g, grid, step))
         # inside (or within 10 m of) a gap of the outer-edge points
         lo_i, hi_i = max(i_g - 10, 0), min(i_g + 11, grid.size)
         if not gap[lo_i:hi_i].any():
+            continue
+        if _edge_moves_against(leaves, gap, lo_i, hi_i, d_edge):
             continue
         # it must touch the outermost mainline marking there (a line meeting one with
         # through lines farther out is an inner ramp's, whose gore does not step the outer
@@ -285,6 +287,36 @@ def _snap_to_hidden_gores(
         gores.append(s_gore)
         out = _cut_beside_gore(out, s_gore, d_g, step)
     return out, np.asarray(gores, dtype=float)
+
+
+_AGAINST_EDGE_M = 1.5  # the edge widening (narrowing) across a gap by a lane's share
+
+
+def _edge_moves_against(
+    leaves: bool,
+    gap: NDArray[np.bool_],
+    lo_i: int,
+    hi_i: int,
+    d_edge: FloatArray | None,
+) -> bool:
+    """Whether the outer edge (``d_edge``, metres outward on the grid) seen at the ends of
+    the occlusion gap (``gap``) that overlaps the grid stations ``lo_i:hi_i`` moved against
+    a gore there: wider after the gap by ``_AGAINST_EDGE_M`` where the line cut off leaves
+    the markings (``leaves``, an exit's), narrower where it meets them (an entry's). Such a
+    line opens (closes) a lane by a taper: a lane gain whose new edge line left the old one
+    inside an 140 m gap (oakland-28393854-lane1-s21+380 with a noisier sensor) was cut off
+    as an exit's ramp line, and the gore placed where it left stepped the edge out there,
+    the shoulder before it closing to the gore: 3.6 m off."""
+    if d_edge is None:
+        return False
+    runs = [(a, b) for a, b in true_runs(gap) if a < hi_i and b > lo_i]
+    if not runs:
+        return False
+    a, b = runs[0][0], runs[-1][1]
+    if a == 0 or b >= gap.size:
+        return False
+    widens = float(d_edge[b] - d_edge[a - 1])
+    return widens > _AGAINST_EDGE_M if leaves else widens < -_AGAINST_EDGE_M
 
 
 _WITH_EDGE_SEEN_M = 10.0  # the edge seen beside this much of a moving line (metres) ...

@@ -99,8 +99,8 @@ def _tracks_from_samples(
     line somewhere (on a segment between median-side gores the lanes begin beyond it); the
     markings there are searched for too.
 
-    Also returns ``(s, d)`` where ramp lines crossing the corridor were cut off (they meet
-    or leave a mainline marking there: gore evidence)."""
+    Also returns ``(s, d, leaves)`` where ramp lines crossing the corridor were cut off
+    (they meet, or leave (``leaves``), a mainline marking there: gore evidence)."""
     if s.size < 10:
         return [], []
     centres, peaks = _find_track_peaks(s, d, length, cfg, below_m)
@@ -137,8 +137,10 @@ def _tracks_from_samples(
             s, d_frame, grid, length, cfg, edge, centres, raw, frame
         )
         tracks = [_out_of_frame(tr, grid, frame) for tr in tracks]
-        moved = frame.offset(np.array([g for g, _ in evidence], dtype=float))
-        evidence = [(g, v + float(m)) for (g, v), m in zip(evidence, moved, strict=True)]
+        moved = frame.offset(np.array([g for g, _, _ in evidence], dtype=float))
+        evidence = [
+            (g, v + float(m), leaves) for (g, v, leaves), m in zip(evidence, moved, strict=True)
+        ]
     return _continue_to_convergence(tracks, grid, cfg, seen_edge), evidence
 
 
@@ -228,7 +230,7 @@ def _tracks_in_frame(
         return not (cut and hi - lo >= cfg.lane_min_cut_track_m)
 
     cand: list[_Track] = []
-    evidence: list[tuple[float, float]] = []
+    evidence: list[tuple[float, float, bool]] = []
     # every column peak once (column, offset, track), for the short ramp lines below
     raw = _join_late_pieces(_join_tapers(raw, cfg), cfg)
     peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw])
@@ -304,10 +306,12 @@ def _tracks_in_frame(
             # a ramp line: where it meets / leaves the corridor's marking is a gore
             if keep_g.any():
                 i_in = np.flatnonzero(keep_g)
-                i_g = i_in[0] - 1 if not keep_g[0] else i_in[-1] + 1
+                leaves = bool(keep_g[0])
+                i_g = i_in[-1] + 1 if leaves else i_in[0] - 1
             else:
+                leaves = bool(fit[-1] >= fit[0])
                 i_g = _ramp_line_meeting(g, fit, [c for j, c in enumerate(cand) if j != k])
-            evidence.append((float(g[i_g]), float(fit[i_g])))
+            evidence.append((float(g[i_g]), float(fit[i_g]), leaves))
         if not keep_g.any():
             continue
         g_in = g[keep_g]
@@ -334,7 +338,7 @@ def _short_ramp_line_meeting(
     peaks: tuple[NDArray[np.int64], FloatArray, NDArray[np.bool_]],
     centres: FloatArray,
     cfg: MainlineConfig,
-) -> tuple[float, float] | None:
+) -> tuple[float, float, bool] | None:
     """Where a line too short to be a marking track meets (converging inward) or leaves
     (diverging outward) the corridor's markings, if it crosses the corridor steadily over
     ``_SHORT_RAMP_LINE_M`` or more: a ramp line, the evidence of a gore. Its peaks merge
@@ -342,10 +346,10 @@ def _short_ramp_line_meeting(
     carries it onto the nearest other line (``peaks``: every track's column indices and
     offsets, and the mask of the other tracks' ones, applied only when the line qualifies;
     columns centred at ``centres``) within ``_SHORT_RAMP_REACH_M``, else its last (first)
-    column. A ramp line converging through an occlusion gap of the outer edge is cut by
-    the edge's bound there and may be left too short for a track (soderleden-s2, noisier
-    sensor: then nothing placed the gore, and the acceleration lane began where the line
-    beside it did, 54 m early)."""
+    column; and whether it leaves them. A ramp line converging through an occlusion gap of
+    the outer edge is cut by the edge's bound there and may be left too short for a track
+    (soderleden-s2, noisier sensor: then nothing placed the gore, and the acceleration lane
+    began where the line beside it did, 54 m early)."""
     s_cols, d_cols = centres[tr.cols], np.asarray(tr.d)
     if s_cols.size < 4 or s_cols[-1] - s_cols[0] < _SHORT_RAMP_LINE_M:
         return None
@@ -373,10 +377,11 @@ def _short_ramp_line_meeting(
         & (offsets >= d_end - _SHORT_RAMP_REACH_M * slope)
         & (offsets < d_end)
     ]
+    leaves = toward < 0
     if inward.size == 0:
-        return s_end, d_end
+        return s_end, d_end, leaves
     d_meet = float(np.max(inward))
-    return s_end + toward * (d_end - d_meet) / max(slope, 1e-6), d_meet
+    return s_end + toward * (d_end - d_meet) / max(slope, 1e-6), d_meet, leaves
 
 
 _MEET_M = 0.3  # a neighbouring line this close to an ended line's offset has met it (metres)
