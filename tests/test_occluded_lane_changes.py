@@ -814,20 +814,3 @@ def test_the_edge_unseen_to_the_runs_end_keeps_its_shoulder():
     np.testing.assert_allclose(out[grid > 372.0], 11.0, atol=1e-9)
     np.testing.assert_allclose(out[grid < 40.0], 11.0, atol=1e-9)
     np.testing.assert_array_equal(out[covered], d_edge[covered])
-
-
-def test_the_edge_unseen_to_the_runs_end_stays_where_its_line_is_lost():
-    """krems-24746399-opp-s12+380: the edge line (10.4 m) seen up to where the edge was
-    last seen, 11 m before the run's end; the outermost marking beyond is the lane line at
-    7.9 m, and the edge kept beside it closed the shoulder and the lane onto it."""
-    from roadtwin.mainline.markings import _Track
-
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 246.5, cfg.grid_step_m)
-    g = grid[grid <= 235.0]
-    edge_line = _Track(1, 0.0, 235.0, g, np.full(g.size, 10.4), "solid", g.size, g)
-    tracks = [_track(0, grid, 0.0, 7.9), edge_line]
-    d_edge = np.full(grid.size, 10.6)
-    covered = grid <= 235.0
-    out = _bridge_edge_gaps(d_edge, covered, tracks, grid)
-    np.testing.assert_allclose(out[grid > 235.0], 10.6, atol=1e-9)

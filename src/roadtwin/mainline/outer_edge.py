@@ -557,20 +557,15 @@ def _bridge_edge_gaps(
 def _hold_shoulder_to_end(out: FloatArray, d_last: FloatArray, a: int, b: int) -> None:
     """The edge (``out``, metres on the grid, filled in place) over the unseen run end
     ``a:b`` (``a == 0`` or ``b`` the grid's size) at the outer shoulder's width where it was
-    last seen, beside the outermost marking (``d_last``) as long as that is the same line
-    (no jump of a metre; after one, or where none is seen, the edge holds its place); the
-    fit extrapolated its slope instead (krems-46762523-s1+380 with a noisier sensor: a
-    lane's taper seen to its end, then 123 m unseen to the run's end over which the edge
-    went on closing, 2.8 m off)."""
+    last seen, beside the outermost marking (``d_last``); the fit extrapolated its slope
+    instead (krems-46762523-s1+380 with a noisier sensor: a lane's taper seen to its end,
+    then 123 m unseen to the run's end over which the edge went on closing, 2.8 m off)."""
     i = b if a == 0 else a - 1
     if not np.isfinite(d_last[i]):
         return
-    # the marking's move from the last seen station, going away from it
-    line = d_last[a:b][::-1] if a == 0 else d_last[a:b]
-    moves = np.diff(np.concatenate([[d_last[i]], line]))
-    same = np.isfinite(moves) & (np.abs(moves) < 1.0)
-    moved = np.cumsum(np.where(np.cumprod(same) > 0, moves, 0.0))
-    out[a:b] = out[i] + (moved[::-1] if a == 0 else moved)
+    inner = d_last[a:b]
+    ok = np.isfinite(inner)
+    out[a:b][ok] = inner[ok] + (out[i] - d_last[i])
 
 
 _FITTED_JUMP_M = 0.1  # a fitted taper this much wider than the seen shoulder at the gap
