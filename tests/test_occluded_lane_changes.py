@@ -797,20 +797,3 @@ def test_a_lane_wide_strip_beyond_a_gap_with_no_shoulder_before_it_begins_at_a_g
     found = _gores_at_lane_wide_strips(closing, covered, tracks, grid, 3.5, np.zeros(0))
     assert found == [pytest.approx(257.0, abs=1.0)]
 
-
-def test_the_edge_unseen_to_the_runs_end_keeps_its_shoulder():
-    """krems-46762523-s1+380 (noisier sensor): a lane's taper seen to its end at 372 m,
-    the edge unseen for the last 123 m of the run while the outermost line (at 8 m) was
-    seen to the end. The fit carried the taper's slope on and the edge closed onto the
-    line, 2.8 m off at the end; it keeps the 3 m shoulder seen last (and at the run's
-    start the one seen first)."""
-    cfg = MainlineConfig()
-    grid = np.arange(0.0, 495.5, cfg.grid_step_m)
-    tracks = [_track(0, grid, 0.0, 8.0)]
-    # the fit's edge: the seen taper's slope carried on past 372 m (and before 40 m)
-    d_edge = 11.0 - 0.03 * np.clip(grid - 372.0, 0.0, None) + 0.02 * np.clip(40.0 - grid, 0, None)
-    covered = (grid >= 40.0) & (grid <= 372.0)
-    out = _bridge_edge_gaps(d_edge, covered, tracks, grid)
-    np.testing.assert_allclose(out[grid > 372.0], 11.0, atol=1e-9)
-    np.testing.assert_allclose(out[grid < 40.0], 11.0, atol=1e-9)
-    np.testing.assert_array_equal(out[covered], d_edge[covered])

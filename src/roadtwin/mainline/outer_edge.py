@@ -480,10 +480,7 @@ def _bridge_edge_gaps(
         )
     )
     for a, b in true_runs(~covered):
-        if b - a < 5 or (a == 0 and b >= grid.size):
-            continue
-        if a == 0 or b >= grid.size:
-            _hold_shoulder_to_end(out, d_last, a, b)
+        if a == 0 or b >= grid.size or b - a < 5:
             continue
         i0, i1 = a - 1, b
         if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
@@ -552,20 +549,6 @@ def _bridge_edge_gaps(
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
-
-
-def _hold_shoulder_to_end(out: FloatArray, d_last: FloatArray, a: int, b: int) -> None:
-    """The edge (``out``, metres on the grid, filled in place) over the unseen run end
-    ``a:b`` (``a == 0`` or ``b`` the grid's size) at the outer shoulder's width where it was
-    last seen, beside the outermost marking (``d_last``); the fit extrapolated its slope
-    instead (krems-46762523-s1+380 with a noisier sensor: a lane's taper seen to its end,
-    then 123 m unseen to the run's end over which the edge went on closing, 2.8 m off)."""
-    i = b if a == 0 else a - 1
-    if not np.isfinite(d_last[i]):
-        return
-    inner = d_last[a:b]
-    ok = np.isfinite(inner)
-    out[a:b][ok] = inner[ok] + (out[i] - d_last[i])
 
 
 _FITTED_JUMP_M = 0.1  # a fitted taper this much wider than the seen shoulder at the gap
