@@ -796,4 +796,3 @@ def test_a_lane_wide_strip_beyond_a_gap_with_no_shoulder_before_it_begins_at_a_g
     )
     found = _gores_at_lane_wide_strips(closing, covered, tracks, grid, 3.5, np.zeros(0))
     assert found == [pytest.approx(257.0, abs=1.0)]
-

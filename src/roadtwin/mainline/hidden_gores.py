@@ -304,7 +304,7 @@ def _edge_moves_against(
     a gore there: wider after the gap by ``_AGAINST_EDGE_M`` where the line cut off leaves
     the markings (``leaves``, an exit's), narrower where it meets them (an entry's). Such a
     line opens (closes) a lane by a taper: a lane gain whose new edge line left the old one
-    inside an 140 m gap (oakland-28393854-lane1-s21+380 with a noisier sensor) was cut off
+    inside a 143 m gap (oakland-28393854-lane1-s21+380 with a noisier sensor) was cut off
     as an exit's ramp line, and the gore placed where it left stepped the edge out there,
     the shoulder before it closing to the gore: 3.6 m off."""
     if d_edge is None:
