@@ -443,15 +443,13 @@ def _place_hidden_gores(
                 if tr.s.size < 20 or beyond < 20.0:
                     continue
                 late = not (s_a - step <= s_tip <= s_b + step)
-                if late and not (
-                    s_b - s_a >= _STRIP_GAP_M
-                    and not _any_between(line_gores, s_a, s_b)
-                    and not _any_between(
-                        None if seen_steps is None else seen_steps[0],
-                        s_tip,
-                        s_b if entry else s_a,
-                    )
-                    and _lane_at_gap_end(tr, entry, s_a, s_b, s_out, d_out)
+                if late and not _lane_at_gap_end(
+                    tr,
+                    entry,
+                    (s_a, s_b),
+                    (s_out, d_out),
+                    line_gores,
+                    None if seen_steps is None else seen_steps[0],
                 ):
                     continue
                 if seen_steps is not None:
@@ -514,25 +512,37 @@ _AT_END_M = 10.0  # ... beside the edge seen this far past the gap's end (before
 
 
 def _lane_at_gap_end(
-    tr: _Track, entry: bool, s_a: float, s_b: float, s_out: FloatArray, d_out: FloatArray
+    tr: _Track,
+    entry: bool,
+    gap: tuple[float, float],
+    points: tuple[FloatArray, FloatArray],
+    line_gores: FloatArray | None = None,
+    seen_steps: FloatArray | None = None,
 ) -> bool:
     """Whether track ``tr``, first seen (``entry``; else last seen) within ``_LATE_TIP_M``
-    after the end (before the start) of the occlusion gap ``s_a``..``s_b`` of the outer
-    edge (metres), has its lane there already: the edge points (``s_out``, ``d_out``)
-    within ``_AT_END_M`` past that end lie beyond the line by more than
+    after the end (before the start) of the occlusion gap ``gap`` (first and last
+    station) of the outer edge (metres), has its lane there already: the edge points
+    (``points``: stations and offsets) within ``_AT_END_M`` past that end lie beyond the
+    line by more than
     ``_NO_SHOULDER_M``. The lane began (ended) at a gore in the gap, its line's paint
     starting later (melbourne-408-opp-s4 with a noisier sensor: an entry's line first seen
     14 m after the gap that hid the nose, the lane was opened by a taper across the gap
     and the edge bridged 4-5 m off; an exit's, krems-46762523-s2: its lane closed by a
-    250 m taper, edge 0.229 -> 0.056 m). The caller asks it only where the gap is an
-    occlusion (``_STRIP_GAP_M`` long: melbourne-1019-s11 with a noisier sensor, seed
+    250 m taper, edge 0.229 -> 0.056 m). Only where the gap is an occlusion
+    (``_STRIP_GAP_M`` long: melbourne-1019-s11 with a noisier sensor, seed
     offset 200, an exit's step seen 9 m past its line's end, then a 1 m gap; a gore put
-    in that gap, edge 0.093 -> 0.115 m) and no step of the edge was seen between the
-    line's tip and the gap: that step is the gore (a9-206615404-s2, seed offset 200: one
-    seen where the line ended, 6 m before the gap; moved into it, 0.054 -> 0.068 m)."""
+    in that gap, edge 0.093 -> 0.115 m), no ramp's line showed a gore in it
+    (``line_gores``, stations in metres) and no step of the edge (``seen_steps``) was
+    seen between the line's tip and the gap: that step is the gore (a9-206615404-s2, seed
+    offset 200: one seen where the line ended, 6 m before the gap; moved into it, 0.054
+    -> 0.068 m)."""
+    s_a, s_b = gap
+    s_out, d_out = points
     s_tip = tr.lo if entry else tr.hi
     late = (s_tip - s_b) if entry else (s_a - s_tip)
-    if not 0.0 < late <= _LATE_TIP_M:
+    if not 0.0 < late <= _LATE_TIP_M or s_b - s_a < _STRIP_GAP_M:
+        return False
+    if _any_between(line_gores, s_a, s_b) or _any_between(seen_steps, s_tip, s_b if entry else s_a):
         return False
     near = (
         (s_out > s_b) & (s_out <= s_b + _AT_END_M)

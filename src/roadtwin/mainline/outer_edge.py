@@ -56,10 +56,9 @@ def without_short_excursions(
     positive; NaN unseen), as :func:`~.edge_levels.edge_level_path` returns them.
     """
     out = level.copy()
-    idx = np.flatnonzero(np.isfinite(level))
+    idx, c, q, hole = _seen_and_holes(centres, level)
     if idx.size < 3:
         return out
-    q = level[idx]
     up = np.flatnonzero(np.diff(q) > step_m)  # idx[j] -> idx[j + 1] steps outward
     down = np.flatnonzero(np.diff(q) < -step_m)
     for j in up:
@@ -73,13 +72,22 @@ def without_short_excursions(
             out[idx[j + 1] : idx[k] + 1] = np.nan
     # an occlusion gap may hide the step out: a short span seen just after a gap, outward
     # of the levels beyond its step back and across the gap
-    c = centres[idx]
-    hole = np.flatnonzero(np.diff(c) >= _SPLIT_GAP_M)  # idx[h] -> idx[h + 1] spans a gap
     for k in down:
         h = hole[hole < k]
         if h.size and _gap_excursion(c, q, int(h[-1]) + 1, int(k)):
             out[idx[int(h[-1]) + 1] : idx[k] + 1] = np.nan
     return out
+
+
+def _seen_and_holes(
+    centres: FloatArray, level: FloatArray
+) -> tuple[NDArray[np.int64], FloatArray, FloatArray, NDArray[np.int64]]:
+    """The seen bins of a level path (indices, stations and levels, metres) and the
+    occlusion gaps between them: positions ``h`` where seen bin ``h`` and ``h + 1`` lie
+    ``_SPLIT_GAP_M`` or more apart."""
+    idx = np.flatnonzero(np.isfinite(level))
+    c = centres[idx]
+    return idx, c, level[idx], np.flatnonzero(np.diff(c) >= _SPLIT_GAP_M)
 
 
 _GAP_EXCURSION_MAX_M = 10.0  # a span this short seen next to a gap may be another road's
@@ -124,11 +132,9 @@ def ramp_edge_at_hidden_gores(
     after the gap (krems-24746399-s11+380, noisier sensor) was fitted as the mainline's
     and the edge bridged to it across the 83 m gap, 5 m off at the gap's end."""
     out = np.zeros(centres.size, dtype=bool)
-    idx = np.flatnonzero(np.isfinite(level))
+    idx, c, q, hole = _seen_and_holes(centres, level)
     if idx.size < 4:
         return out
-    c, q = centres[idx], level[idx]
-    hole = np.flatnonzero(np.diff(c) >= _SPLIT_GAP_M)  # idx[h] -> idx[h + 1] spans a gap
     for g in np.asarray(gores, dtype=float):
         for h in hole:
             for entry in (True, False):
