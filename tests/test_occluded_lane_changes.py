@@ -796,3 +796,27 @@ def test_a_lane_wide_strip_beyond_a_gap_with_no_shoulder_before_it_begins_at_a_g
     )
     found = _gores_at_lane_wide_strips(closing, covered, tracks, grid, 3.5, np.zeros(0))
     assert found == [pytest.approx(257.0, abs=1.0)]
+
+
+def test_the_first_station_past_an_entry_gore_in_a_gap_has_the_new_shoulder():
+    """kotka-37952515-lane1-s21 with a noisier sensor (seed offset 440): the hard shoulder
+    seen narrowing before a gap of the outer edge (595-677 m), an entry's gore placed in it
+    at 607.6 m where the acceleration lane's line (11.1 m) begins. The shoulder closes to
+    zero at the gore and the new lane's 2.4 m shoulder begins there: it was zero at the
+    first station past the gore too and opened over one grid step, so the ramp's hard
+    shoulder fed none and the ramp's edge ran into the lane's line (edge 0.191 m)."""
+    grid = np.arange(0.0, 900.5, MainlineConfig().grid_step_m)
+    gore = 607.57
+    tracks = [_track(0, grid, 0.0, 7.6), _track(1, grid[grid > gore], gore, 11.1)]
+    before = 7.6 + np.clip((595.0 - grid) / 40.0, 0.0, 1.0) * 2.0  # narrowing into the gap
+    d_edge = np.where(grid < gore, before, 13.5)
+    covered = (grid < 595.0) | (grid > 677.0)
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, None, np.array([gore]))
+    first_after = float(grid[grid > gore][0])
+    last_before = float(grid[grid < gore][-1])
+    assert float(np.interp(first_after, grid, out)) == pytest.approx(13.5, abs=0.05)
+    assert float(np.interp(last_before, grid, out)) == pytest.approx(7.6, abs=0.05)
+    # closing monotonically from the width seen at the gap's start
+    closing = out[(grid >= 594.0) & (grid < gore)]
+    assert np.all(np.diff(closing) <= 1e-9)
+    assert closing[0] == pytest.approx(before[grid == 594.0][0], abs=0.05)

@@ -533,9 +533,15 @@ def _bridge_edge_gaps(
             if i_a >= 0 and _one_line(d_last[i_a : i_b + 1]) and j > 0:
                 narrowing = (d_edge[i_a] - d_last[i_a]) - (d_edge[i_b] - d_last[i_b])
                 if narrowing > 0.5:
-                    before = k <= j
-                    x = (k[before] + 1) / (j + 1)
-                    m0 = -narrowing / 20.0 * (grid[a + j] - grid[i0])
+                    # zero at the gore, between the stations either side of it: the
+                    # first station after it has the new lane's shoulder (reaching zero
+                    # there, a 2.4 m shoulder opened from zero over a grid step, so the
+                    # ramp's hard shoulder fed none and its edge ran into the lane's
+                    # line: kotka-37952515-lane1-s21+440, a9-8081560-s11+440)
+                    before = k < j
+                    span = s_jump - float(grid[i0])
+                    x = (grid[a:b][before] - grid[i0]) / span
+                    m0 = -narrowing / 20.0 * span
                     hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
                     narrowed = True
             if entry and not narrowed and j > 0 and hw0 < lane_m - 0.4:
