@@ -820,3 +820,30 @@ def test_the_first_station_past_an_entry_gore_in_a_gap_has_the_new_shoulder():
     closing = out[(grid >= 594.0) & (grid < gore)]
     assert np.all(np.diff(closing) <= 1e-9)
     assert closing[0] == pytest.approx(before[grid == 594.0][0], abs=0.05)
+
+
+def test_a_gore_placed_by_a_taper_in_a_gap_is_not_past_the_lanes_edge_seen_after_it():
+    """krems-102561705-lane1-s21 with a noisier sensor (seed offset 440): an entry's
+    shoulder seen narrowing before a gap of the outer edge (270-352 m), the acceleration
+    lane's line first seen at 340 m in it and its edge seen 6 m beyond that line from the
+    gap's end on. The shoulder taper fitted before the gap puts the gore 7 m past the gap
+    (extrapolated over 88 m): the lane was there already, so the gore is at the gap's end
+    (it was placed past it, no step was left in the gap and the edge was bridged as a
+    taper across it, 4 m off; edge 0.140 -> 0.055 m)."""
+    from roadtwin.mainline.hidden_gores import _place_hidden_gores
+
+    grid = np.arange(0.0, 500.5, MainlineConfig().grid_step_m)
+    rng = np.random.default_rng(5)
+    tracks = [_track(0, grid, 0.0, 4.0), _track(1, grid, 0.0, 8.0), _track(2, grid, 340.0, 11.6)]
+    s_out = np.arange(0.0, 500.0, 0.5)
+    closing = 2.8 * (1.0 - _smoothstep(s_out, 180.0, 180.0))  # towards a gore at 360 m
+    d_out = np.where(s_out < 352.0, 8.0 + closing, 14.3) + rng.normal(0.0, 0.03, s_out.size)
+    seen = (s_out < 270.0) | (s_out > 352.0)
+    covered = (grid < 270.0) | (grid > 352.0)
+    out, placed, _ = _place_hidden_gores(tracks, s_out[seen], d_out[seen], covered, grid, 60.0)
+    assert placed == [pytest.approx(352.0, abs=0.5)]
+    assert out[2].lo == pytest.approx(352.0, abs=0.5)
+    # where the edge past the gap is still the shoulder's, the taper's gore stands
+    d_late = np.where(s_out < 362.0, 8.0 + closing, 14.3) + rng.normal(0.0, 0.03, s_out.size)
+    _, placed, _ = _place_hidden_gores(tracks, s_out[seen], d_late[seen], covered, grid, 60.0)
+    assert placed[0] > 356.0

@@ -482,6 +482,11 @@ def _place_hidden_gores(
                 s_gore = fuse_gore_estimates(interval, taper, s_tip)
                 if late:  # its lane was there where the gap ends (begins)
                     s_gore = min(max(s_gore, s_a), s_b)
+                elif _edge_beyond_line_at_gap_end(tr, entry, (s_a, s_b), (s_out, d_out)):
+                    # a shoulder taper extrapolated past the gap's far end, where the
+                    # lane's edge was seen already (krems-102561705-lane1-s21+440: 11 m
+                    # past it, and the edge was bridged as a taper across the gap)
+                    s_gore = min(s_gore, s_b) if entry else max(s_gore, s_a)
                 if abs(s_gore - s_tip) > 40.0:
                     continue
                 out[k] = _move_track_end(tr, s_gore, grid, start=entry)
@@ -537,13 +542,24 @@ def _lane_at_gap_end(
     offset 200: one seen where the line ended, 6 m before the gap; moved into it, 0.054
     -> 0.068 m)."""
     s_a, s_b = gap
-    s_out, d_out = points
     s_tip = tr.lo if entry else tr.hi
     late = (s_tip - s_b) if entry else (s_a - s_tip)
     if not 0.0 < late <= _LATE_TIP_M or s_b - s_a < _STRIP_GAP_M:
         return False
     if _any_between(line_gores, s_a, s_b) or _any_between(seen_steps, s_tip, s_b if entry else s_a):
         return False
+    return _edge_beyond_line_at_gap_end(tr, entry, gap, points)
+
+
+def _edge_beyond_line_at_gap_end(
+    tr: _Track, entry: bool, gap: tuple[float, float], points: tuple[FloatArray, FloatArray]
+) -> bool:
+    """Whether the edge points (``points``: stations and offsets, metres) within
+    ``_AT_END_M`` past the end (``entry``; else before the start) of the occlusion gap
+    ``gap`` (first and last station, metres) lie beyond track ``tr``'s line at its tip by
+    more than ``_NO_SHOULDER_M``: its lane is there already, so its gore lies in the gap."""
+    s_a, s_b = gap
+    s_out, d_out = points
     near = (
         (s_out > s_b) & (s_out <= s_b + _AT_END_M)
         if entry
