@@ -55,6 +55,12 @@ SHOULDER_MAX_M = 2.0
 shoulder's line: no lane lies between them."""
 SEEN_SHARE = 0.6
 """The share of the stretch's 5 m bins in which the shoulder line must be seen."""
+THROUGH_SAME_M = 0.5
+"""A lane line whose distance from the edge at the two ends of an unseen stretch differs
+by at most this (metres) runs parallel to it through the stretch."""
+THROUGH_BIN_M = 20.0
+"""Bins (metres) in which a dashed lane line must be seen across an unseen stretch: longer
+than a dash period (12 m in the US, 18 m in Germany)."""
 MIN_SHOULDER_MOVE_M = 0.25
 """A shoulder's line that takes the edge less than this far (metres) from where the fit
 put it leaves it there: the fit's bridging is as good as the line's noise (moves of 1-50
@@ -140,15 +146,58 @@ def unseen_stretches(
 
 
 def _seen_share(
-    tr: BoundaryTrack, s_lane: FloatArray, d_lane: FloatArray, lo: float, hi: float
+    tr: BoundaryTrack,
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    lo: float,
+    hi: float,
+    bin_m: float = 5.0,
 ) -> float:
-    """The share of the 5 m bins from ``lo`` to ``hi`` (stations, metres) in which a lane
-    sample (``s_lane``, ``d_lane``) lies within :data:`LINE_NEAR_M` of the track ``tr``;
-    0 for an empty stretch."""
+    """The share of the ``bin_m`` bins from ``lo`` to ``hi`` (stations, metres) in which a
+    lane sample (``s_lane``, ``d_lane``) lies within :data:`LINE_NEAR_M` of the track
+    ``tr``; 0 for an empty stretch."""
     inside = (s_lane >= lo) & (s_lane <= hi)
     near = inside & (np.abs(d_lane - np.interp(s_lane, tr.s_m, tr.d_m)) < LINE_NEAR_M)
-    seen = np.histogram(s_lane[near], np.arange(lo, hi + 5.0, 5.0))[0] > 0
+    seen = np.histogram(s_lane[near], np.arange(lo, hi + bin_m, bin_m))[0] > 0
     return float(np.mean(seen)) if seen.size else 0.0
+
+
+def _line_through(
+    tracks: tuple[BoundaryTrack, ...],
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+    i0: int,
+    i1: int,
+) -> tuple[BoundaryTrack, float, float] | None:
+    """The line the median-side edge keeps its distance to across the unseen stretch
+    between grid stations ``i0`` and ``i1`` (where it was last and first seen), with its
+    distances from the edge there (metres): the inner shoulder's line (at most
+    :data:`SHOULDER_MAX_M` from the edge at both ends) seen in :data:`SEEN_SHARE` of its
+    5 m bins, else the innermost lane line as far from the edge at both ends (within
+    :data:`THROUGH_SAME_M`) seen in that share of :data:`THROUGH_BIN_M` bins (dashes
+    12-18 m apart): no lane begins or ends beside the median there, the lanes run on
+    parallel to the edge. None where neither was seen."""
+    lo, hi = float(grid[i0]), float(grid[i1])
+    shoulder, through = [], []
+    for tr in tracks:
+        if tr.n_samples == 0 or tr.s_m[0] > lo or tr.s_m[-1] < hi:
+            continue
+        w0 = float(np.interp(lo, tr.s_m, tr.d_m)) - d_median[i0]
+        w1 = float(np.interp(hi, tr.s_m, tr.d_m)) - d_median[i1]
+        if 0.0 < w0 <= SHOULDER_MAX_M and 0.0 < w1 <= SHOULDER_MAX_M:
+            shoulder.append((tr, w0, w1))
+        elif w0 > 0.0 and abs(w1 - w0) <= THROUGH_SAME_M:
+            through.append((tr, w0, w1))
+    if shoulder:
+        best = min(shoulder, key=lambda c: c[1])
+        if _seen_share(best[0], s_lane, d_lane, lo, hi) >= SEEN_SHARE:
+            return best
+    for cand in sorted(through, key=lambda c: c[1]):
+        if _seen_share(cand[0], s_lane, d_lane, lo, hi, THROUGH_BIN_M) >= SEEN_SHARE:
+            return cand
+    return None
 
 
 def shoulder_moves(
@@ -166,30 +215,22 @@ def shoulder_moves(
     fit gave it (a9-239192816-opp-s12 with a noisier sensor: the line wandered 1 m over a
     90 m stretch, the edge bridged straight lay 0.8 m off). The line is the innermost
     track at most :data:`SHOULDER_MAX_M` from the edge at both ends and seen in
-    :data:`SEEN_SHARE` of the stretch (``s_lane``, ``d_lane``: the lane samples, metres);
+    :data:`SEEN_SHARE` of the stretch (``s_lane``, ``d_lane``: the lane samples, metres),
+    else the innermost lane line as far from the edge at both ends and seen through
+    (:func:`_line_through`; oakland-28393854-s7 with a noisier sensor: the shoulder's
+    line seen in a third of a 145 m stretch, the edge bent 0.8 m with the car's frame);
     a move under :data:`MIN_SHOULDER_MOVE_M` is left out.
     Where no such line is seen the edge stays as fitted (a lane gained or dropped beside
     the median moves the lines beyond the shoulder's, not the edge)."""
     move = np.zeros(grid.size)
     for a, b in gaps:
         i0, i1 = a - 1, b
-        best = None
-        for tr in tracks:
-            if tr.n_samples == 0 or tr.s_m[0] > grid[i0] or tr.s_m[-1] < grid[i1]:
-                continue
-            w0 = float(np.interp(grid[i0], tr.s_m, tr.d_m)) - d_median[i0]
-            w1 = float(np.interp(grid[i1], tr.s_m, tr.d_m)) - d_median[i1]
-            if not (0.0 < w0 <= SHOULDER_MAX_M and 0.0 < w1 <= SHOULDER_MAX_M):
-                continue
-            if best is None or w0 < best[1]:
-                best = (tr, w0, w1)
+        best = _line_through(tracks, s_lane, d_lane, grid, d_median, i0, i1)
         if best is None:
             continue
         tr, w0, w1 = best
         g = grid[a:b]
         line = np.interp(g, tr.s_m, tr.d_m)
-        if _seen_share(tr, s_lane, d_lane, float(grid[i0]), float(grid[i1])) < SEEN_SHARE:
-            continue
         x = (g - grid[i0]) / (grid[i1] - grid[i0])
         shift = line - ((1.0 - x) * w0 + x * w1) - d_median[a:b]
         if float(np.max(np.abs(shift))) >= MIN_SHOULDER_MOVE_M:
