@@ -68,3 +68,39 @@ def test_the_ramps_shoulder_line_coming_in_with_the_ramp_is_cut():
     g, d = _converging(14.8, 11.5, 35.0)
     edge = _edge(np.clip(16.6 - 2.4 * (GRID - NOSE_M) / 35.0, 14.2, 16.6))
     assert not _kept(g, d, edge).any()
+
+
+def _run_end_tail(d_gain: float, *, seen_to_end: bool = False, s_end: float = 399.0):
+    """A line at 20.3 m that leaves it by a taper over 80 m from 300 m (cut there as a
+    ramp's diverging line) up to the run's end at ``s_end``, moving out by ``d_gain``; the
+    edge seen at 23.5 m up to 270 m (or ``seen_to_end``) and held there beyond."""
+    g = np.arange(250.0, s_end + 0.5, 1.0)
+    x = np.clip((g - 300.0) / 80.0, 0.0, 1.0)
+    d = 20.3 + d_gain * x * x * (3.0 - 2.0 * x)
+    keep = g <= 302.0
+    seen = np.ones(GRID.size, dtype=bool) if seen_to_end else GRID < 270.0
+    return _mainline_ends_inside_edge(
+        g,
+        d,
+        keep,
+        GRID,
+        np.full(GRID.size, 23.5),
+        float(GRID[-1]),
+        5.0,
+        settle_slope=0.012,
+        edge_seen=seen,
+    )
+
+
+def test_a_run_end_line_levelling_off_a_lane_out_is_a_new_lanes():
+    """oakland-28393854-lane1-s21 with a noisier sensor (seed offset 320): a lane gained
+    by a taper over the run's last 80 m, the edge hidden there (held at its last seen
+    offset, the line ends 0.2 m beyond it). The diverging tail levels off a lane's width
+    out: the new lane's line, kept (cut as an exit's, the lane was missing: lane RMSE
+    0.264 -> 0.149 m)."""
+    assert _run_end_tail(3.7)[~(np.arange(250.0, 399.5) <= 302.0)].all()
+    # still leaving at the run's end (a ramp's line), or moved out by more than a lane
+    assert not _run_end_tail(3.7, s_end=340.0).any()
+    assert not _run_end_tail(6.0).any()
+    # where the edge was seen beside it and the line crossed it: a ramp's
+    assert not _run_end_tail(3.7, seen_to_end=True).any()

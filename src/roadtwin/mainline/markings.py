@@ -120,7 +120,9 @@ def _tracks_from_samples(
     if frame is None:
         if seen_edge is not None:
             raw = _link_tracks(peaks, cfg, edge=_at_columns(seen_edge, grid, centres))
-        tracks, evidence = _tracks_in_frame(s, d, grid, length, cfg, d_edge, centres, raw)
+        tracks, evidence = _tracks_in_frame(
+            s, d, grid, length, cfg, d_edge, centres, raw, edge_seen=covered
+        )
     else:
         edge = None if d_edge is None else d_edge - frame.offset(grid)
         d_frame = d - frame.offset(s)
@@ -134,7 +136,7 @@ def _tracks_from_samples(
             ),
         )
         tracks, evidence = _tracks_in_frame(
-            s, d_frame, grid, length, cfg, edge, centres, raw, frame
+            s, d_frame, grid, length, cfg, edge, centres, raw, frame, edge_seen=covered
         )
         tracks = [_out_of_frame(tr, grid, frame) for tr in tracks]
         moved = frame.offset(np.array([g for g, _, _ in evidence], dtype=float))
@@ -210,11 +212,14 @@ def _tracks_in_frame(
     centres: FloatArray,
     raw: list[_RawTrack],
     frame: ShiftFrame | None = None,
+    *,
+    edge_seen: NDArray[np.bool_] | None = None,
 ) -> tuple[list[_Track], list[tuple[float, float]]]:
     """:func:`_tracks_from_samples` in one frame: ``d`` and ``d_edge`` are offsets in it,
     ``raw`` the column peaks at ``centres`` linked into tracks, ``frame`` the shift the
-    frame moves with (None: the reference line's own frame). Tracks are returned merged
-    but not yet continued to convergence."""
+    frame moves with (None: the reference line's own frame), ``edge_seen`` where on
+    ``grid`` the edge was seen (None: everywhere). Tracks are returned merged but not yet
+    continued to convergence."""
     col = cfg.lane_column_m
     s_first, s_last = float(np.min(s)), float(np.max(s))
 
@@ -300,7 +305,17 @@ def _tracks_in_frame(
                 cand, k, float(g[-1]), float(fit[-1])
             )
             keep_g |= _mainline_ends_inside_edge(
-                g, fit, keep_g, grid, d_edge, s_last, col, inner_d=inner, meets_line=meets
+                g,
+                fit,
+                keep_g,
+                grid,
+                d_edge,
+                s_last,
+                col,
+                inner_d=inner,
+                meets_line=meets,
+                settle_slope=cfg.ramp_line_slope,
+                edge_seen=edge_seen,
             )
         if not keep_g[-1] or not keep_g[0]:
             # a ramp line: where it meets / leaves the corridor's marking is a gore
@@ -735,6 +750,8 @@ def _mainline_ends_inside_edge(
     *,
     inner_d: float | None = None,
     meets_line: bool = False,
+    settle_slope: float | None = None,
+    edge_seen: NDArray[np.bool_] | None = None,
 ) -> NDArray[np.bool_]:
     """The trimmed ends of a marking track (``~keep``, see :func:`_trim_ramp_lines`) that
     are the mainline's own lines after all: they stay inside the outer edge ``d_edge``
@@ -780,9 +797,42 @@ def _mainline_ends_inside_edge(
     ):
         back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
-    if tail.size and (g[-1] >= s_last - 2.0 * column_m or meets_line) and inside[tail].all():
+    at_end = g[-1] >= s_last - 2.0 * column_m
+    if tail.size and (at_end or meets_line) and inside[tail].all():
         back[tail] = True
+    elif tail.size and at_end and settle_slope is not None and edge_seen is not None:
+        seen = np.interp(g[tail], grid, edge_seen.astype(float)) > 0.5
+        back[tail] = _settles_unseen(g[tail], d[tail], inside[tail] | ~seen, settle_slope)
     return back
+
+
+_SETTLED_OVER_M = 10.0  # a run-end tail that runs parallel over its last metres ...
+_SETTLED_MOVE_M = (2.5, 4.5)  # ... after moving out by a lane's width (metres): its
+_SETTLED_SHARE = 0.5  # slope there at most this share of its steepest (a taper's S)
+
+
+def _settles_unseen(
+    g: FloatArray, d: FloatArray, allowed: NDArray[np.bool_], slope_max: float
+) -> bool:
+    """Whether the diverging tail of a line that the run's end cuts off (stations ``g``,
+    offsets ``d``, metres) is a new lane's line though the edge beside it was not seen:
+    it lies inside the edge wherever that was seen (``allowed``: inside it or beside its
+    occlusion), moved out by a lane's width (``_SETTLED_MOVE_M``) and levelled off over
+    its last ``_SETTLED_OVER_M`` (slope under ``slope_max``, m/m, or ``_SETTLED_SHARE`` of
+    its steepest: a taper's S, smoothed by the fit), where a ramp's line keeps leaving
+    (oakland-28393854-lane1-s21 with a noisier sensor, seed offset 320: a lane gained by a
+    taper over the last 80 m of the run, the edge hidden there; cut as an exit's line,
+    the lane was missing)."""
+    if not allowed.all():
+        return False
+    last = g >= g[-1] - _SETTLED_OVER_M
+    if np.count_nonzero(last) < 3:
+        return False
+    slope = float(np.polyfit(g[last], d[last], 1)[0])
+    moved = float(d[-1] - d[0])
+    steepest = float(np.max(np.abs(np.gradient(d, g)))) if g.size >= 2 else 0.0
+    flat = abs(slope) < max(slope_max, _SETTLED_SHARE * steepest)
+    return flat and _SETTLED_MOVE_M[0] <= moved <= _SETTLED_MOVE_M[1]
 
 
 _CLOSING_OVER_M = 30.0  # a line ends on another whose gap to it shrank over this ...
