@@ -111,3 +111,22 @@ def test_a_sparse_end_inside_the_track_leaves_the_stretch_bridged():
         [tr], GRID, edge, np.ones(GRID.size, dtype=bool), np.zeros(0)
     )
     assert out[0] is tr
+
+
+def test_a_lane_closing_with_the_edge_is_no_shoulder_to_follow():
+    """soderleden-s1 with a noisier sensor (seed offset 200): an acceleration lane 3.5 m
+    wide with no outer line closes with the edge (10.5 -> 7.0 m over 215-240 m); the line
+    between it and the through lanes (7.0 m) is unseen for 26 m up to the taper's end,
+    with a few samples there. Followed along the edge at the "shoulder" width before the
+    stretch, the line ran onto the next line inward (3.5 m) and closed a through lane
+    (lanes 0.209 -> 0.039 m): it stays bridged."""
+    edge = np.interp(GRID, [0.0, 215.0, 240.0, 300.0], [10.5, 10.5, 7.0, 7.0])
+    s = np.concatenate([np.arange(100.0, 210.0, 0.5), np.arange(236.0, 240.0, 0.6)])
+    line = _track(s, np.full(s.size, 7.0), k=0)
+    inner = _track(np.arange(0.0, 300.0, 0.5), np.full(600, 3.5), k=1)
+    covered = np.ones(GRID.size, dtype=bool)
+    out = follow_edge_across_unpainted([line, inner], GRID, edge, covered, np.zeros(0))
+    assert np.array_equal(out[0].d, line.d)
+    # with no line inward there, the same edge is followed (the shoulder keeps its width)
+    (alone,) = follow_edge_across_unpainted([line], GRID, edge, covered, np.zeros(0))
+    assert float(np.min(alone.d)) < 4.0

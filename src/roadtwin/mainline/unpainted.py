@@ -36,6 +36,7 @@ _STEP_CLEAR_M = 5.0  # no edge step inside the stretch by more than this (metres
 # is another level there (at a gore the ramp's); one at its end (an entry's gore at the
 # track's start) is where the line's own edge begins
 _BEYOND_M = 0.5  # a line this much farther out makes the track not the outermost (metres)
+_LANE_MIN_M = 2.5  # a followed line this near another one squeezes a lane (metres)
 
 
 def _end_width(
@@ -122,10 +123,31 @@ def follow_edge_across_unpainted(
                 continue
             if _line_beyond(tracks, k, a, b, np.minimum(line, d_new[on]).min()):
                 continue
+            if _squeezes_lane(tracks, k, tr.s[on], line):
+                continue
             d_new[on] = line
         if not np.array_equal(d_new, tr.d):
             out[k] = replace(tr, d=d_new)
     return out
+
+
+def _squeezes_lane(tracks: list[_Track], k: int, s: FloatArray, line: FloatArray) -> bool:
+    """Whether the line followed along the edge (``line`` at stations ``s``, metres) comes
+    nearer than ``_LANE_MIN_M`` to another track (where that runs): the strip beyond the
+    line was a lane closing with the edge, not a shoulder keeping its width
+    (soderleden-s1 with a noisier sensor, seed offset 200: an acceleration lane with no
+    outer line, its 3.5 m taken for a shoulder; the line between it and the through lanes,
+    unseen for 26 m up to its taper's end, followed the edge onto the next line inward and
+    closed a through lane: lanes 0.209 m)."""
+    for j, other in enumerate(tracks):
+        if j == k:
+            continue
+        on = (s >= other.lo) & (s <= other.hi)
+        if on.any() and float(np.min(np.abs(line[on] - np.interp(s[on], other.s, other.d)))) < (
+            _LANE_MIN_M
+        ):
+            return True
+    return False
 
 
 def _line_beyond(tracks: list[_Track], k: int, a: float, b: float, d_min: float) -> bool:
