@@ -96,7 +96,9 @@ EDGE_REACH_M = 100.0
 """A stretch is widened along the edge's move by at most this (metres) either way."""
 EDGE_SEEN = 0.8
 """The edge must have been seen at this share of the stations of a widened stretch and of
-the patterns either side to witness it."""
+the patterns either side together to witness it ..."""
+EDGE_SEEN_END_M = 10.0
+"""... and over at least this (metres) of each pattern beside it, for its level there."""
 INSIDE_EDGE_M = 2.5
 """Only lines this far (metres) or more inside the outer edge tell a shift of the whole
 pattern from a lane opening or closing at the edge, which moves the lines beside it."""
@@ -400,7 +402,7 @@ def _edge_move(
     (metres) the edge moved (median over ``PATTERN_M`` after less before) and its level
     before (that median, metres). None where the edge does not move that way inside the
     stretch, moves on beyond ``EDGE_REACH_M``, steps (``EDGE_STEP_SLOPE``) or was seen too
-    little (``EDGE_SEEN``)."""
+    little (``EDGE_SEEN``, ``EDGE_SEEN_END_M``)."""
     g, e, seen, slope = edge.stations, edge.d, edge.seen, edge.slope
     moving = np.sign(total) * slope >= EDGE_SLOPE
     runs = [(g[i], g[j - 1]) for i, j in true_runs(moving) if g[j - 1] >= s_a and g[i] <= s_b]
@@ -417,7 +419,13 @@ def _edge_move(
     around = before | inside | after
     if not before.any() or not after.any():
         return None
-    if min(float(np.mean(seen[m])) for m in (before, after, around)) < EDGE_SEEN:
+    if float(np.mean(seen[around])) < EDGE_SEEN:
+        return None
+    # either side, enough of it seen for its level: an occlusion right after the move
+    # (melbourne-1019-lane1-s21 with a noisier sensor, seed offset 200: the edge seen on
+    # 14 of the 30 m after a lane added beside the median) leaves the level seen there
+    step = float(np.median(np.diff(g))) if g.size >= 2 else 1.0
+    if min(np.count_nonzero(seen[m]) * step for m in (before, after)) < EDGE_SEEN_END_M:
         return None
     level = float(np.median(e[before & seen]))
     return new_a, new_b, float(np.median(e[after & seen])) - level, level
