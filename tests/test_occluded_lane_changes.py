@@ -847,3 +847,34 @@ def test_a_gore_placed_by_a_taper_in_a_gap_is_not_past_the_lanes_edge_seen_after
     d_late = np.where(s_out < 362.0, 8.0 + closing, 14.3) + rng.normal(0.0, 0.03, s_out.size)
     _, placed, _ = _place_hidden_gores(tracks, s_out[seen], d_late[seen], covered, grid, 60.0)
     assert placed[0] > 356.0
+
+
+def test_of_two_edge_steps_closer_than_a_section_the_larger_one_starts_it():
+    """kotka-37952515-s1 with a noisier sensor (seed offset 200): an exit's step of the
+    edge (14.0 -> 8.3 m) at 399 m where its lane's line ends, and a 0.3 m step 12 m later
+    where the ramp's inner edge peels off. The later step used to win (each step dropped
+    the section starts within 20 m before it, the earlier step's too): the exit lane ran
+    on to 411 m, 3.5 m off (edge 0.116 -> 0.051 m). The larger step starts the section
+    (either order)."""
+    from roadtwin.mainline.sections import _sections_from_tracks
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.5, cfg.grid_step_m)
+    tracks = [_track(0, grid, 0.0, 1.0), _track(1, grid, 0.0, 4.5), _track(2, grid, 0.0, 8.0)]
+    exit_line = _track(3, grid, 0.0, 11.5)
+    keep = exit_line.s <= 397.0
+    tracks.append(
+        _Track(
+            3, 0.0, 397.0, exit_line.s[keep], exit_line.d[keep], "broken", 397, exit_line.s[keep]
+        )
+    )
+    d_edge = np.where(grid < 399.0, 14.0, np.where(grid < 411.0, 8.3, 8.6))
+    sections, events, _ = _sections_from_tracks(
+        tracks, grid, d_edge, np.array([399.0, 411.0]), 1.0, cfg
+    )
+    assert [round(sc.s0, 1) for sc in sections] == [0.0, 399.0]
+    assert [(ev.kind, round(ev.s_m, 1)) for ev in events] == [("end", 399.0)]
+    # a small step first and the exit's 12 m later: the exit's
+    d_late = np.where(grid < 387.0, 14.3, np.where(grid < 399.0, 14.0, 8.3))
+    sections, _, _ = _sections_from_tracks(tracks, grid, d_late, np.array([387.0, 399.0]), 1.0, cfg)
+    assert [round(sc.s0, 1) for sc in sections] == [0.0, 399.0]

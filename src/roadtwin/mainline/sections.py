@@ -315,7 +315,10 @@ def _sections_from_tracks(
         starts = [
             i
             for i in starts
-            if i == 0 or i in offset_steps or abs(i - i_b) * cfg.grid_step_m >= 20.0
+            if i == 0
+            or i in offset_steps
+            or i in forced
+            or abs(i - i_b) * cfg.grid_step_m >= 20.0
         ]
         starts.append(i_b)
         forced.add(i_b)
@@ -331,6 +334,17 @@ def _sections_from_tracks(
         if i - merged_starts[-1] >= min_n:
             merged_starts.append(i)
         elif i in forced and merged_starts[-1] != 0 and merged_starts[-1] not in forced:
+            merged_starts[-1] = i
+        elif (
+            i in forced
+            and merged_starts[-1] in forced
+            and not offset_steps & {i, merged_starts[-1]}
+            and _edge_step(d_edge, i) > _edge_step(d_edge, merged_starts[-1])
+        ):
+            # two edge steps closer than a section: the larger one is the gore (an exit's
+            # step 12 m before a small one the ramp's peeling edge made: kotka-37952515-s1
+            # with a noisier sensor, seed offset 200, where the later one won and the exit
+            # lane ran on 12 m past the nose, 3.5 m off)
             merged_starts[-1] = i
         elif (
             i in forced
@@ -503,6 +517,12 @@ def _closing_taper(
     w_prev = float(before.width.value(ends_before[1:])[0])
     w0, w1 = (float(w) for w in lane.width.value(ends))
     return abs(w0 - w_prev) <= 0.5 and w1 < 0.5 * w0
+
+
+def _edge_step(d_edge: FloatArray, i: int, reach: int = 3) -> float:
+    """How far (metres) the outer edge ``d_edge`` moves across grid station ``i``
+    (``reach`` stations either side)."""
+    return abs(float(d_edge[min(i + reach, d_edge.size - 1)] - d_edge[max(i - reach, 0)]))
 
 
 def _grid_index(s: float, grid: FloatArray, cfg: MainlineConfig) -> int:
