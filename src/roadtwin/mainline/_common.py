@@ -158,6 +158,16 @@ def _grid(lo: float, hi: float, step: float) -> FloatArray:
     return lo + step * np.arange(n)
 
 
+def edge_move_at(d_edge: FloatArray, i: NDArray[np.int64] | int, reach: int = 3) -> FloatArray:
+    """How far (metres, outward positive) the outer edge ``d_edge`` (on the grid) moves
+    across grid station(s) ``i``, from ``reach`` stations before to ``reach`` after
+    (clipped to the grid); NaN where either end is."""
+    i = np.asarray(i)
+    after = d_edge[np.minimum(i + reach, d_edge.size - 1)]
+    before = d_edge[np.maximum(i - reach, 0)]
+    return np.asarray(after - before, dtype=float)
+
+
 def true_runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     """Index ranges ``[a, b)`` of the runs of True in ``mask``."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..config import MainlineConfig
-from ._common import true_runs
+from ._common import edge_move_at, true_runs
 from .gores import (
     ShoulderTaper,
     fit_shoulder_taper,
@@ -391,9 +391,8 @@ def _seen_steps(
     begins: the edge moves away from the reference line)."""
     steps = np.asarray(steps, dtype=float)
     i = np.clip(np.searchsorted(grid, steps), 0, grid.size - 1)
-    after = d_edge[np.minimum(i + 3, grid.size - 1)]
-    before = d_edge[np.maximum(i - 3, 0)]
-    return steps, np.isfinite(after) & np.isfinite(before) & (after > before)
+    move = edge_move_at(d_edge, i)
+    return steps, np.isfinite(move) & (move > 0.0)
 
 
 def _place_hidden_gores(
@@ -650,7 +649,7 @@ def _visible_taper_length(
         i = int(np.searchsorted(grid, b))
         if i < 5 or i + 5 >= grid.size:
             continue
-        entry = bool(d_edge[i + 3] > d_edge[i - 3])  # the edge steps out: a lane begins
+        entry = bool(edge_move_at(d_edge, i) > 0.0)  # the edge steps out: a lane begins
         sel = (s_out > b - 200.0) & (s_out < b) if entry else (s_out > b) & (s_out < b + 200.0)
         mark = np.interp(s_out[sel], grid, d_last)
         ok = np.isfinite(mark)

@@ -26,6 +26,7 @@ from ._common import (
     BoundaryTrack,
     LaneEvent,
     _fill_nan,
+    edge_move_at,
     true_runs,
 )
 from .markings import _dashed, _mark_type, _Track
@@ -315,10 +316,7 @@ def _sections_from_tracks(
         starts = [
             i
             for i in starts
-            if i == 0
-            or i in offset_steps
-            or i in forced
-            or abs(i - i_b) * cfg.grid_step_m >= 20.0
+            if i == 0 or i in offset_steps or i in forced or abs(i - i_b) * cfg.grid_step_m >= 20.0
         ]
         starts.append(i_b)
         forced.add(i_b)
@@ -339,7 +337,7 @@ def _sections_from_tracks(
             i in forced
             and merged_starts[-1] in forced
             and not offset_steps & {i, merged_starts[-1]}
-            and _edge_step(d_edge, i) > _edge_step(d_edge, merged_starts[-1])
+            and abs(edge_move_at(d_edge, i)) > abs(edge_move_at(d_edge, merged_starts[-1]))
         ):
             # two edge steps closer than a section: the larger one is the gore (an exit's
             # step 12 m before a small one the ramp's peeling edge made: kotka-37952515-s1
@@ -517,12 +515,6 @@ def _closing_taper(
     w_prev = float(before.width.value(ends_before[1:])[0])
     w0, w1 = (float(w) for w in lane.width.value(ends))
     return abs(w0 - w_prev) <= 0.5 and w1 < 0.5 * w0
-
-
-def _edge_step(d_edge: FloatArray, i: int, reach: int = 3) -> float:
-    """How far (metres) the outer edge ``d_edge`` moves across grid station ``i``
-    (``reach`` stations either side)."""
-    return abs(float(d_edge[min(i + reach, d_edge.size - 1)] - d_edge[max(i - reach, 0)]))
 
 
 def _grid_index(s: float, grid: FloatArray, cfg: MainlineConfig) -> int:

@@ -143,9 +143,10 @@ def _squeezes_lane(tracks: list[_Track], k: int, s: FloatArray, line: FloatArray
         if j == k:
             continue
         on = (s >= other.lo) & (s <= other.hi)
-        if on.any() and float(np.min(np.abs(line[on] - np.interp(s[on], other.s, other.d)))) < (
-            _LANE_MIN_M
-        ):
+        if not on.any():
+            continue
+        apart = np.abs(line[on] - np.interp(s[on], other.s, other.d))
+        if float(np.min(apart)) < _LANE_MIN_M:
             return True
     return False
 
