@@ -1,6 +1,7 @@
 """Default method: the lane structure of the mainline from lane-marking samples and
 outer-edge points (:func:`fit_lanes`), stage by stage: outer edge (:mod:`.outer_edge`),
-marking tracks (:mod:`.markings`), hidden gores (:mod:`.hidden_gores`), gores moved to
+marking tracks (:mod:`.markings`) without other roads' lines seen through an occlusion
+of the edge (:mod:`.beyond_edge`), hidden gores (:mod:`.hidden_gores`), gores moved to
 the paint (:mod:`.painted_gores`), edge lines that go on as lane lines (:mod:`.edge_lines`),
 lane sections and events (:mod:`.sections`).
 """
@@ -20,6 +21,7 @@ from ._common import (
     _grid,
     true_runs,
 )
+from .beyond_edge import without_other_roads_lines
 from .edge_levels import EdgeSteps
 from .edge_lines import split_edge_lines_at_steps
 from .hidden_gores import (
@@ -143,6 +145,7 @@ def fit_lanes(
         d_edge = np.full(grid.size, last + 2.5)
         breaks = np.zeros(0)
     else:
+        tracks = without_other_roads_lines(tracks, grid, d_edge, covered, (s_lane, d_lane))
         tracks, gores = _snap_to_hidden_gores(tracks, evidence, covered, grid, cfg, d_edge)
         taper_length = _visible_taper_length(
             breaks, d_edge, tracks, s_outer[used], d_outer[used], grid
