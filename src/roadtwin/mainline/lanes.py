@@ -1,9 +1,10 @@
 """Default method: the lane structure of the mainline from lane-marking samples and
 outer-edge points (:func:`fit_lanes`), stage by stage: outer edge (:mod:`.outer_edge`),
 marking tracks (:mod:`.markings`) without other roads' lines seen through an occlusion
-of the edge (:mod:`.beyond_edge`), hidden gores (:mod:`.hidden_gores`), gores moved to
-the paint (:mod:`.painted_gores`), edge lines that go on as lane lines (:mod:`.edge_lines`),
-lane sections and events (:mod:`.sections`).
+of the edge (:mod:`.beyond_edge`), hidden gores (:mod:`.hidden_gores`), lanes hidden
+beside a broken outermost line (:mod:`.dashed_lanes`), gores moved to the paint
+(:mod:`.painted_gores`), edge lines that go on as lane lines (:mod:`.edge_lines`), lane
+sections and events (:mod:`.sections`).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from ._common import (
     true_runs,
 )
 from .beyond_edge import without_other_roads_lines
+from .dashed_lanes import dashed_lane_gores, dashed_lanes_in_gaps, widen_beside_dashed
 from .edge_levels import EdgeSteps
 from .edge_lines import split_edge_lines_at_steps
 from .hidden_gores import (
@@ -155,6 +157,15 @@ def fit_lanes(
             # acceleration lane takes its place (oakland-28393854-opp-s9+80: kept 2.7 m
             # wide up to a gore hidden 85 m into a gap, 2.4 m off over 70 m)
             taper_length = cfg.gore_shoulder_taper_m
+        dashed = dashed_lanes_in_gaps(
+            tracks,
+            grid,
+            d_edge,
+            covered,
+            typical_lane_width(tracks, grid),
+            taper_length,
+            (np.concatenate([s_outer[~used], s_lane]), np.concatenate([d_outer[~used], d_lane])),
+        )
         tracks, placed, tapers = _place_hidden_gores(
             tracks,
             s_outer[used],
@@ -165,6 +176,7 @@ def fit_lanes(
             _seen_steps(breaks, d_edge, grid),
             gores,
         )
+        placed += dashed_lane_gores(dashed, covered, grid, np.asarray([*gores, *placed]))
         placed += _gores_at_lane_wide_strips(
             d_edge,
             covered,
@@ -191,6 +203,7 @@ def fit_lanes(
             taper_length,
             (s_outer[used], d_outer[used]),
         )
+        d_edge = widen_beside_dashed(d_edge, covered, grid, dashed)
         if cfg.painted_gore_max_m > 0.0:
             tracks, d_edge, breaks, painted = move_gores_to_paint(
                 tracks, grid, d_edge, breaks, np.sort(s_l), cfg
