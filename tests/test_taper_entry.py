@@ -34,7 +34,7 @@ def _kept(g: np.ndarray, d: np.ndarray, d_edge: np.ndarray, inner_d: float = 8.1
     ``inner_d``: the next line inward (the through lanes' outer line)."""
     cut = np.zeros(g.size, dtype=bool)
     return _mainline_ends_inside_edge(
-        g, d, cut, GRID, d_edge, float(GRID[-1]), 5.0, inner_d=inner_d
+        g, d, cut, GRID, d_edge, float(GRID[-1]), 10.0, inner_d=inner_d
     )
 
 
@@ -70,7 +70,9 @@ def test_the_ramps_shoulder_line_coming_in_with_the_ramp_is_cut():
     assert not _kept(g, d, edge).any()
 
 
-def _run_end_tail(d_gain: float, *, seen_to_end: bool = False, s_end: float = 399.0):
+def _run_end_tail(
+    d_gain: float, *, seen_to_end: bool = False, s_end: float = 399.0, reach: float = 10.0
+):
     """A line at 20.3 m that leaves it by a taper over 80 m from 300 m (cut there as a
     ramp's diverging line) up to the run's end at ``s_end``, moving out by ``d_gain``; the
     edge seen at 23.5 m up to 270 m (or ``seen_to_end``) and held there beyond."""
@@ -86,7 +88,7 @@ def _run_end_tail(d_gain: float, *, seen_to_end: bool = False, s_end: float = 39
         GRID,
         np.full(GRID.size, 23.5),
         float(GRID[-1]),
-        5.0,
+        reach,  # two columns: the run's end cuts the line
         settle_slope=0.012,
         edge_seen=seen,
     )
@@ -104,3 +106,36 @@ def test_a_run_end_line_levelling_off_a_lane_out_is_a_new_lanes():
     assert not _run_end_tail(6.0).any()
     # where the edge was seen beside it and the line crossed it: a ramp's
     assert not _run_end_tail(3.7, seen_to_end=True).any()
+
+
+def test_a_broken_line_s_last_dash_a_dash_gap_before_the_run_s_end_is_cut_by_it():
+    """oakland-28393854-lane1-s21 with a noisier sensor (seed offset 500): the new lane's
+    broken line last seen 12 m before the run's end, its dashes up to 15 m apart there."""
+    tail = ~(np.arange(250.0, 387.5) <= 302.0)
+    assert not _run_end_tail(3.7, s_end=387.0).any()  # two columns: not the run's end
+    assert _run_end_tail(3.7, s_end=387.0, reach=15.0)[tail].all()
+
+
+def test_the_next_line_inward_may_be_first_seen_a_dash_late():
+    """a9-8081560-s11 with a noisier sensor: two lanes gained at once, the outer one
+    closing by a taper from 19.4 m; the inner one's line (15.65 m) first seen 9 m after
+    the outer one's start. Taken where the outer line starts, the next line inward was
+    the through lanes' (11.9 m): two lanes inside it, and the closing line was cut as a
+    ramp's."""
+    from roadtwin.mainline.markings import _next_line_inward, _Track
+
+    def track(lo, hi, d):
+        s = np.arange(lo, hi + 1.0)
+        return _Track(0, lo, hi, s, np.full(s.size, d), "broken", s.size, s, np.full(s.size, d))
+
+    g = np.arange(735.0, 861.0)
+    fit = 19.4 - 3.7 * (g - 735.0) / 125.0
+    cand = [track(0.0, 2000.0, 11.9), track(744.0, 2000.0, 15.65), track(735.0, 860.0, 0.0)]
+    inner = _next_line_inward(cand, 2, g, fit)
+    assert inner is not None
+    # the narrowest strip over the first 15 m where both are seen
+    assert abs((fit[0] - inner) - (fit[15] - 15.65)) < 1e-9
+    assert fit[0] - inner < 4.75  # one lane: the closing line is the mainline's
+    # an inner line first seen farther on does not count
+    late = [track(0.0, 2000.0, 11.9), track(760.0, 2000.0, 15.65), track(735.0, 860.0, 0.0)]
+    assert fit[0] - _next_line_inward(late, 2, g, fit) > 4.75

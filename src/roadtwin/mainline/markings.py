@@ -300,10 +300,13 @@ def _tracks_in_frame(
         keep_g = _trim_ramp_lines(g, fit, cfg, None if frame is None else frame.rate(g))
         if d_edge is not None:
             # the line inward matters only for a cut end (a nose's taper line)
-            inner = None if keep_g.all() else _next_line_inward(cand, k, float(g[0]), float(fit[0]))
+            inner = None if keep_g.all() else _next_line_inward(cand, k, g, fit)
             meets = not keep_g[-1] and _ends_on_converging_line(
                 cand, k, float(g[-1]), float(fit[-1])
             )
+            # the run's end cuts a broken line within its own dash gaps there
+            tail = ss_all[ss_all >= hi - _END_GAPS_OVER_M]
+            tail_gap = float(np.max(np.diff(tail))) if tail.size > 1 else 0.0
             keep_g |= _mainline_ends_inside_edge(
                 g,
                 fit,
@@ -311,7 +314,7 @@ def _tracks_in_frame(
                 grid,
                 d_edge,
                 s_last,
-                col,
+                max(2.0 * col, min(tail_gap, cfg.lane_min_cut_track_m)),
                 inner_d=inner,
                 meets_line=meets,
                 settle_slope=cfg.ramp_line_slope,
@@ -727,16 +730,30 @@ _NOSE_WINDOW_M = 15.0  # an edge step this close before or after a line's start 
 _NOSE_STEP_M = 1.5  # ... outward by more than this is an entry's nose (metres)
 
 
-def _next_line_inward(cand: list[_Track], k: int, s_m: float, d_m: float) -> float | None:
-    """Offset (metres) of the nearest other candidate track inward of ``d_m`` at station
-    ``s_m`` (more than half a metre inside), or None."""
-    inward = [
-        float(np.interp(s_m, tr.s, tr.d))
-        for j, tr in enumerate(cand)
-        if j != k and tr.lo <= s_m <= tr.hi
-    ]
-    inward = [v for v in inward if v < d_m - 0.5]
-    return max(inward) if inward else None
+_END_GAPS_OVER_M = 60.0  # the dash gaps over a line's last metres tell where a run end cut it
+_INWARD_AHEAD_M = 15.0  # the next line inward may be first seen this far after a line's start
+
+
+def _next_line_inward(cand: list[_Track], k: int, g: FloatArray, d: FloatArray) -> float | None:
+    """Offset (metres) of the nearest other candidate track inward of track ``k`` (more
+    than half a metre inside) where ``k`` is first seen (its fit ``d`` at stations ``g``):
+    the narrowest strip between them over ``k``'s first ``_INWARD_AHEAD_M``, as an offset
+    at ``g[0]``; None if there is none. A broken line seen a dash late counts (a9-8081560-
+    s11 with a noisier sensor: two lanes gained at once, the inner one's line first seen
+    9 m after the outer one's, which then had two lanes inside it and was cut as a ramp's
+    line: the lane closing by a taper over 125 m was missing)."""
+    first = np.flatnonzero(g <= g[0] + _INWARD_AHEAD_M)
+    strips = []
+    for i in first:
+        inward = [
+            float(np.interp(g[i], tr.s, tr.d))
+            for j, tr in enumerate(cand)
+            if j != k and tr.lo <= g[i] <= tr.hi
+        ]
+        inward = [v for v in inward if v < d[i] - 0.5]
+        if inward:
+            strips.append(float(d[i]) - max(inward))
+    return float(d[0]) - min(strips) if strips else None
 
 
 def _mainline_ends_inside_edge(
@@ -746,7 +763,7 @@ def _mainline_ends_inside_edge(
     grid: FloatArray,
     d_edge: FloatArray,
     s_last: float,
-    column_m: float,
+    end_reach_m: float,
     *,
     inner_d: float | None = None,
     meets_line: bool = False,
@@ -755,7 +772,11 @@ def _mainline_ends_inside_edge(
 ) -> NDArray[np.bool_]:
     """The trimmed ends of a marking track (``~keep``, see :func:`_trim_ramp_lines`) that
     are the mainline's own lines after all: they stay inside the outer edge ``d_edge``
-    (metres, same frame as ``d``) all along.
+    (metres, same frame as ``d``) all along. A line ending within ``end_reach_m`` of the
+    run's last sample (``s_last``, metres) is cut by the run's end: two columns, or the
+    line's own dash gaps there (oakland-28393854-lane1-s21 with a noisier sensor: a lane
+    gained by a taper over the run's last 80 m, its broken line's last dash seen 12 m
+    before the end, was cut as an exit's line and the lane was missing).
 
     A steeply converging or diverging part is a ramp line because it comes in from, or
     leaves to, outside the corridor. The edge line of a lane drop converges as steeply
@@ -797,7 +818,7 @@ def _mainline_ends_inside_edge(
     ):
         back[head] = True
     tail = np.arange(kept[-1] + 1, g.size)
-    at_end = g[-1] >= s_last - 2.0 * column_m
+    at_end = g[-1] >= s_last - end_reach_m
     if tail.size and (at_end or meets_line) and inside[tail].all():
         back[tail] = True
     elif tail.size and at_end and settle_slope is not None and edge_seen is not None:
