@@ -20,7 +20,7 @@ from ._common import (
     robust_offset_fit,
 )
 from .linking import _find_track_peaks, _link_tracks, _RawTrack
-from .raw_joins import _into_merging_peaks, _join_late_pieces, _join_tapers
+from .raw_joins import _into_merging_peaks, _join_late_pieces, _join_taper_pieces, _join_tapers
 from .shift import OuterEdge, ShiftFrame, common_shift
 
 log = logging.getLogger(__name__)
@@ -237,7 +237,7 @@ def _tracks_in_frame(
     cand: list[_Track] = []
     evidence: list[tuple[float, float, bool]] = []
     # every column peak once (column, offset, track), for the short ramp lines below
-    raw = _join_late_pieces(_join_tapers(raw, cfg), cfg)
+    raw = _join_taper_pieces(_join_late_pieces(_join_tapers(raw, cfg), cfg), cfg)
     peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw])
     peak_d = np.concatenate([np.asarray(tr.d, dtype=float) for tr in raw])
     peak_tr = np.repeat(np.arange(len(raw)), [len(tr.cols) for tr in raw])

@@ -160,3 +160,91 @@ def _join_late_pieces(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTra
             out[best] = _RawTrack(line.cols + piece.cols, line.d + piece.d, line.slope)
             dropped.add(k)
     return [tr for k, tr in enumerate(out) if k not in dropped]
+
+
+_S_MIN_MISSED = 3  # pieces of one line this many columns apart or more ...
+_S_CHORD_SLOPE = (0.015, 0.06)  # ... the straight line between them this steep (m/m) ...
+_S_SLOPE_COLUMNS = 4  # ... each piece seen in this many columns, its slope over those at
+# its end facing the other
+_S_BACKWARDS = 0.2  # ... a share of the chord it may run against it (noise at a flat end)
+_S_MONOTONE = 9.0  # ... Fritsch-Carlson: the cubic between them moves one way only
+_S_STAYED_COLUMNS = 2  # ... and no line went on in between at either's offset this often
+
+
+def _end_slope(track: _RawTrack, *, first: bool, n: int = _S_SLOPE_COLUMNS) -> float:
+    """Least-squares slope (metres per column) over a raw track's first (last) ``n``
+    columns; 0 for a single column."""
+    cols = np.asarray(track.cols[:n] if first else track.cols[-n:], dtype=float)
+    d = np.asarray(track.d[:n] if first else track.d[-n:], dtype=float)
+    if cols.size < 2:
+        return 0.0
+    return float(np.polyfit(cols, d, 1)[0])
+
+
+def _join_taper_pieces(raw: list[_RawTrack], cfg: MainlineConfig) -> list[_RawTrack]:
+    """The raw tracks with two pieces of one line that moves sideways along an S (a lane
+    taper's) joined where it went unseen in between and together they are long enough
+    for a marking (``lane_min_track_m``), though one of them is not.
+
+    The line between two pieces ``_S_MIN_MISSED`` columns apart or more (within
+    ``lane_max_gap_m``) moves at a taper's rate (``_S_CHORD_SLOPE``), and each piece's own
+    slope at the end facing the other goes the same way, so that the cubic through both
+    ends with those slopes moves one way only (Fritsch-Carlson). A taper is slow at its
+    ends and fastest in its middle: seen at its slow start and again near its end, the
+    linking's guess from the first piece fell short of the second (a9-239192816-opp-s12
+    with a noisier sensor: a lane closing over 125 m seen 40 m at its start and 25 m near
+    its end, 35 m unseen in between, 0.7 m off the guess; both pieces dropped as too short,
+    the lane was missing over 125 m). Pieces of two lines that each went on in between
+    at their own offset are no taper (town06-auto-lane1-s21+440: pieces of two broken
+    lines a lane apart, joined, swept a lane across over 80 m). Of several candidates the
+    nearest is taken."""
+    min_cols = cfg.lane_min_track_m / cfg.lane_column_m
+    max_gap = max(1, round(cfg.lane_max_gap_m / cfg.lane_column_m))
+    lo_slope, hi_slope = (v * cfg.lane_column_m for v in _S_CHORD_SLOPE)
+    out = list(raw)
+    dropped: set[int] = set()
+    # every peak once: its column and offset
+    peak_col = np.concatenate([np.asarray(tr.cols, dtype=np.int64) for tr in raw] or [[]])
+    peak_d = np.concatenate([np.asarray(tr.d, dtype=float) for tr in raw] or [[]])
+
+    def goes_on(c0: int, c1: int, level: float) -> bool:
+        """Whether peaks near ``level`` were seen in columns ``c0:c1``: a line stayed."""
+        sel = (peak_col >= c0) & (peak_col < c1) & (np.abs(peak_d - level) <= cfg.lane_link_m)
+        return np.unique(peak_col[sel]).size >= _S_STAYED_COLUMNS
+
+    def span(tr: _RawTrack) -> int:
+        return tr.cols[-1] - tr.cols[0] + 1
+
+    for k in sorted(range(len(out)), key=lambda i: out[i].cols[0]):
+        piece = out[k]
+        if k in dropped:
+            continue
+        best, best_gap = -1, max_gap + 1
+        for j, line in enumerate(out):
+            gap = piece.cols[0] - line.cols[-1]
+            if j == k or j in dropped or not _S_MIN_MISSED <= gap <= max_gap:
+                continue
+            shortest = min(len(line.cols), len(piece.cols))
+            if (
+                shortest < _S_SLOPE_COLUMNS
+                or min(span(line), span(piece)) >= min_cols
+                or span(line) + gap + span(piece) - 1 < min_cols
+            ):
+                continue
+            chord = (piece.d[0] - line.d[-1]) / gap
+            if not lo_slope <= abs(chord) <= hi_slope:
+                continue
+            alpha = _end_slope(line, first=False) / chord
+            beta = _end_slope(piece, first=True) / chord
+            if min(alpha, beta) < -_S_BACKWARDS or alpha * alpha + beta * beta > _S_MONOTONE:
+                continue
+            between = (line.cols[-1] + 1, piece.cols[0])
+            if goes_on(*between, line.d[-1]) or goes_on(*between, piece.d[0]):
+                continue
+            if gap < best_gap:
+                best, best_gap = j, gap
+        if best >= 0:
+            line = out[best]
+            out[best] = _RawTrack(line.cols + piece.cols, line.d + piece.d, piece.slope)
+            dropped.add(k)
+    return [tr for k, tr in enumerate(out) if k not in dropped]
