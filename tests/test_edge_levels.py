@@ -286,3 +286,28 @@ def test_an_outer_level_seen_briefly_after_a_step_may_still_be_gone_around():
     more than going on unseen under it for 3 bins, which stays the cheaper path."""
     c, level = _entry_before_gap(6.0)
     assert not np.any(np.abs(level[(c > 500.0) & (c < 506.0)] - 14.3) < 0.3)
+
+
+def test_most_of_a_step_seen_in_the_width_is_a_step_though_the_other_edge_moved_too():
+    """melbourne-1019-lane1-s21 with a noisier sensor: an inner exit's 3.4 m step hidden
+    in a 96 m gap, at whose far end the other edge has an exit's nose of its own: the
+    width changed by 1.9 m only. Against a fixed 2 m the step was bridged as the car's
+    lane change, the edge 3 m off; the car's own lane change keeps the width."""
+    from roadtwin.config import MainlineConfig
+    from roadtwin.mainline.edge_levels import _width_changes
+
+    centres = np.arange(401.0, 1000.0, 2.0)
+    gap = (590.0, 686.0)
+    level = np.where(centres <= gap[0], 0.0, -3.4)
+    level[(centres > gap[0]) & (centres < gap[1])] = np.nan
+    across = np.where(centres <= gap[0], 15.9, 17.4)  # moved 1.5 m out
+    cfg = MainlineConfig()
+    assert _width_changes(gap, -3.4, centres, level, across, cfg)
+    lane_change = np.where(centres <= gap[0], 15.9, 19.3)  # the car moved 3.4 m
+    assert not _width_changes(gap, -3.4, centres, level, lane_change, cfg)
+    # a three-lane fork still needs 2 m of width change: 1.9 m is the car's lane change
+    # while the other edge moved too
+    fork = np.where(centres <= gap[0], 0.0, -11.3)
+    fork[np.isnan(level)] = np.nan
+    other = np.where(centres <= gap[0], 15.9, 15.9 + 9.4)
+    assert not _width_changes(gap, -11.3, centres, fork, other, cfg)

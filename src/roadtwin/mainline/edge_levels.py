@@ -498,7 +498,8 @@ def _gore_area_start(
 
 _GAP_MIN_M = 10.0  # an unseen stretch this long (metres) may hide a step ...
 _GAP_REACH_M = 150.0  # ... told by the width where both edges are seen this near it ...
-_GAP_WIDTH_BINS = 5  # ... in this many bins either side
+_GAP_WIDTH_BINS = 5  # ... in this many bins either side ...
+_GAP_WIDTH_SHARE = 0.5  # ... changing with the level by this share of its change at least
 _GAP_TAPER_RATE = 0.06  # a change no faster than a taper (m/m) over the gap is bridged
 _GAP_HELD_M = 30.0  # both levels seen over this much next to the gap ...
 _GAP_HELD_BINS = 10  # ... in this many bins at least
@@ -594,7 +595,8 @@ def _width_changes(
     """Whether the carriageway's width (this edge's level plus ``across``, the other
     edge's median offset per bin) changes across the unseen stretch ``gap`` with this
     edge's level (``level_change``, metres): a step, not the car's own lane change (which
-    moves both edges by the same amount in opposite directions). The width is taken where
+    moves both edges by the same amount in opposite directions): by ``edge_step_m`` or
+    ``_GAP_WIDTH_SHARE`` of the level's change, whichever is less. The width is taken where
     both edges were seen nearest the gap on each side, both levels held next to it."""
     lo, hi = gap
     if across is None or hi - lo < _GAP_MIN_M:
@@ -611,7 +613,13 @@ def _width_changes(
     if before.size < _GAP_WIDTH_BINS or after.size < _GAP_WIDTH_BINS:
         return False
     width_change = float(np.median(width[after]) - np.median(width[before]))
-    return abs(width_change) > cfg.edge_step_m and width_change * level_change > 0.0
+    # most of the level's change, not all of it: the other edge may have its own gore
+    # next to the gap (melbourne-1019-lane1-s21 with a noisier sensor: an outer exit's
+    # nose at the far end of a 96 m gap hiding an inner exit's step of 3.4 m, the width
+    # changed by 1.9 m; judged against a lane's step the inner one was bridged as a lane
+    # change over the gap, the edge 3 m off and a car driven onto the shoulder)
+    needed = min(cfg.edge_step_m, _GAP_WIDTH_SHARE * abs(level_change))
+    return abs(width_change) > needed and width_change * level_change > 0.0
 
 
 _PEEL_NEAR_M = 10.0  # the level this near a gap's end ...
