@@ -436,3 +436,24 @@ def test_a_swing_is_found_where_the_edge_is_hidden_just_after_it(dash, period, s
     err = np.abs(frame.offset(at) - move(at))
     assert float(np.max(err[at != 322.5])) < 0.2, err
     assert float(err[at == 322.5][0]) < 0.6, err
+
+
+def test_the_innermost_line_staying_does_not_make_an_exit_a_common_shift():
+    """a9-206615404-opp-s4 with a noisier sensor: an exit's lane line diverges (11.5 ->
+    14.4 m) over a 30 m gap of the outer edge while the lines at 0.7 (the innermost), 4.4
+    and 8.0 m go on. The innermost line's peaks inside the stretch were counted as moving
+    lines inside the pattern, the stretch taken for a shift of the whole pattern, and in
+    its frame the exit's line was no ramp line: the edge followed the ramp 30 m on."""
+    from roadtwin.mainline.shift import _a_line_stays
+
+    def flat(d, stations):
+        return [(s, d) for s in stations]
+
+    stations = list(range(7648, 7740, 5))
+    exit_ = {
+        0: flat(0.72, stations),
+        2: flat(4.4, stations[1::2]),
+        4: flat(8.05, stations),
+        3: [(7648, 11.53), (7668, 11.7), (7678, 12.3), (7688, 13.3), (7698, 14.0), (7702, 14.4)],
+    }
+    assert _a_line_stays(*_peaks(exit_), 7677.5, 7707.5)

@@ -447,7 +447,11 @@ def _a_line_stays(
     added beside the median moves every line but the innermost; shifted by a lane width
     or two the pattern looks the same after it, and a line linked across may hop from
     one moving line to the next at one offset: there the moving lines cross the stretch
-    inside it."""
+    inside it. The innermost line's peaks, where it is seen staying through the stretch's
+    middle too, are none of those (a9-206615404-opp-s4 with a noisier sensor: an exit's
+    lane and shoulder diverging over a 30 m gap of the outer edge, the lines inside
+    staying, were taken for a shift of the whole pattern; in its frame the exit's line was
+    no ramp line, and the mainline's edge followed the ramp 30 m past the gore, 7 m off)."""
     win = (peak_s >= s_a - PATTERN_M) & (peak_s <= s_b + PATTERN_M) & (peak_track >= 0)
     before = win & (peak_s < s_a)
     if not before.any():
@@ -463,11 +467,19 @@ def _a_line_stays(
     seen_before[inverse[s_w < s_a]] = True
     seen_after = np.zeros(n, dtype=bool)
     seen_after[inverse[s_w > s_b]] = True
-    stays = seen_before & seen_after & (spread <= STAY_M) & (med >= inner + STAY_INNER_M)
+    steady = seen_before & seen_after & (spread <= STAY_M)
+    stays = steady & (med >= inner + STAY_INNER_M)
     if not stays.any():
         return False
-    inside = (s_w >= s_a) & (s_w <= s_b) & ~stays[inverse]
-    off_lines = np.min(np.abs(d_w[inside, None] - med[stays][None, :]), axis=1) > STAY_M
+    # the innermost line, seen staying through the stretch's middle too, is no moving
+    # line inside it (a track linked across a shift at one offset hops from one moving
+    # line to the next: it has no peaks where they are halfway)
+    third = (s_b - s_a) / 3.0
+    middle = np.zeros(n, dtype=bool)
+    middle[inverse[(s_w > s_a + third) & (s_w < s_b - third)]] = True
+    kept = stays | (steady & middle)
+    inside = (s_w >= s_a) & (s_w <= s_b) & ~kept[inverse]
+    off_lines = np.min(np.abs(d_w[inside, None] - med[kept][None, :]), axis=1) > STAY_M
     moving = d_w[inside][off_lines]
     return bool(np.all(moving > float(np.max(med[stays]))))
 
