@@ -101,6 +101,21 @@ def test_another_roads_edge_seen_just_after_a_gap_is_left_unseen():
     np.testing.assert_array_equal(without_short_excursions(CENTRES, mirrored, step_m=2.0), mirrored)
 
 
+def test_a_ramp_edge_seen_just_after_a_gap_2_m_out_is_left_unseen():
+    """kotka-37952515-lane2-s22 with a noisier sensor (seed offset 500): the first 4 m seen
+    after a 50 m gap are a ramp's edge 1.97 m outward, then the mainline's at its level
+    before the gap. A step back under a lane's (``step_m``) hid the span's end; bridged to
+    it, the edge lay 1.9 m off (edge 0.140 -> 0.042 m)."""
+    level = np.full(CENTRES.size, 10.0)
+    level[(CENTRES > 220.0) & (CENTRES < 276.0)] = np.nan
+    level[(CENTRES > 276.0) & (CENTRES < 280.0)] = [11.98, 12.01]
+    level[CENTRES > 280.0] = 10.04
+    out = without_short_excursions(CENTRES, level, step_m=2.0)
+    span = (CENTRES > 276.0) & (CENTRES < 280.0)
+    assert np.isnan(out[span]).all()
+    np.testing.assert_array_equal(out[~span], level[~span])
+
+
 def test_an_exits_lane_seen_just_after_a_gap_is_kept():
     """An exit's lane that opened before a gap (kotka-37952515-opp-s9 with a noisier
     sensor): seen for 2 m after the gap at the level before it, then the edge steps in by

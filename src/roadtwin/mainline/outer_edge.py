@@ -71,8 +71,9 @@ def without_short_excursions(
         if abs(q[k + 1] - q[j]) <= _EXCURSION_AGREE_M:
             out[idx[j + 1] : idx[k] + 1] = np.nan
     # an occlusion gap may hide the step out: a short span seen just after a gap, outward
-    # of the levels beyond its step back and across the gap
-    for k in down:
+    # of the levels beyond its step back and across the gap (a step back by a jump of the
+    # level path, not a lane's: a ramp's edge 2 m out, kotka-37952515-lane2-s22+500)
+    for k in np.flatnonzero(np.diff(q) < -_LEVEL_JUMP_M):
         h = hole[hole < k]
         if h.size and _gap_excursion(c, q, int(h[-1]) + 1, int(k)):
             out[idx[int(h[-1]) + 1] : idx[k] + 1] = np.nan
