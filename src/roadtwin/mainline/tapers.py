@@ -124,68 +124,6 @@ def _lines_from_splits(dmat: FloatArray, grid: FloatArray) -> None:
             dmat[k, best[0] : i0] = d_k
 
 
-_FAN_REACH_M = 150.0  # two neighbours meeting this near a line's first (last) station ...
-_FAN_SHARE = (0.15, 0.85)  # ... with the line this share of the way between them ...
-_FAN_SHARE_OVER_M = 30.0  # ... over its first (last) this many metres
-
-
-def _fan(dmat: FloatArray, k: int, grid: FloatArray, end: str) -> tuple[float, float, int] | None:
-    """A line first (last) seen between two neighbours that meet before (after) it, within
-    ``_FAN_REACH_M``: lanes gained (dropped) together, their lines fanning out of (into)
-    one point. The line keeps its share of the way between the two back to that point
-    (``dmat`` filled in place), where it begins (ends) with them; ``(s_zero, length,
-    nearer neighbour)`` as :func:`_taper` returns, None where it is no such line.
-
-    Tapered from its nearer neighbour alone, a sparse line first seen halfway out of the
-    fan split off that neighbour 20 m late, 0.9 m off (melbourne-921-s9 with a noisier
-    sensor: two lanes gained beside the median at once, their lines fanning from the
-    innermost one over 65 m)."""
-    idx = np.nonzero(np.isfinite(dmat[k]))[0]
-    i_edge = int(idx[0] if end == "start" else idx[-1])
-    d_k = float(dmat[k, i_edge])
-    at = dmat[:, i_edge]
-    inner = [j for j in range(dmat.shape[0]) if j != k and np.isfinite(at[j]) and at[j] < d_k]
-    outer = [j for j in range(dmat.shape[0]) if j != k and np.isfinite(at[j]) and at[j] > d_k]
-    if not inner or not outer:
-        return None
-    j1 = max(inner, key=lambda j: at[j])
-    j2 = min(outer, key=lambda j: at[j])
-    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
-    # its share of the way between them over its first metres (a smoothed line's tip
-    # bends towards the samples nearest it)
-    near = round(_FAN_SHARE_OVER_M / max(step, 1e-9))
-    seg = (
-        slice(i_edge, i_edge + near + 1)
-        if end == "start"
-        else slice(max(i_edge - near, 0), i_edge + 1)
-    )
-    shares = (dmat[k, seg] - dmat[j1, seg]) / (dmat[j2, seg] - dmat[j1, seg])
-    shares = shares[np.isfinite(shares)]
-    if shares.size == 0:
-        return None
-    share = float(np.median(shares))
-    if not _FAN_SHARE[0] < share < _FAN_SHARE[1]:
-        return None
-    reach = round(_FAN_REACH_M / max(step, 1e-9))
-    way = (
-        np.arange(i_edge, max(i_edge - reach, -1), -1)
-        if end == "start"
-        else np.arange(i_edge, min(i_edge + reach + 1, grid.size))
-    )
-    apart = dmat[j2, way] - dmat[j1, way]
-    seen = np.isfinite(apart)
-    # both neighbours seen from the line's tip to where they meet
-    lost = np.flatnonzero(~seen)
-    meet = np.flatnonzero(seen & (apart < _SPLIT_SAME_M))
-    if meet.size == 0 or (lost.size and lost[0] < meet[0]):
-        return None
-    i_zero = int(way[meet[0]])
-    fill = way[: meet[0] + 1]
-    dmat[k, fill] = dmat[j1, fill] + share * (dmat[j2, fill] - dmat[j1, fill])
-    nearer = j1 if share < 0.5 else j2
-    return float(grid[i_zero]), abs(float(grid[i_edge] - grid[i_zero])), nearer
-
-
 def _taper(
     dmat: FloatArray,
     k: int,
@@ -202,16 +140,11 @@ def _taper(
     ``dmat`` is filled in place over the unobserved part of the taper. Returns
     ``(s_zero, taper_length, neighbour)`` or None if the track starts/ends at full width.
     ``fixed = (s_zero, taper)`` imposes the taper (an inferred marking that opens with
-    an observed one) and overwrites the track over it. A line between two neighbours
-    that fan out of (into) one point goes there with them (:func:`_fan`). With the
-    track's raw ``samples`` (stations, offsets) the taper's zero station and length are
-    refined by a least-squares fit of the cubic taper to them (:func:`_fit_taper`).
+    an observed one) and overwrites the track over it. With the track's raw ``samples``
+    (stations, offsets) the taper's zero station and length are refined by a least-squares
+    fit of the cubic taper to them (:func:`_fit_taper`).
     """
     n_g = grid.size
-    if fixed is None:
-        fan = _fan(dmat, k, grid, end)
-        if fan is not None:
-            return fan
     idx = np.nonzero(np.isfinite(dmat[k]))[0]
     i_edge = int(idx[0] if end == "start" else idx[-1])
     others = [j for j in range(dmat.shape[0]) if j != k and np.isfinite(dmat[j, i_edge])]
