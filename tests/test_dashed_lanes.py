@@ -2,6 +2,8 @@
 (:mod:`roadtwin.mainline.dashed_lanes`): soderleden-s2 with a noisier sensor, whose
 acceleration lane lay wholly inside a 146 m gap, its outer line unpainted."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -23,8 +25,8 @@ GAP = (212.0, 358.0)  # the outer edge unseen
 
 def _samples(rng: np.random.Generator, *, dashed: bool = True, period: float = 12.0) -> np.ndarray:
     """Stations (metres) of the outermost line's samples, 0.5 m apart with 10 % missed:
-    solid to ``SOLID_END``, then 6 m dashes every ``period`` (a gap first) to ``LANE_END`` (solid if not
-    ``dashed``), none from there to 360 m, solid after."""
+    solid to ``SOLID_END``, then 6 m dashes every ``period`` (a gap first) to ``LANE_END``
+    (solid if not ``dashed``), none from there to 360 m, solid after."""
     s = np.arange(0.0, 600.0, 0.5)
     keep = s < SOLID_END
     if dashed:
@@ -149,3 +151,24 @@ def test_a_broken_line_with_no_lane_beside_it_where_seen_is_left_alone():
     d_edge[:261] = LINE_M + 1.0
     lanes = dashed_lanes_in_gaps([line], GRID, d_edge, covered, LANE_M, 60.0, _ramp_points(rng))
     assert lanes == []
+
+
+def test_the_edge_is_widened_only_in_the_gap_the_lane_was_found_in():
+    """kotka-37952515-opp-s4+200: a 700 m broken stretch ending at a gap; in another gap
+    500 m before, inside the stretch, a line farther out was the outermost one, and the
+    edge widened there beside the broken line lay 0.4 m off."""
+    rng = np.random.default_rng(10)
+    line = _line(_samples(rng))
+    covered = ~(((GRID > 212.0) & (GRID < 250.0)) | ((GRID > 270.0) & (GRID < 290.0)))
+    d_edge = np.full(GRID.size, LINE_M)
+    d_edge[250:330] = LINE_M + LANE_M  # the lane seen from the first gap's end on
+    lanes = dashed_lanes_in_gaps([line], GRID, d_edge, covered, LANE_M, 60.0, _ramp_points(rng))
+    assert len(lanes) == 1  # the second gap has no end of the stretch near it
+    assert lanes[0].gap == (212.0, 250.0)
+    other = replace(lanes[0], gap=(270.0, 290.0))
+    d_edge[271:290] = LINE_M  # bridged beside a line farther out (here: at the line)
+    edge = widen_beside_dashed(d_edge, covered, GRID, lanes)
+    assert edge[245] == LINE_M + LANE_M  # past the gore, in the gap it was found in
+    np.testing.assert_array_equal(edge[251:], d_edge[251:])
+    # the same lane found in the second gap widens that one
+    assert widen_beside_dashed(d_edge, covered, GRID, [other])[280] == LINE_M + LANE_M
