@@ -9,6 +9,7 @@ gore and stays out; short out-and-back excursions are left unseen and bridged.""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from roadtwin.mainline.outer_edge import (
     fit_outer_edge,
@@ -81,39 +82,30 @@ def test_a_gap_just_past_a_step_is_fitted_with_the_steps_side():
     np.testing.assert_allclose(d_edge[gap], 8.0 + 0.02 * (grid[gap] - 200.0), atol=0.1)
 
 
-def test_another_roads_edge_seen_just_after_a_gap_is_left_unseen():
+@pytest.mark.parametrize(
+    ("before", "gap", "span", "after"),
+    [(10.2, (100.0, 212.0), [11.7, 17.8], 9.7), (10.0, (220.0, 276.0), [11.98, 12.01], 10.04)],
+)
+def test_another_roads_edge_seen_just_after_a_gap_is_left_unseen(before, gap, span, after):
     """kotka-37952515-lane1-s21 with a noisier sensor: the edge hidden over 112 m before an
     entry's nose, the first 4 m seen after the gap are the ramp's edge (1.5 and 7.6 m
     outward), then the mainline's at its level before the gap. Bridged to the ramp's edge,
     the edge lay 1.7 m off at the gap's end (edge 0.138 m); the span is left unseen
-    (0.049 m). Not mirrored: a span just before a gap keeps the step it makes (a loop
-    entry's edge seen for 2 m before a gap on krems-24746399-s11, left unseen, let the
+    (0.049 m). So is a ramp's edge 1.97 m out after a 50 m gap, though the step back is
+    under a lane's (``step_m``; kotka-37952515-lane2-s22, seed offset 500: 1.9 m off, edge
+    0.140 -> 0.042 m). Not mirrored: a span just before a gap keeps the step it makes (a
+    loop entry's edge seen for 2 m before a gap on krems-24746399-s11, left unseen, let the
     ramp's converging edge into the fit across the gap: 0.041 -> 0.044 m)."""
-    level = np.full(CENTRES.size, 10.2)
-    level[(CENTRES > 100.0) & (CENTRES < 212.0)] = np.nan
-    level[(CENTRES > 212.0) & (CENTRES < 216.0)] = [11.7, 17.8]
-    level[CENTRES > 216.0] = 9.7
+    level = np.full(CENTRES.size, before)
+    level[(gap[0] < CENTRES) & (gap[1] > CENTRES)] = np.nan
+    seen = (gap[1] < CENTRES) & (gap[1] + 4.0 > CENTRES)
+    level[seen] = span
+    level[gap[1] + 4.0 < CENTRES] = after
     out = without_short_excursions(CENTRES, level, step_m=2.0)
-    span = (CENTRES > 212.0) & (CENTRES < 216.0)
-    assert np.isnan(out[span]).all()
-    np.testing.assert_array_equal(out[~span], level[~span])
+    assert np.isnan(out[seen]).all()
+    np.testing.assert_array_equal(out[~seen], level[~seen])
     mirrored = level[::-1]
     np.testing.assert_array_equal(without_short_excursions(CENTRES, mirrored, step_m=2.0), mirrored)
-
-
-def test_a_ramp_edge_seen_just_after_a_gap_2_m_out_is_left_unseen():
-    """kotka-37952515-lane2-s22 with a noisier sensor (seed offset 500): the first 4 m seen
-    after a 50 m gap are a ramp's edge 1.97 m outward, then the mainline's at its level
-    before the gap. A step back under a lane's (``step_m``) hid the span's end; bridged to
-    it, the edge lay 1.9 m off (edge 0.140 -> 0.042 m)."""
-    level = np.full(CENTRES.size, 10.0)
-    level[(CENTRES > 220.0) & (CENTRES < 276.0)] = np.nan
-    level[(CENTRES > 276.0) & (CENTRES < 280.0)] = [11.98, 12.01]
-    level[CENTRES > 280.0] = 10.04
-    out = without_short_excursions(CENTRES, level, step_m=2.0)
-    span = (CENTRES > 276.0) & (CENTRES < 280.0)
-    assert np.isnan(out[span]).all()
-    np.testing.assert_array_equal(out[~span], level[~span])
 
 
 def test_an_exits_lane_seen_just_after_a_gap_is_kept():
