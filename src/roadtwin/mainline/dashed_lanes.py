@@ -146,10 +146,11 @@ def broken_stretches(s_samples: FloatArray) -> list[tuple[float, float]]:
     return out
 
 
-def _outermost_tracks(tracks: list[_Track], grid: FloatArray, a: int, b: int) -> list[int]:
-    """Indices of the tracks that are the outermost marking over the gap ``a:b`` where they
-    run there."""
-    d_last = _last_marking(tracks, grid)
+def _outermost_tracks(
+    tracks: list[_Track], grid: FloatArray, d_last: FloatArray, a: int, b: int
+) -> list[int]:
+    """Indices of the tracks that are the outermost marking (``d_last`` on ``grid``,
+    :func:`~.markings._last_marking`) over the gap ``a:b`` where they run there."""
     out = []
     for k, tr in enumerate(tracks):
         g = grid[a:b]
@@ -224,11 +225,12 @@ def dashed_lanes_in_gaps(
     a lane wide (where the stretch reaches them).
     """
     out: list[DashedLane] = []
+    d_last = _last_marking(tracks, grid)
     for a, b in true_runs(~covered):
         if a == 0 or b >= grid.size or grid[b] - grid[a - 1] < _GAP_MIN_M:
             continue
         s_a, s_b = float(grid[a - 1]), float(grid[b])
-        for k in _outermost_tracks(tracks, grid, a, b):
+        for k in _outermost_tracks(tracks, grid, d_last, a, b):
             line = tracks[k]
             for lo, hi in broken_stretches(line.s_samples):
                 # a lane beginning or ending in the gap (or just past it, its taper seen

@@ -742,18 +742,18 @@ def _next_line_inward(cand: list[_Track], k: int, g: FloatArray, d: FloatArray) 
     s11 with a noisier sensor: two lanes gained at once, the inner one's line first seen
     9 m after the outer one's, which then had two lanes inside it and was cut as a ramp's
     line: the lane closing by a taper over 125 m was missing)."""
-    first = np.flatnonzero(g <= g[0] + _INWARD_AHEAD_M)
-    strips = []
-    for i in first:
-        inward = [
-            float(np.interp(g[i], tr.s, tr.d))
-            for j, tr in enumerate(cand)
-            if j != k and tr.lo <= g[i] <= tr.hi
-        ]
-        inward = [v for v in inward if v < d[i] - 0.5]
-        if inward:
-            strips.append(float(d[i]) - max(inward))
-    return float(d[0]) - min(strips) if strips else None
+    ahead = g <= g[0] + _INWARD_AHEAD_M
+    g_a, d_a = g[ahead], d[ahead]
+    # per station the nearest line inward (-inf where none)
+    nearest = np.full(g_a.size, -np.inf)
+    for j, tr in enumerate(cand):
+        if j == k:
+            continue
+        v = np.interp(g_a, tr.s, tr.d)
+        ok = (g_a >= tr.lo) & (g_a <= tr.hi) & (v < d_a - 0.5)
+        nearest = np.where(ok, np.maximum(nearest, v), nearest)
+    seen = np.isfinite(nearest)
+    return float(d[0]) - float(np.min(d_a[seen] - nearest[seen])) if seen.any() else None
 
 
 def _mainline_ends_inside_edge(
