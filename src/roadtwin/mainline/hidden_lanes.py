@@ -109,6 +109,80 @@ _HANDOVER_M = 5.0  # an inferred line starting this close after an observed one 
 _HANDOVER_D_M = 0.5  # ... this close to its offset continues it (metres)
 
 
+_EDGE_LANE_OVER_M = 30.0  # the strip beside a stretch of hidden lanes, over this long ...
+_EDGE_LANE_STEADY_M = 0.5  # ... steady to within this (metres) ...
+_EDGE_LANE_TAPER_M = 60.0  # ... and at most this far before (after) it (metres)
+_EDGE_LANE_NARROWER_M = 0.3  # the lane goes on where the strip is at most this narrower
+
+
+def _edge_lane_beside(
+    outer_gap: FloatArray, n_out: NDArray[np.int64], a: int, b: int, cfg: MainlineConfig
+) -> tuple[float, int, int] | None:
+    """The lane the outer edge borders, with no line beyond it, just before grid index
+    ``a`` (or just after ``b``) of a stretch of hidden outer lanes: ``(width, a, b)``,
+    its width (metres) and the stretch widened back (ahead) over where the strip holds
+    that lane, and over the edge's taper that opened (closes) it; None where there is
+    none. The strip between the outermost marking and the edge (``outer_gap``) there
+    holds no hidden lane (``n_out``), is steady over ``_EDGE_LANE_OVER_M`` within
+    ``_EDGE_LANE_TAPER_M`` of the stretch, and is as wide as a lane and no hard shoulder
+    (``edge_lane_min_m`` to ``_HIDDEN_LANE_MAX_M``; the lane types read such a strip as
+    a driving lane, :func:`~.sections._lane_types`).
+
+    Where a hard shoulder opens beyond such a lane (an added lane, the edge its outer
+    border, then the edge moving out by a shoulder's width), the lane goes on: its line
+    lies where the edge was. Read afresh, the wider strip was whole lanes of the run's
+    typical width beside the run's typical shoulder, and the lane closed to zero width
+    to open again by a taper (oakland-28393854-lane1-s21 with a noisier sensor, seed
+    offset 320: lanes 0.149 m, the lane count wrong over 50 m). Where the run's typical
+    shoulder is 3 m, a 3.6 m strip bordered by the edge was a shoulder in a section that
+    the same line, starting only where the shoulder opened, did not split (seed offset
+    560: the lane missing over 280 m, lane count 87.4 %)."""
+    window = max(1, round(_EDGE_LANE_OVER_M / cfg.grid_step_m))
+    # the edge moves out over a shoulder's taper before the stretch begins (after it ends)
+    for back in range(0, round(_EDGE_LANE_TAPER_M / cfg.grid_step_m) + 1, max(1, window // 6)):
+        for lo, hi in ((a - back - window, a - back), (b + back, b + back + window)):
+            if lo < 0 or hi > outer_gap.size or np.any(n_out[lo:hi] > 0):
+                continue
+            strip = outer_gap[lo:hi]
+            if not np.all(np.isfinite(strip)) or np.ptp(strip) >= _EDGE_LANE_STEADY_M:
+                continue
+            width = float(np.median(strip))
+            if not cfg.edge_lane_min_m <= width <= _HIDDEN_LANE_MAX_M:
+                continue
+            # the line goes on (back) wherever the strip holds that lane
+            holds = (outer_gap >= max(width - _EDGE_LANE_NARROWER_M, cfg.edge_lane_min_m)) & (
+                n_out == 0
+            )
+            if hi <= a:
+                a1 = hi - 1
+                while a1 > 0 and holds[a1 - 1]:
+                    a1 -= 1
+                return width, _taper_end(outer_gap, a1, -1), b
+            b1 = lo
+            while b1 + 1 < holds.size and holds[b1 + 1]:
+                b1 += 1
+            return width, a, _taper_end(outer_gap, b1, 1) + 1
+    return None
+
+
+_OPENS_FROM_M = 0.5  # a lane opens (closes) by the edge's taper where the strip gets this narrow
+
+
+def _taper_end(strip: FloatArray, i: int, step: int) -> int:
+    """Index where the lane that the edge borders at index ``i`` opens (``step`` -1:
+    looking back) or closes (+1: ahead) by the edge's own taper: the strip ``strip``
+    (metres) narrows steadily from ``i`` to ``_OPENS_FROM_M`` or less; ``i`` where it does
+    not (it was a shoulder before, or another line lies beyond)."""
+    j = i
+    while 0 <= j + step < strip.size and np.isfinite(strip[j + step]):
+        if strip[j + step] > strip[j] + 0.02:
+            break
+        j += step
+        if strip[j] <= _OPENS_FROM_M:
+            return j
+    return i
+
+
 _SPLIT_MIN_RUN_M = 30.0  # a lane too wide over at least this long holds a missed line
 
 
@@ -293,10 +367,23 @@ def _add_hidden_lanes(
             if not on or b - a < shortest:
                 continue
             inner, outer, n = d_last[a:b], d_edge[a:b] - shoulder, n_out[a:b]
-            for a2, b2, line, mark in _outer_hidden_lines(
-                inner, outer, n, shortest, cfg.grid_step_m
-            ):
-                add(a + a2, a + b2, line, mark)
+            edge_lane = _edge_lane_beside(outer_gap, n_out, a, b, cfg)
+            if edge_lane is not None:
+                # the lane the edge bordered goes on at its width: its outer line is the
+                # first one hidden, from where the edge began to move away from it, and
+                # the rest of the strip is read from there
+                width, a1, b1 = edge_lane
+                line = np.minimum(d_last[a1:b1] + width, d_edge[a1:b1])
+                unknown = np.flatnonzero(~np.isfinite(line[: a - a1]))
+                first = a1 + (int(unknown[-1]) + 1 if unknown.size else 0)
+                add(first, b1, line[first - a1 :], "solid")
+                inner = np.minimum(inner + width, d_edge[a:b])
+                n = np.maximum(n - 1, 0)
+            if n.max() > 0:
+                for a2, b2, line, mark in _outer_hidden_lines(
+                    inner, outer, n, shortest, cfg.grid_step_m
+                ):
+                    add(a + a2, a + b2, line, mark)
             log.info(
                 "mainline: up to %d unobserved outer lane(s) inferred at s=%.0f..%.0f m",
                 int(n.max()),
