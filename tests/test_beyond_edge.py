@@ -41,3 +41,35 @@ def test_a_line_that_comes_inside_the_edge_after_the_gap_is_kept():
     # beyond it inside the gap
     kept = _case(16.45, np.random.default_rng(2))
     assert len(kept) == 2
+
+
+def test_the_part_of_that_line_inside_the_edge_after_a_merge_beyond_the_gap_is_kept():
+    """melbourne-408-opp-s9 with a noisier sensor (seed offset 320): the parallel road's
+    line, beyond the edge through the gap, went on inside the edge once that road merged
+    past the gap, as the line of the lane the merge added; dropped whole, that line was
+    missing (lanes 0.086 -> 0.141 m). From where it comes inside the edge on, it stays."""
+    rng = np.random.default_rng(3)
+    covered = ~((GAP[0] < GRID) & (GAP[1] > GRID))
+    # the edge 13.8 m before the gap, 18.8 m after it; beyond 480 m the merged road's
+    # lane widens the carriageway, the edge at 20.5 m
+    d_edge = np.where(GRID < 360.0, 13.8, np.where(GRID < 480.0, 18.8, 20.5))
+    line = _track(318.0, 600.0, 19.3, 19.3)
+    line = _Track(1, line.lo, line.hi, line.s, np.where(line.s < 470.0, 19.3, 17.0), "broken",
+                  line.n, line.s_samples, np.where(line.s_samples < 470.0, 19.3, 17.0))  # fmt: skip
+    tracks = [_track(0.0, 600.0, 11.4, 11.4), line]
+    s_before = rng.uniform(280.0, 316.0, 40)
+    s_all = np.concatenate([np.arange(0.0, 600.0, 0.5), s_before])
+    d_all = np.concatenate([np.full(1200, 11.4), 19.3 + rng.normal(0.0, 0.05, 40)])
+    kept = without_other_roads_lines(tracks, GRID, d_edge, covered, (s_all, d_all))
+    assert len(kept) == 2
+    part = kept[1]
+    # from where it is inside the edge (470 m: 17.0 m against 18.8 m) to its end
+    assert part.lo == 470.0
+    assert part.hi == 600.0
+    assert float(np.max(part.d)) == 17.0
+    assert part.n == np.count_nonzero(line.s_samples >= 470.0)
+    # a part inside the edge shorter than a marking track must be is no line: dropped
+    short = _Track(1, 318.0, 500.0, line.s[line.s <= 500.0], line.d[line.s <= 500.0], "broken",
+                   0, line.s_samples[:0])  # fmt: skip
+    kept = without_other_roads_lines([tracks[0], short], GRID, d_edge, covered, (s_all, d_all))
+    assert len(kept) == 1
