@@ -14,7 +14,7 @@ from roadtwin.mainline.markings import (
     _shift_frame,
     _tracks_from_samples,
 )
-from roadtwin.mainline.shift import OuterEdge, _lines_follow
+from roadtwin.mainline.shift import OuterEdge, _lines_follow, _pattern_shift, _straightest
 
 LENGTH = 700.0
 LANE = 3.5
@@ -457,3 +457,38 @@ def test_the_innermost_line_staying_does_not_make_an_exit_a_common_shift():
         3: [(7648, 11.53), (7668, 11.7), (7678, 12.3), (7688, 13.3), (7698, 14.0), (7702, 14.4)],
     }
     assert _a_line_stays(*_peaks(exit_), 7677.5, 7707.5)
+
+
+def test_a_shift_the_rates_caught_too_little_of_takes_the_lane_the_lines_moved_by():
+    """melbourne-921-s9 with a noisier sensor (seed offset 500): two lanes added beside the
+    median, every line beyond moving out by 7.0 m; the rate path caught 5.1 m of it over
+    a stretch shorter than the move, and the line patterns either side, which repeat
+    every lane, matched best at 3.6 m within reach of that: the lines were linked a lane
+    apart from their own (edge RMSE 0.18 m). Of the pattern's matches a lane apart, the
+    one that leaves the lines inside the stretch straightest is the shift."""
+    rng = np.random.default_rng(4)
+    move = lambda s: 2 * LANE * _smoothstep(s, 300.0, 380.0)  # noqa: E731
+    # the median-side edge line stays, three lines move out, two new ones fan out
+    offsets = [lambda s: np.full(s.size, 1.0)]
+    offsets += [lambda s, k=k: 1.0 + k * LANE + move(s) for k in (1, 2, 3)]
+    offsets += [lambda s, k=k: 1.0 + k / 2 * move(s) for k in (1, 2)]
+    lines = [_line(rng, f, s0=0.0 if i < 4 else 310.0) for i, f in enumerate(offsets)]
+    s = np.concatenate([a for a, _ in lines])
+    d = np.concatenate([b for _, b in lines])
+    owner = np.repeat(np.arange(len(lines)), [a.size for a, _ in lines])
+    # the rates of the windows over 300-380 m (one per 5 m), a bump adding up to 5.1 m
+    bump = np.bartlett(18)[1:-1]
+    rates = bump / bump.sum() * 5.1 / 5.0
+    s_a, s_b = 300.0, 380.0
+    assert _pattern_shift(s, d, owner, s_a, s_b, 5.1) == pytest.approx(3.5, abs=0.15)
+    assert _straightest(s, d, owner, rates, s_a, s_b, 3.5) == pytest.approx(7.0, abs=0.15)
+    # where the rates caught the move whole, the match they snap to stays
+    rates_whole = rates * 7.0 / 5.1
+    assert _straightest(s, d, owner, rates_whole, s_a, s_b, 7.0) == pytest.approx(7.0, abs=0.15)
+    # a lane's shift is not taken for two
+    one = [_line(rng, lambda x, k=k: 1.0 + k * LANE + 0.5 * move(x)) for k in (1, 2, 3)]
+    s1 = np.concatenate([a for a, _ in one])
+    d1 = np.concatenate([b for _, b in one])
+    owner1 = np.repeat(np.arange(len(one)), [a.size for a, _ in one])
+    rates_one = rates * 3.5 / 5.1
+    assert _straightest(s1, d1, owner1, rates_one, s_a, s_b, 3.5) == pytest.approx(3.5, abs=0.15)
