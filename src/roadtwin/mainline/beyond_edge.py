@@ -17,13 +17,11 @@ reference edge towards the carriageway, :func:`~.lanes.fit_lanes`).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 from numpy.typing import NDArray
 
 from ._common import true_runs
-from .markings import _Track
+from .markings import _Track, track_part
 
 FloatArray = NDArray[np.float64]
 
@@ -97,16 +95,4 @@ def _inside_part(
     i0, i1 = (int(idx[0]), tr.s.size) if after else (0, int(idx[-1]) + 1)
     if not np.all(inside[i0:i1]) or tr.s[i1 - 1] - tr.s[i0] < _KEPT_MIN_M:
         return None
-    lo, hi = float(tr.s[i0]), float(tr.s[i1 - 1])
-    on = (tr.s_samples >= lo) & (tr.s_samples <= hi)
-    d_samples = tr.d_samples[on] if tr.d_samples.size == tr.s_samples.size else tr.d_samples
-    return replace(
-        tr,
-        lo=lo,
-        hi=hi,
-        s=tr.s[i0:i1],
-        d=tr.d[i0:i1],
-        n=int(np.count_nonzero(on)),
-        s_samples=tr.s_samples[on],
-        d_samples=d_samples,
-    )
+    return track_part(tr, i0, i1)

@@ -16,7 +16,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from .markings import _Track
+from .markings import _Track, track_part
 
 log = logging.getLogger(__name__)
 
@@ -83,21 +83,7 @@ def split_edge_lines_at_steps(
         for a, b in itertools.pairwise([0, *sorted(set(cuts)), tr.s.size]):
             if b <= a:
                 continue
-            lo, hi = float(tr.s[a]), float(tr.s[b - 1])
-            keep = (tr.s_samples >= lo) & (tr.s_samples <= hi)
-            same = tr.d_samples.size == tr.s_samples.size
-            out.append(
-                replace(
-                    tr,
-                    lo=lo,
-                    hi=hi,
-                    s=tr.s[a:b],
-                    d=tr.d[a:b],
-                    n=int(np.count_nonzero(keep)),
-                    s_samples=tr.s_samples[keep],
-                    d_samples=tr.d_samples[keep] if same else tr.d_samples,
-                )
-            )
+            out.append(track_part(tr, a, b))
         log.info(
             "mainline: an edge line goes on as a lane line at s=%s m: split there",
             ", ".join(f"{tr.s[min(c, tr.s.size - 1)]:.0f}" for c in cuts),

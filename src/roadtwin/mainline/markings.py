@@ -80,6 +80,23 @@ class _Track:
     d_samples: FloatArray = field(default_factory=lambda: np.zeros(0))  # their offsets
 
 
+def track_part(tr: _Track, a: int, b: int) -> _Track:
+    """Track ``tr`` over its stations ``tr.s[a:b]``, with the samples that lie there."""
+    lo, hi = float(tr.s[a]), float(tr.s[b - 1])
+    keep = (tr.s_samples >= lo) & (tr.s_samples <= hi)
+    same = tr.d_samples.size == tr.s_samples.size
+    return replace(
+        tr,
+        lo=lo,
+        hi=hi,
+        s=tr.s[a:b],
+        d=tr.d[a:b],
+        n=int(np.count_nonzero(keep)),
+        s_samples=tr.s_samples[keep],
+        d_samples=tr.d_samples[keep] if same else tr.d_samples,
+    )
+
+
 def _tracks_from_samples(
     s: FloatArray,
     d: FloatArray,
