@@ -154,13 +154,13 @@ def _edge_lane_beside(
                 n_out == 0
             )
             if hi <= a:
-                a1 = hi - 1
-                while a1 > 0 and holds[a1 - 1]:
-                    a1 -= 1
+                # the first of the stations up to hi - 1 from which on it holds
+                breaks = np.flatnonzero(~holds[: hi - 1])
+                a1 = int(breaks[-1]) + 1 if breaks.size else 0
                 return width, _taper_end(outer_gap, a1, -1), b
-            b1 = lo
-            while b1 + 1 < holds.size and holds[b1 + 1]:
-                b1 += 1
+            # the last of the stations from lo on up to which it holds
+            breaks = np.flatnonzero(~holds[lo + 1 :])
+            b1 = lo + int(breaks[0]) if breaks.size else holds.size - 1
             return width, a, _taper_end(outer_gap, b1, 1) + 1
     return None
 
@@ -173,14 +173,12 @@ def _taper_end(strip: FloatArray, i: int, step: int) -> int:
     looking back) or closes (+1: ahead) by the edge's own taper: the strip ``strip``
     (metres) narrows steadily from ``i`` to ``_OPENS_FROM_M`` or less; ``i`` where it does
     not (it was a shoulder before, or another line lies beyond)."""
-    j = i
-    while 0 <= j + step < strip.size and np.isfinite(strip[j + step]):
-        if strip[j + step] > strip[j] + 0.02:
-            break
-        j += step
-        if strip[j] <= _OPENS_FROM_M:
-            return j
-    return i
+    # the strip from i on in that direction, up to where it widens or is unknown
+    ahead = strip[i::step] if step > 0 else strip[i::-1]
+    stops = np.flatnonzero(~np.isfinite(ahead[1:]) | (ahead[1:] > ahead[:-1] + 0.02))
+    steady = ahead[1 : 1 + (int(stops[0]) if stops.size else ahead.size - 1)]
+    narrow = np.flatnonzero(steady <= _OPENS_FROM_M)
+    return i + step * (int(narrow[0]) + 1) if narrow.size else i
 
 
 _SPLIT_MIN_RUN_M = 30.0  # a lane too wide over at least this long holds a missed line

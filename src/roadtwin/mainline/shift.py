@@ -704,9 +704,9 @@ def _straightest(
     3.6 m, the lines linked a lane apart from their own; -s2+560: one lane added, the
     pattern snapped to 6.8 m). ``matched`` unless another piles the lines up sharper by
     ``STRAIGHT_GAIN``, or where the lines in the stretch are not seen."""
-    total = float(np.sum(rates)) * STEP_M
     if abs(matched) < MIN_TOTAL_M:
         return matched
+    total = float(np.sum(rates)) * STEP_M
     lo, hi = s_a - STRAIGHT_MARGIN_M, s_b + STRAIGHT_MARGIN_M
     sel = (s >= lo) & (s <= hi) & (owner >= 0)
     if np.count_nonzero(sel) < 20:
@@ -726,10 +726,12 @@ def _straightest(
             candidates.append(other)
     if len(candidates) == 1:
         return matched
+    # in the stretch's own station frame: its first window at 0 (as :func:`_sharpness` wants)
+    s_in, d_in, owner_in = s[sel], d[sel], owner[sel]
     scores = []
     for cand in candidates:
         move = _stretch_move(rates * (cand / total), s_a)
-        sharp = _sharpness(s[sel] - lo, d[sel] - move(s[sel]), owner[sel], mids - lo, np.zeros(1))
+        sharp = _sharpness(s_in - lo, d_in - move(s_in), owner_in, mids - lo, np.zeros(1))
         scores.append(-np.inf if sharp is None else float(np.sum(np.log(sharp[:, 0] + 0.05))))
     best = int(np.argmax(scores))
     return float(candidates[best]) if scores[best] >= scores[0] + STRAIGHT_GAIN else matched
