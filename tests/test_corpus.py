@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import resource
+import shutil
 import signal
 import subprocess
 import sys
@@ -175,14 +176,16 @@ def test_signal_during_check_cleans_up(base, tmp_path, signum, code):
     assert not [p for p in d.root.rglob("*") if ".tmp" in p.name]
 
 
-def test_signal_during_build_leaves_no_partial_output(base, tmp_path):
-    """SIGTERM while the map is built: exit 143 and the output folder is not created."""
-    case = corpus.Case("signal", corpus._seq(), corpus._build)
-    d = corpus.prepare(case, *base, tmp_path / "case")
-    tmp = tmp_path / "tmp"
-    tmp.mkdir()
+def _terminate_mid_build(cmd: list[str], out: Path, tmp: Path) -> subprocess.Popen | None:
+    """Start ``cmd`` and send SIGTERM once the build is visibly under way.
+
+    Two signs, both short-lived on a fast machine: the OSM stage's temporary folder in
+    ``tmp`` (tens of milliseconds) and the output's staging folder in ``out`` (the write
+    stage, a few hundred milliseconds). Returns None when the build ended before either
+    was seen, so the caller can try again.
+    """
     proc = subprocess.Popen(
-        [*_roadtwin(), "build", str(d.run), "-o", str(d.out), "--no-check"],
+        cmd,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -190,10 +193,27 @@ def test_signal_during_build_leaves_no_partial_output(base, tmp_path):
     )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and proc.poll() is None:
-        if any(tmp.iterdir()):  # the OSM stage's temporary folder: the build is under way
+        if any(tmp.iterdir()) or out.exists():
+            proc.send_signal(signal.SIGTERM)
+            return proc
+        time.sleep(0.005)
+    proc.communicate(timeout=60)
+    return None
+
+
+def test_signal_during_build_leaves_no_partial_output(base, tmp_path):
+    """SIGTERM while the map is built: exit 143 and the output folder is not created."""
+    case = corpus.Case("signal", corpus._seq(), corpus._build)
+    d = corpus.prepare(case, *base, tmp_path / "case")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    cmd = [*_roadtwin(), "build", str(d.run), "-o", str(d.out), "--no-check"]
+    for _ in range(3):  # a build that ended before the signal could land says nothing
+        proc = _terminate_mid_build(cmd, d.out, tmp)
+        if proc is not None:
             break
-        time.sleep(0.02)
-    proc.send_signal(signal.SIGTERM)
+        shutil.rmtree(d.out, ignore_errors=True)
+    assert proc is not None, "the build ended three times before a sign of it was seen"
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err
     assert err.strip().splitlines()[-1] == "roadtwin: error: terminated by SIGTERM"
