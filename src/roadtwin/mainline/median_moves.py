@@ -15,7 +15,9 @@ Away from gores, across any stretch where the edge is unseen (:func:`unseen_stre
 the fit carries the edge along the course of its smoothed frame while the inner
 shoulder's line, where the car sees it, says where the edge went: the shoulder keeps a
 width linear between the stretch's ends beside that line (:func:`shoulder_moves`), as
-the outer edge keeps the hard shoulder's (:func:`~.outer_edge._bridge_edge_gaps`). The
+the outer edge keeps the hard shoulder's (:func:`~.outer_edge._bridge_edge_gaps`); where
+that line is seen only part of the way in (it leaves for an inner exit inside the stretch),
+as far as it goes, and linearly from there to where the edge is seen again. The
 lanes are then fitted again with the edge moved and the centre lane's offset carries the
 move (:func:`with_edge_moves`).
 
@@ -70,6 +72,10 @@ LINE_NEAR_M = 0.3
 LINE_SEEN_SHARE = 0.4
 """The share of a stretch's 5 m bins in which a lane line beside a step must be seen
 (:func:`moves_beside_steps`; a dashed line is seen on its dashes only)."""
+PART_SHORT_M = 10.0
+"""A shoulder's line seen from one end of an unseen stretch must end at least this short
+(metres) of the other end to be a part (:func:`_partial_line`): one seen (nearly) through
+is a line through, whose distance from the edge at the far end says otherwise."""
 KNOT_M = 4.0
 """Spacing (metres) of the lane-offset records that carry a move (linear in between)."""
 
@@ -219,7 +225,9 @@ def shoulder_moves(
     else the innermost lane line as far from the edge at both ends and seen through
     (:func:`_line_through`; oakland-28393854-s7 with a noisier sensor: the shoulder's
     line seen in a third of a 145 m stretch, the edge bent 0.8 m with the car's frame);
-    a move under :data:`MIN_SHOULDER_MOVE_M` is left out.
+    a move under :data:`MIN_SHOULDER_MOVE_M` is left out. Where the shoulder's line is
+    seen only part of the way in from an end, the edge keeps beside it that far
+    (:func:`_beside_partial_lines`).
     Where no such line is seen the edge stays as fitted (a lane gained or dropped beside
     the median moves the lines beyond the shoulder's, not the edge)."""
     move = np.zeros(grid.size)
@@ -227,6 +235,7 @@ def shoulder_moves(
         i0, i1 = a - 1, b
         best = _line_through(tracks, s_lane, d_lane, grid, d_median, i0, i1)
         if best is None:
+            move[a:b] = _beside_partial_lines(tracks, s_lane, d_lane, grid, d_median, i0, i1)
             continue
         tr, w0, w1 = best
         g = grid[a:b]
@@ -235,6 +244,80 @@ def shoulder_moves(
         shift = line - ((1.0 - x) * w0 + x * w1) - d_median[a:b]
         if float(np.max(np.abs(shift))) >= MIN_SHOULDER_MOVE_M:
             move[a:b] = shift
+    return move
+
+
+def _partial_line(
+    tracks: tuple[BoundaryTrack, ...],
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+    i_seen: int,
+    i_far: int,
+) -> tuple[BoundaryTrack, float, float] | None:
+    """The inner shoulder's line seen from grid station ``i_seen`` (an end of an unseen
+    stretch, where the edge was seen) part of the way towards ``i_far`` (the other end),
+    with its distance from the edge at ``i_seen`` and the station where it ends inside
+    the stretch (metres): the innermost track at most :data:`SHOULDER_MAX_M` from the
+    edge there that reaches at least :data:`GAP_MIN_M` into the stretch and ends
+    :data:`PART_SHORT_M` or more short of its other end, seen in
+    :data:`SEEN_SHARE` of the 5 m bins of that part. None where there is none."""
+    at, far = float(grid[i_seen]), float(grid[i_far])
+    forward = far > at
+    best = None
+    for tr in tracks:
+        if tr.n_samples == 0 or tr.s_m[0] > at or tr.s_m[-1] < at:
+            continue
+        end = float(tr.s_m[-1]) if forward else float(tr.s_m[0])
+        if abs(end - at) < GAP_MIN_M or (end - far) * (1.0 if forward else -1.0) > -PART_SHORT_M:
+            continue  # too short to say, or seen (nearly) through: not a part
+        width = float(np.interp(at, tr.s_m, tr.d_m)) - d_median[i_seen]
+        if not 0.0 < width <= SHOULDER_MAX_M or (best is not None and width >= best[1]):
+            continue
+        if _seen_share(tr, s_lane, d_lane, min(at, end), max(at, end)) >= SEEN_SHARE:
+            best = (tr, width, end)
+    return best
+
+
+def _beside_partial_lines(
+    tracks: tuple[BoundaryTrack, ...],
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+    i0: int,
+    i1: int,
+) -> FloatArray:
+    """The edge's move (metres towards the carriageway) on ``grid[i0 + 1 : i1]``, an
+    unseen stretch no line is seen all through, where the inner shoulder's line is seen
+    part of the way in from one end or both (:func:`_partial_line`): the shoulder keeps
+    the width it had at that end beside the line as far as the line is seen, and the
+    move runs linearly between there and the other end (0 where the edge is seen again,
+    or where the line from that end ends). A lane added beside the median by a taper and
+    left by an inner exit soon after (town06-auto-lane2-s22 with a noisier sensor, the
+    edge unseen over the 70 m before the gore): the shoulder's line was seen to 35 m
+    before the gore, the lines inside it lay straight, while the fit bridged the edge
+    across as a 70 m slope, 2 m off beside the line (edge 0.330 -> 0.286 m). Zeros where
+    no such line is seen or the move is under :data:`MIN_SHOULDER_MOVE_M`."""
+    g = grid[i0 + 1 : i1]
+    move = np.zeros(g.size)
+    known = np.zeros(g.size, dtype=bool)
+    for i_seen, i_far in ((i0, i1), (i1, i0)):
+        part = _partial_line(tracks, s_lane, d_lane, grid, d_median, i_seen, i_far)
+        if part is None:
+            continue
+        tr, width, end = part
+        on = (g >= min(grid[i_seen], end)) & (g <= max(grid[i_seen], end)) & ~known
+        move[on] = np.interp(g[on], tr.s_m, tr.d_m) - width - d_median[i0 + 1 : i1][on]
+        known |= on
+    if not known.any():
+        return move
+    # between the parts the move runs linearly to the seen ends, where it is 0
+    xs = np.r_[grid[i0], g[known], grid[i1]]
+    move[~known] = np.interp(g[~known], xs, np.r_[0.0, move[known], 0.0])
+    if float(np.max(np.abs(move))) < MIN_SHOULDER_MOVE_M:
+        return np.zeros(g.size)
     return move
 
 
