@@ -175,3 +175,41 @@ def test_the_edge_follows_the_inner_shoulder_line_across_an_unseen_stretch():
         gaps, (_track(2, gained),), s_g, np.interp(s_g, GRID, gained), GRID, d_median
     )
     assert not np.any(moved)
+
+
+def test_the_edge_follows_the_shoulder_line_as_far_as_it_is_seen_into_the_stretch():
+    """town06-auto-lane2-s22 with a noisier sensor: a lane added beside the median by a
+    taper and dropped at an inner exit 70 m on, the edge unseen between. No line is seen
+    through the stretch at one distance from the edge, so the fit's straight bridge stood:
+    a 70 m slope, 2 m off where the shoulder's line was still seen. Now the shoulder keeps
+    its width beside that line as far as it goes (to 160 m here), then the edge runs back
+    linearly to where it is seen again (edge 0.330 -> 0.286 m there; krems-30799129-s11
+    with a noisier sensor 0.144 -> 0.105 m, its lanes 0.171 -> 0.080 m)."""
+    rng = np.random.default_rng(2)
+    # the true edge from the fit's straight bridge (d_median = 0): out by 2 m at 160 m
+    off = np.interp(GRID, [100.0, 130.0, 160.0, 190.0], [0.0, -2.0, -2.0, 0.0])
+    shoulder = 1.2 + off
+    lane_line = np.where(GRID < 175.0, 4.7 + off, 1.2)  # a lane dropped at the exit
+    end = 160
+    tracks = (
+        BoundaryTrack(1, GRID[: end + 1], shoulder[: end + 1], "solid", 400),
+        BoundaryTrack(2, GRID, lane_line, "broken", 400),
+    )
+    s_lane = np.arange(0.0, float(end), 2.0)
+    d_lane = np.interp(s_lane, GRID, shoulder) + rng.normal(0.0, 0.03, s_lane.size)
+    d_median = np.zeros(GRID.size)
+    gaps = [(100, 190)]  # the edge unseen from 100 m to 189 m
+    move = shoulder_moves(gaps, tracks, s_lane, d_lane, GRID, d_median)
+    inside = (GRID >= 100.0) & (GRID <= 160.0)
+    np.testing.assert_allclose(move[inside], off[inside], atol=1e-9)
+    back = (GRID > 160.0) & (GRID < 190.0)
+    np.testing.assert_allclose(move[back], -2.0 * (190.0 - GRID[back]) / 30.0, atol=1e-9)
+    assert not np.any(move[(GRID < 100.0) | (GRID >= 190.0)])
+    # a line ending 5 m short of the far end is seen (nearly) through: not a part
+    near = (BoundaryTrack(1, GRID[:186], shoulder[:186], "solid", 400), tracks[1])
+    s_n = np.arange(0.0, 185.0, 2.0)
+    d_n = np.interp(s_n, GRID, shoulder)
+    assert not np.any(shoulder_moves(gaps, near, s_n, d_n, GRID, d_median))
+    # the line worn away inside the stretch: no part
+    worn = s_lane < 105.0
+    assert not np.any(shoulder_moves(gaps, tracks, s_lane[worn], d_lane[worn], GRID, d_median))

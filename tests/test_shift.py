@@ -9,12 +9,19 @@ import pytest
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline.hidden_lanes import _inner_shoulder_line
 from roadtwin.mainline.markings import (
+    _edge_in_frame,
     _find_track_peaks,
     _link_tracks,
     _shift_frame,
     _tracks_from_samples,
 )
-from roadtwin.mainline.shift import OuterEdge, _lines_follow, _pattern_shift, _straightest
+from roadtwin.mainline.shift import (
+    OuterEdge,
+    ShiftFrame,
+    _lines_follow,
+    _pattern_shift,
+    _straightest,
+)
 
 LENGTH = 700.0
 LANE = 3.5
@@ -492,3 +499,70 @@ def test_a_shift_the_rates_caught_too_little_of_takes_the_lane_the_lines_moved_b
     owner1 = np.repeat(np.arange(len(one)), [a.size for a, _ in one])
     rates_one = rates * 3.5 / 5.1
     assert _straightest(s1, d1, owner1, rates_one, s_a, s_b, 3.5) == pytest.approx(3.5, abs=0.15)
+
+
+def _swing_out_and_back(rng, back_at, back_m=45.0):
+    """Every line but the innermost swings out by a lane over 300-345 m and back over
+    ``back_at`` .. + ``back_m`` (a lane added beside the median by a taper and dropped at an inner
+    exit soon after, the reference frame following the median-side edge): solid and 3 m
+    dashes every 12 m, 4 cm noise; the innermost line stays."""
+
+    def out(s):
+        return LANE * (_smoothstep(s, 300.0, 345.0) - _smoothstep(s, back_at, back_at + back_m))
+
+    lines = [
+        _line(rng, lambda s: np.full(s.size, 1.0), dashed=False),
+        _line(rng, lambda s: 1.0 + LANE + out(s)),
+        _line(rng, lambda s: 1.0 + 2 * LANE + out(s)),
+        _line(rng, lambda s: 1.0 + 3 * LANE + out(s), dashed=False),
+    ]
+    return _samples(lines), out
+
+
+@pytest.mark.parametrize(
+    ("back_at", "back_m", "seed"),
+    [(345.0, 45.0, 0), (345.0, 45.0, 2), (345.0, 60.0, 1), (350.0, 80.0, 0), (360.0, 80.0, 3)],
+)
+def test_a_swing_out_and_back_is_two_shifts_each_a_lane(back_at, back_m, seed):
+    """town06-auto-lane2-s22 with a noisier sensor: the lines swung out by a lane and back
+    within 130 m. The rate path's stretch went out and came back; scaled as one shift to
+    the total its ends agree on (about 0), its rates were multiplied: the frame swung out
+    by 7.6 m, every line a lane off (here: no shift at all, or one of up to 17 m). Each way
+    is a shift of its own: the frame follows the lines out and back."""
+    cfg = MainlineConfig()
+    (s, d), out = _swing_out_and_back(np.random.default_rng(seed), back_at, back_m)
+    frame = _frame(s, d, cfg)
+    assert frame is not None
+    at = np.arange(100.0, 650.0, 5.0)
+    made = frame.offset(at) - frame.offset(np.array([100.0]))
+    err = np.abs(made - out(at))
+    swinging = ((at > 295.0) & (at < 350.0)) | (
+        (at > back_at - 5.0) & (at < back_at + back_m + 5.0)
+    )
+    # a lane out between the swings and none before and after them (within 0.25 m); the
+    # path's steps are a window long, so inside the swings within 1 m
+    assert float(np.max(err[~swinging])) < 0.25, at[err >= 0.25]
+    assert float(np.max(err[swinging])) < 1.0, at[err >= 1.0]
+
+
+@pytest.mark.parametrize(("swing_m", "moves"), [(3.5, True), (0.6, False)])
+def test_the_outer_edge_unseen_across_a_swing_is_bridged_in_the_shifting_frame(swing_m, moves):
+    """town06-auto-lane2-s22 with a noisier sensor: the outer edge unseen over 150 m while
+    the lines swung out by a lane and back. Bridged straight in the reference line's frame
+    the edge cut through the outermost lane (its line was left out over 80 m); in the frame
+    that moves with the lines it keeps its place beside them (within 1 cm here). A frame
+    that moves less than half a lane in the gap (a shift's refinement, town06-auto-s3 with
+    a noisier sensor) leaves the edge as bridged."""
+    grid = np.arange(0.0, LENGTH + 0.5, 1.0)
+    out = swing_m * (_smoothstep(grid, 300.0, 345.0) - _smoothstep(grid, 360.0, 420.0))
+    frame = ShiftFrame(grid, out)
+    true_edge = 12.5 + out
+    covered = (grid < 260.0) | (grid > 460.0)
+    bridged = true_edge.copy()
+    bridged[~covered] = 12.5  # straight across the gap in the reference line's frame
+    in_frame = _edge_in_frame(bridged, covered, grid, frame)
+    back = in_frame + frame.offset(grid)
+    if moves:
+        np.testing.assert_allclose(back, true_edge, atol=0.01)
+    else:
+        np.testing.assert_allclose(back, bridged, atol=1e-9)
