@@ -204,8 +204,9 @@ def _link_same_room(
     """Link (in place) the unlinked lanes of a sealed run that fill the same room: as many
     on both sides, of the same types, each as wide as its partner (a lane re-fitted after
     a gap in its marking is the lane it was; left unlinked, a car in it had nowhere to go),
-    or driving lanes at least ``_REDRAWN_MIN_WIDTH_M`` wide whose widths differ by up to
-    ``_REDRAWN_LINE_M`` (the line between them re-fitted aside: it moves over the fade).
+    or lanes of the same types, driving lanes among them each at least
+    ``_REDRAWN_MIN_WIDTH_M`` wide, whose widths differ by up to ``_REDRAWN_LINE_M`` (the
+    lines between them re-fitted aside: they move over the fade).
     Lanes of zero width stay unlinked (OpenDRIVE: a lane that closes has no successor)."""
     # lanes of zero width at the border (a gore's shoulder opening there) take no room
     run_prev = [k for k in run_prev if _width_at(prev_l[k], prev_len) >= _ZERO_WIDTH_M]
@@ -218,14 +219,22 @@ def _link_same_room(
         prev_l[b].type == cur_l[a].type and abs(wp - wc) <= _SAME_ROOM_M
         for a, b, wp, wc in zip(run_cur, run_prev, w_prev, w_cur, strict=True)
     )
-    # driving lanes as many on both sides that share the room differently (the line
-    # between them re-fitted up to _REDRAWN_LINE_M aside): the same lanes, the line
-    # moved over the fade
-    redrawn = abs(sum(w_prev) - sum(w_cur)) <= _SAME_ROOM_M and all(
-        prev_l[b].type == cur_l[a].type == "driving"
-        and min(wp, wc) >= _REDRAWN_MIN_WIDTH_M
-        and abs(wp - wc) <= _REDRAWN_LINE_M
-        for a, b, wp, wc in zip(run_cur, run_prev, w_prev, w_cur, strict=True)
+    # lanes as many on both sides, of the same types, that share the room differently
+    # (the lines between them re-fitted up to _REDRAWN_LINE_M aside), driving lanes among
+    # them and each at least _REDRAWN_MIN_WIDTH_M wide: the same lanes, the lines moved
+    # over the fade. A shoulder among them is such a lane too (town06-auto-s7 with a
+    # noisier sensor: the inner shoulder 1.91 m before a border and 1.06 m after it, the
+    # two driving lanes beside it sharing the rest; left unlinked, two of the mainline's
+    # lanes led nowhere)
+    redrawn = (
+        abs(sum(w_prev) - sum(w_cur)) <= _SAME_ROOM_M
+        and any(cur_l[a].type == "driving" for a in run_cur)
+        and all(
+            prev_l[b].type == cur_l[a].type
+            and (cur_l[a].type != "driving" or min(wp, wc) >= _REDRAWN_MIN_WIDTH_M)
+            and abs(wp - wc) <= _REDRAWN_LINE_M
+            for a, b, wp, wc in zip(run_cur, run_prev, w_prev, w_cur, strict=True)
+        )
     )
     if not (same or redrawn):
         return
