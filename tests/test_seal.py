@@ -218,3 +218,50 @@ def test_two_driving_lanes_sharing_the_same_room_differently_are_linked_in_order
     assert not [f for f in findings if f.code in ("lane_dead_end", "lane_shift", "width_jump")]
     far = seal_lane_borders(sections(2.59)).lane_sections[1].left
     assert far[1].predecessor is None
+
+
+@pytest.mark.parametrize(("shoulder_after", "linked"), [(1.06, True), (0.2, False)])
+def test_a_shoulder_and_driving_lanes_sharing_the_room_differently_are_linked(
+    shoulder_after, linked
+):
+    """town06-auto-s7 with a noisier sensor (seed offset 320): the median-side shoulder
+    ends 1.91 m wide at a border and begins 1.06 m wide after it, the two driving lanes
+    beside it sharing the rest (3.50 + 2.67 m before, 3.50 + 3.52 m after); the outer lanes
+    linked. Only driving lanes counted as re-fitted, so the three ended and began at full
+    width and two of the mainline's routes led nowhere in esmini. Now they are the same
+    lanes, the lines moved over the fade; a shoulder moved 1.7 m (more than a re-fitted
+    line's 1.5 m) is another structure and stays unlinked."""
+    rest = 1.91 + 3.50 + 2.67 - shoulder_after
+    first = LaneSection(
+        0.0,
+        right=(
+            _lane(-1, 1.91, kind="shoulder"),
+            _lane(-2, 3.50),
+            _lane(-3, 2.67),
+            _lane(-4, 3.5, succ=-4),
+        ),
+    )
+    second = LaneSection(
+        100.0,
+        right=(
+            _lane(-1, shoulder_after, kind="shoulder"),
+            _lane(-2, 3.50),
+            _lane(-3, rest - 3.50),
+            _lane(-4, 3.5, pred=-4),
+        ),
+    )
+    sealed = seal_lane_borders(_road(first, second))
+    before, after = sealed.lane_sections[0].right, sealed.lane_sections[1].right
+    if not linked:
+        assert [ln.predecessor for ln in after[:3]] == [None, None, None]
+        return
+    assert [ln.successor for ln in before[:3]] == [-1, -2, -3]
+    assert [ln.predecessor for ln in after[:3]] == [-1, -2, -3]
+    for lane in (-1, -2, -3, -4):
+        assert _jump_mm(sealed, lane, lane, 100.0) < 1e-6
+    # 20 m on, the lanes have the widths they were fitted with
+    s = np.array([20.0])
+    assert float(after[0].width.value(s)[0]) == pytest.approx(shoulder_after, abs=1e-9)
+    assert float(after[2].width.value(s)[0]) == pytest.approx(rest - 3.50, abs=1e-9)
+    findings = check_network(RoadNetwork(Header(), (sealed,)))
+    assert not [f for f in findings if f.code in ("lane_dead_end", "lane_shift", "width_jump")]
