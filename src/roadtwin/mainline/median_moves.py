@@ -235,7 +235,7 @@ def shoulder_moves(
         i0, i1 = a - 1, b
         best = _line_through(tracks, s_lane, d_lane, grid, d_median, i0, i1)
         if best is None:
-            move[a:b] = _beside_partial_lines(tracks, s_lane, d_lane, grid, d_median, i0, i1)
+            move[a:b] = _beside_partial_lines(tracks, (s_lane, d_lane), grid, d_median, (i0, i1))
             continue
         tr, w0, w1 = best
         g = grid[a:b]
@@ -249,8 +249,7 @@ def shoulder_moves(
 
 def _partial_line(
     tracks: tuple[BoundaryTrack, ...],
-    s_lane: FloatArray,
-    d_lane: FloatArray,
+    samples: tuple[FloatArray, FloatArray],
     grid: FloatArray,
     d_median: FloatArray,
     i_seen: int,
@@ -262,7 +261,8 @@ def _partial_line(
     the stretch (metres): the innermost track at most :data:`SHOULDER_MAX_M` from the
     edge there that reaches at least :data:`GAP_MIN_M` into the stretch and ends
     :data:`PART_SHORT_M` or more short of its other end, seen in
-    :data:`SEEN_SHARE` of the 5 m bins of that part. None where there is none."""
+    :data:`SEEN_SHARE` of the 5 m bins of that part (``samples``: the lane samples'
+    stations and offsets, metres). None where there is none."""
     at, far = float(grid[i_seen]), float(grid[i_far])
     forward = far > at
     best = None
@@ -275,21 +275,20 @@ def _partial_line(
         width = float(np.interp(at, tr.s_m, tr.d_m)) - d_median[i_seen]
         if not 0.0 < width <= SHOULDER_MAX_M or (best is not None and width >= best[1]):
             continue
-        if _seen_share(tr, s_lane, d_lane, min(at, end), max(at, end)) >= SEEN_SHARE:
+        if _seen_share(tr, *samples, min(at, end), max(at, end)) >= SEEN_SHARE:
             best = (tr, width, end)
     return best
 
 
 def _beside_partial_lines(
     tracks: tuple[BoundaryTrack, ...],
-    s_lane: FloatArray,
-    d_lane: FloatArray,
+    samples: tuple[FloatArray, FloatArray],
     grid: FloatArray,
     d_median: FloatArray,
-    i0: int,
-    i1: int,
+    ends: tuple[int, int],
 ) -> FloatArray:
-    """The edge's move (metres towards the carriageway) on ``grid[i0 + 1 : i1]``, an
+    """The edge's move (metres towards the carriageway) on ``grid[i0 + 1 : i1]`` (``ends``:
+    ``(i0, i1)``, where the edge was last and first seen), an
     unseen stretch no line is seen all through, where the inner shoulder's line is seen
     part of the way in from one end or both (:func:`_partial_line`): the shoulder keeps
     the width it had at that end beside the line as far as the line is seen, and the
@@ -300,11 +299,12 @@ def _beside_partial_lines(
     before the gore, the lines inside it lay straight, while the fit bridged the edge
     across as a 70 m slope, 2 m off beside the line (edge 0.330 -> 0.286 m). Zeros where
     no such line is seen or the move is under :data:`MIN_SHOULDER_MOVE_M`."""
+    i0, i1 = ends
     g = grid[i0 + 1 : i1]
     move = np.zeros(g.size)
     known = np.zeros(g.size, dtype=bool)
     for i_seen, i_far in ((i0, i1), (i1, i0)):
-        part = _partial_line(tracks, s_lane, d_lane, grid, d_median, i_seen, i_far)
+        part = _partial_line(tracks, samples, grid, d_median, i_seen, i_far)
         if part is None:
             continue
         tr, width, end = part
