@@ -22,7 +22,7 @@ from ._common import (
 )
 from .linking import _find_track_peaks, _link_tracks, _RawTrack
 from .raw_joins import _into_merging_peaks, _join_late_pieces, _join_taper_pieces, _join_tapers
-from .shift import OuterEdge, ShiftFrame, common_shift
+from .shift import MIN_TOTAL_M, OuterEdge, ShiftFrame, common_shift
 
 log = logging.getLogger(__name__)
 
@@ -164,13 +164,6 @@ def _tracks_from_samples(
     return _continue_to_convergence(tracks, grid, cfg, seen_edge), evidence
 
 
-FRAME_MOVE_M = 1.75
-"""A gap of the outer edge across which the shift frame moves by this much or more
-(metres, half a lane: a shift, not the refinement of one) is bridged in the frame
-(:func:`_edge_in_frame`; town06-auto-s3 with a noisier sensor: bridged in a frame that
-moved 0.6 m, the lines beside a 100 m gap bulged by up to 1.5 m)."""
-
-
 def _edge_in_frame(
     d_edge: FloatArray,
     covered: NDArray[np.bool_] | None,
@@ -179,11 +172,13 @@ def _edge_in_frame(
 ) -> FloatArray:
     """The outer edge ``d_edge`` (metres, on ``grid``) in the shift ``frame``, linear in
     the frame across every gap (``covered`` False) in which the frame moves by
-    :data:`FRAME_MOVE_M` or more: the edge moves with the whole marking pattern, so
-    unseen it keeps its place in the pattern. Bridged in the reference line's frame, it
-    cut through the lanes wherever the pattern swung out and back inside a gap
-    (town06-auto-lane2-s22 with a noisier sensor: the outer edge unseen over 150 m
-    across a 3.5 m swing, the outermost lane left out over 80 m)."""
+    :data:`.shift.MIN_TOTAL_M` (half a lane: a shift, not the refinement of one) or more:
+    the edge moves with the whole marking pattern, so unseen it keeps its place in the
+    pattern. Bridged in the reference line's frame, it cut through the lanes wherever the
+    pattern swung out and back inside a gap (town06-auto-lane2-s22 with a noisier sensor:
+    the outer edge unseen over 150 m across a 3.5 m swing, the outermost lane left out
+    over 80 m); bridged in a frame that moved 0.6 m, the lines beside a 100 m gap of
+    town06-auto-s3 (noisier) bulged by up to 1.5 m."""
     offset = frame.offset(grid)
     edge = d_edge - offset
     if covered is None:
@@ -192,7 +187,7 @@ def _edge_in_frame(
         if a == 0 or b >= grid.size:
             continue
         inside = offset[a - 1 : b + 1]
-        if float(np.max(inside) - np.min(inside)) < FRAME_MOVE_M:
+        if float(np.max(inside) - np.min(inside)) < MIN_TOTAL_M:
             continue
         x = (grid[a:b] - grid[a - 1]) / (grid[b] - grid[a - 1])
         edge[a:b] = (1.0 - x) * edge[a - 1] + x * edge[b]

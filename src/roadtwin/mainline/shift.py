@@ -11,10 +11,11 @@ pattern, the lines are straight and link as anywhere else (:mod:`.markings`).
 The shift is inferred for the whole run at once: over windows along the station, the
 samples are sheared by every rate tried and scored by how sharply the lines pile up;
 the rates of all windows are one path through these scores (dynamic programming, a
-penalty for a rate off 0 and for changing it); each stretch of the path off 0 is scaled
-so that the line pattern after it matches the one before it (the pattern repeats every
-lane: of its matches a lane apart, the one that leaves the lines inside the stretch
-straightest), and kept only where it moves the lines by half a lane or more.
+penalty for a rate off 0 and for changing it); each stretch of the path off 0 and of one
+sign (one that goes out and comes back is two) is scaled so that the line pattern after
+it matches the one before it (the pattern repeats every lane: of its matches a lane
+apart, the one that leaves the lines inside the stretch straightest), and kept only where
+it moves the lines by half a lane or more.
 
 Broken lines give a window a dash or two, and the rates may catch little of a fast swing.
 The outer edge, seen all through, moves with the whole pattern: where it moves by half a
