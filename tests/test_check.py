@@ -182,6 +182,42 @@ def test_width_jump_between_sections_is_caught():
     assert jumps[0].s == pytest.approx(100.0)
 
 
+@pytest.mark.parametrize(
+    ("offset", "width", "jump_mm"),
+    [
+        # krems-30799129-s11 with a noisier sensor: the lane offset stepped 3 m a metre
+        # past a gore, inside the lane section the gore began (esmini's car jumped 1.3 m)
+        (((0.0, -0.94, 0.0), (1.0, -3.93, 0.0)), None, 2990.0),
+        # a width record that does not continue the one before it
+        (None, ((0.0, 3.5, 0.0), (40.0, 3.1, 0.0)), 400.0),
+        # the same records, continuous: nothing
+        (((0.0, -0.94, 0.0), (1.0, -0.94, 0.0)), ((0.0, 3.5, 0.0), (40.0, 3.5, 0.0)), None),
+    ],
+)
+def test_a_lane_border_jump_inside_a_lane_section_is_caught(offset, width, jump_mm):
+    """``lane_jump``: a lane offset or width record inside a lane section whose value does
+    not continue the one before it moves lane borders sideways there; the section and link
+    rules look only at section borders and road ends, and such a map passed every check."""
+    road = straight_road()
+    if offset is not None:
+        road = replace(road, lane_offset=CubicProfile(tuple(CubicPiece(*p) for p in offset)))
+    if width is not None:
+        sec = road.lane_sections[0]
+        lane = replace(sec.right[1], width=CubicProfile(tuple(CubicPiece(*p) for p in width)))
+        road = replace(
+            road, lane_sections=(replace(sec, right=(sec.right[0], lane, *sec.right[2:])),)
+        )
+    net = RoadNetwork(Header(), (road,))
+    jumps = [f for f in check_network(net) if f.code == "lane_jump"]
+    if jump_mm is None:
+        assert jumps == []
+        return
+    assert len(jumps) == 1
+    assert jumps[0].severity == "error"
+    assert jumps[0].value == pytest.approx(jump_mm, abs=1.0)
+    assert jumps[0].s == pytest.approx(1.0 if offset is not None else 40.0)
+
+
 def test_dangling_link_is_caught(tmp_path):
     net = mainline_exit_network("default")
     road3 = replace(net.road("3"), successor=RoadLink("road", "99", "start"))

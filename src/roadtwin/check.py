@@ -18,6 +18,10 @@ Own checks (:func:`check_network`, on the model):
   (predecessor): a lane that leaves at a gore without a junction, a drop without a taper.
 * ``lane_shift``: a lane linked across a lane-section border whose inner or outer border
   moves there (thresholds of ``link_gap``).
+* ``lane_jump``: a lane border that jumps sideways inside a lane section, where a lane
+  offset or width record begins whose value does not continue the one before it (a lane
+  offset stepped a metre past a gore moved every lane 3 m there; esmini's car jumped);
+  thresholds of ``link_gap``.
 * ``negative_width`` (sampled every metre in each lane section) and ``width_jump`` between
   consecutive lane sections for lanes that continue (lane links, or equal ids where a side
   has no links and the same lane count).
@@ -491,6 +495,43 @@ class _Checker:
                         s=b.s0,
                     )
 
+    def lane_jumps(self, road: Road) -> None:
+        """``lane_jump``: every lane border just before and at each station inside a lane
+        section where a lane offset or width record begins (one finding per station, the
+        largest jump)."""
+        cfg = self.cfg
+        secs = road.lane_sections
+        ends = [sc.s0 for sc in secs[1:]] + [road.length]
+        offsets = np.array([p.s0 for p in road.lane_offset.pieces[1:]], dtype=float)
+        for sec, s_end in zip(secs, ends, strict=False):
+            lanes = (*sec.left, *sec.right)
+            starts = [offsets]
+            starts += [sec.s0 + np.array([p.s0 for p in ln.width.pieces[1:]]) for ln in lanes]
+            at = np.unique(np.concatenate(starts)) if starts else np.zeros(0)
+            at = at[(at > sec.s0 + 1e-6) & (at < s_end - 1e-6)]
+            if not at.size or not lanes:
+                continue
+            before, after = at - 1e-7, at
+            worst = np.zeros(at.size)
+            for lane_id in [0, *(ln.id for ln in lanes)]:
+                jump = np.abs(
+                    road.lane_border_t(after, lane_id) - road.lane_border_t(before, lane_id)
+                )
+                worst = np.maximum(worst, np.nan_to_num(jump))
+            for s_k, jump_m in zip(at, worst, strict=True):
+                jump_mm = 1000.0 * float(jump_m)
+                sev = _grade(jump_mm, cfg.gap_warning_mm, cfg.gap_error_mm)
+                if sev:
+                    self.add(
+                        sev,
+                        "lane_jump",
+                        f"lane borders jump sideways by {jump_mm:.1f} mm at s={s_k:.2f} inside "
+                        f"the lane section at s={sec.s0:.2f}",
+                        road=road.id,
+                        s=float(s_k),
+                        value=jump_mm,
+                    )
+
     def _dead_ends(self, road: Road, a: LaneSection, b: LaneSection, len_a: float) -> None:
         """A driving lane that ends at full width inside a road with no successor (or
         begins so with no predecessor): a car in it has nowhere to go (a lane that leaves
@@ -877,6 +918,7 @@ class _Checker:
         for road in self.net.roads:
             self.geometry(road)
             self.widths(road)
+            self.lane_jumps(road)
             self.links(road)
         for j in self.net.junctions:
             self.junction(j)
