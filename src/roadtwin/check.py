@@ -371,7 +371,6 @@ class _Checker:
         """A lane linked across a lane-section border whose borders move there (an
         unlinked lane inside it changed width, the lane offset stepped): a car in it
         jumps sideways (ASAM contact_point_no_horizontal_gaps)."""
-        cfg = self.cfg
         before, at = np.array([max(s - 1e-7, 0.0)]), np.array([s])
         step = 1 if la.id > 0 else -1
         gaps = []
@@ -384,17 +383,21 @@ class _Checker:
             tb = road.lane_border_t(at, idb)[0] if idb != 0 else road.lane_offset.value(at)[0]
             gaps.append(abs(tb - ta))
         gap_mm = 1000.0 * float(np.nanmax(gaps))
-        sev = _grade(gap_mm, cfg.gap_warning_mm, cfg.gap_error_mm)
+        self._border_gap(
+            "lane_shift",
+            gap_mm,
+            f"lane {la.id} -> {lb.id} moves sideways by {gap_mm:.1f} mm at the lane section "
+            f"at s={s:.2f}",
+            road,
+            s,
+        )
+
+    def _border_gap(self, code: str, gap_mm: float, message: str, road: Road, s: float) -> None:
+        """A finding ``code`` graded by the ``link_gap`` thresholds, where ``gap_mm`` (mm)
+        reaches them."""
+        sev = _grade(gap_mm, self.cfg.gap_warning_mm, self.cfg.gap_error_mm)
         if sev:
-            self.add(
-                sev,
-                "lane_shift",
-                f"lane {la.id} -> {lb.id} moves sideways by {gap_mm:.1f} mm at the lane section "
-                f"at s={s:.2f}",
-                road=road.id,
-                s=s,
-                value=gap_mm,
-            )
+            self.add(sev, code, message, road=road.id, s=s, value=gap_mm)
 
     def widths(self, road: Road) -> None:
         cfg = self.cfg
@@ -499,7 +502,6 @@ class _Checker:
         """``lane_jump``: every lane border just before and at each station inside a lane
         section where a lane offset or width record begins (one finding per station, the
         largest jump)."""
-        cfg = self.cfg
         secs = road.lane_sections
         ends = [sc.s0 for sc in secs[1:]] + [road.length]
         offsets = np.array([p.s0 for p in road.lane_offset.pieces[1:]], dtype=float)
@@ -520,17 +522,14 @@ class _Checker:
                 worst = np.maximum(worst, np.nan_to_num(jump))
             for s_k, jump_m in zip(at, worst, strict=True):
                 jump_mm = 1000.0 * float(jump_m)
-                sev = _grade(jump_mm, cfg.gap_warning_mm, cfg.gap_error_mm)
-                if sev:
-                    self.add(
-                        sev,
-                        "lane_jump",
-                        f"lane borders jump sideways by {jump_mm:.1f} mm at s={s_k:.2f} inside "
-                        f"the lane section at s={sec.s0:.2f}",
-                        road=road.id,
-                        s=float(s_k),
-                        value=jump_mm,
-                    )
+                self._border_gap(
+                    "lane_jump",
+                    jump_mm,
+                    f"lane borders jump sideways by {jump_mm:.1f} mm at s={s_k:.2f} inside "
+                    f"the lane section at s={sec.s0:.2f}",
+                    road,
+                    float(s_k),
+                )
 
     def _dead_ends(self, road: Road, a: LaneSection, b: LaneSection, len_a: float) -> None:
         """A driving lane that ends at full width inside a road with no successor (or
