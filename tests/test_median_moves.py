@@ -213,3 +213,62 @@ def test_the_edge_follows_the_shoulder_line_as_far_as_it_is_seen_into_the_stretc
     # the line worn away inside the stretch: no part
     worn = s_lane < 105.0
     assert not np.any(shoulder_moves(gaps, tracks, s_lane[worn], d_lane[worn], GRID, d_median))
+
+
+def test_a_move_next_to_a_gore_begins_and_ends_at_the_gore():
+    """krems-30799129-s11 with a noisier sensor (seed offset 380): the unseen stretch a
+    median-side move covers starts a grid station past an inner exit's gore, where the
+    lane section begins; the move begun there left the lanes of that metre fitted to the
+    unmoved edge and the lane offset stepped 3.0 m inside the section (the check's
+    ``lane_jump``). The move now begins at the gore (and ends at one just past it)."""
+    from roadtwin.mainline.reference import _from_gores
+
+    move = np.zeros(GRID.size)
+    move[(GRID >= 41.0) & (GRID <= 80.0)] = 2.99
+    out = _from_gores(move, GRID, np.array([40.0, 81.0]))
+    assert out[40] == pytest.approx(2.99)
+    assert out[39] == 0.0
+    assert out[81] == 0.0
+    assert out[80] == pytest.approx(2.99)
+    # no gore within 1.5 grid steps: as it was
+    far = _from_gores(move, GRID, np.array([30.0, 95.0]))
+    np.testing.assert_array_equal(far, move)
+
+
+def test_relevelling_at_a_step_moves_the_records_that_continue_it():
+    """Re-levelled at a step, only the record there moved: where a median-side move's
+    records (every 4 m) continue it, the border then jumped by the re-levelling a record
+    later (2.5 cm inside a lane section). The records that continue the step's record
+    move with it, up to the next step."""
+    from roadtwin.mainline.reference import _join_lanes_across_offset_steps
+    from roadtwin.model import Lane, LaneSection, Line, Road
+
+    def lanes(pred: bool) -> tuple:
+        return (
+            Lane(-1, "shoulder", CubicProfile.constant(1.0), predecessor=-1 if pred else None,
+                 successor=None if pred else -1),
+            Lane(-2, "driving", CubicProfile.constant(3.5), predecessor=-2 if pred else None,
+                 successor=None if pred else -2),
+        )  # fmt: skip
+
+    offset = CubicProfile(
+        (
+            CubicPiece(0.0, -1.0),
+            CubicPiece(40.0, -1.02, -0.001),  # 2 cm off the lanes before the step
+            CubicPiece(44.0, -1.024, 0.0),  # continues it
+            CubicPiece(70.0, -4.0),  # the next step
+        )
+    )
+    road = Road(
+        "1",
+        (Line(0.0, 0.0, 0.0, 0.0, 100.0),),
+        (LaneSection(0.0, right=lanes(False)), LaneSection(40.0, right=lanes(True))),
+        lane_offset=offset,
+    )
+    joined = _join_lanes_across_offset_steps(road, np.array([40.0, 70.0]))
+    at = np.array([40.0 - 1e-6, 40.0, 44.0 - 1e-6, 44.0, 69.0])
+    v = joined.lane_offset.value(at)
+    assert v[1] == pytest.approx(v[0], abs=1e-9)  # joined at the step
+    assert v[3] == pytest.approx(v[2], abs=1e-6)  # and still continuous a record later
+    assert v[4] == pytest.approx(-1.004, abs=1e-6)
+    assert joined.lane_offset.value(np.array([80.0]))[0] == pytest.approx(-4.0)

@@ -43,6 +43,7 @@ from ._common import (
     road_surface_poses,
     robust_offset_fit,
     tight_turn_runs,
+    true_runs,
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
@@ -139,10 +140,10 @@ def _build_default(run: MappingRun, cfg: MainlineConfig, timings: dict[str, floa
         lane_sections=sections,
         lane_offset=_lane_offset(median.steps, sign),
     )
-    road = _join_lanes_across_offset_steps(road, median.steps.stations)
     if move is not None:
         offset = with_edge_moves(road.lane_offset, grid, move[0], sign, move[1])
         road = replace(road, lane_offset=offset)
+    road = _join_lanes_across_offset_steps(road, median.steps.stations)
     road = nonnegative_widths(seal_lane_borders(road))
     return _Partial(road, events, "default", tracks, _seen_stretches(np.sort(s_out[used])))
 
@@ -202,7 +203,32 @@ def _median_moves(
     )
     move = at_gores + beside + shoulder_moves(gaps, tracks, s_lane, d_lane, grid, d_median)
     gores = np.union1d(gores, ends)
+    move = _from_gores(move, grid, gores)
     return (move, gores) if np.any(move) else None
+
+
+def _from_gores(move: FloatArray, grid: FloatArray, gores: FloatArray) -> FloatArray:
+    """``move`` (on ``grid``, metres) begun at the gore it begins next to and ended at the
+    one it ends next to (within 1.5 grid steps): the unseen stretch it covers starts a
+    station past the gore, where the lane sections change. Begun there, the lanes of the
+    new section were fitted to the edge as it was for a metre and the lane offset stepped
+    inside the section: every lane jumped 3.0 m sideways a metre past an inner exit's gore
+    (krems-30799129-s11 with a noisier sensor, seed offset 380; esmini's car jumped
+    1.3 m; the check's ``lane_jump``)."""
+    if not gores.size or not np.any(move):
+        return move
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    out = move.copy()
+    for a, b in true_runs(move != 0.0):
+        near = gores[(gores < grid[a]) & (gores >= grid[a] - 1.5 * step)]
+        if a > 0 and near.size:
+            i = int(np.searchsorted(grid, float(near[0]) - 1e-9))
+            out[i:a] = move[a]
+        near = gores[(gores > grid[b - 1]) & (gores <= grid[b - 1] + 1.5 * step)]
+        if b < grid.size and near.size:
+            i = int(np.searchsorted(grid, float(near[-1]) - 1e-9))
+            out[b:i] = move[b - 1]
+    return out
 
 
 _ON_EDGE_M = 0.8  # a median-side edge point this close to the fitted edge is the road's
@@ -314,8 +340,23 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
         shift = float(t_before - t_after)
         limit = _RELEVEL_MAX_M if takes_up else _RELEVEL_ANY_M
         if np.isfinite(shift) and abs(shift) <= limit:
-            pieces[k] = replace(pieces[k], a=pieces[k].a + shift)
+            # the whole segment moves: the records that continue this one up to the next
+            # step (a median-side move's after a gore), so that they stay continuous
+            j = k
+            while True:
+                pieces[j] = replace(pieces[j], a=pieces[j].a + shift)
+                if j + 1 >= len(pieces) or not _continues(pieces[j], pieces[j + 1], shift):
+                    break
+                j += 1
     return replace(road, lane_offset=CubicProfile(tuple(pieces)))
+
+
+def _continues(piece: CubicPiece, nxt: CubicPiece, shifted_m: float) -> bool:
+    """Whether ``nxt`` begins where ``piece`` (already moved by ``shifted_m``, metres)
+    ended before it moved: one continuous profile, no step between them."""
+    h = nxt.s0 - piece.s0
+    end = piece.a + piece.b * h + piece.c * h**2 + piece.d * h**3 - shifted_m
+    return abs(end - nxt.a) < 1e-6
 
 
 def fit_reference_edge(
