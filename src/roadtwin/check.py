@@ -507,9 +507,8 @@ class _Checker:
         offsets = np.array([p.s0 for p in road.lane_offset.pieces[1:]], dtype=float)
         for sec, s_end in zip(secs, ends, strict=False):
             lanes = (*sec.left, *sec.right)
-            starts = [offsets]
-            starts += [sec.s0 + np.array([p.s0 for p in ln.width.pieces[1:]]) for ln in lanes]
-            at = np.unique(np.concatenate(starts)) if starts else np.zeros(0)
+            widths = [sec.s0 + np.array([p.s0 for p in ln.width.pieces[1:]]) for ln in lanes]
+            at = np.unique(np.concatenate([offsets, *widths]))
             at = at[(at > sec.s0 + 1e-6) & (at < s_end - 1e-6)]
             if not at.size or not lanes:
                 continue

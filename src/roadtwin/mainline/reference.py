@@ -306,10 +306,11 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
     junction (14 mm at Town06's inner entry: a link-gap error). Step by step along the
     road, the segment after a step is moved so that the innermost lane linked across the
     section border there keeps its outer border (metres, t), if that moves it by at most
-    ``_RELEVEL_MAX_M``. A larger difference is no noise: moving the segment by it moved
-    800 m of oakland-28393854-s7 0.18 m off its measured median edge (every lane border
-    with it); :func:`~.seal.seal_lane_borders` joins the lanes there instead, by the
-    widths of the lanes inside that begin or end at the border. Where there are none, the
+    ``_RELEVEL_MAX_M``, with the records that continue it up to the next step (a
+    median-side move's after a gore). A larger difference is no noise: moving the segment
+    by it moved 800 m of oakland-28393854-s7 0.18 m off its measured median edge (every
+    lane border with it); :func:`~.seal.seal_lane_borders` joins the lanes there instead,
+    by the widths of the lanes inside that begin or end at the border. Where there are none, the
     segment still moves (up to ``_RELEVEL_ANY_M``): the border would be a 0.16 m gap."""
     pieces = list(road.lane_offset.pieces)
     if len(pieces) < 2 or not len(stations):
@@ -344,19 +345,18 @@ def _join_lanes_across_offset_steps(road: Road, stations: FloatArray) -> Road:
             # step (a median-side move's after a gore), so that they stay continuous
             j = k
             while True:
+                goes_on = j + 1 < len(pieces) and _continues(pieces[j], pieces[j + 1])
                 pieces[j] = replace(pieces[j], a=pieces[j].a + shift)
-                if j + 1 >= len(pieces) or not _continues(pieces[j], pieces[j + 1], shift):
+                if not goes_on:
                     break
                 j += 1
     return replace(road, lane_offset=CubicProfile(tuple(pieces)))
 
 
-def _continues(piece: CubicPiece, nxt: CubicPiece, shifted_m: float) -> bool:
-    """Whether ``nxt`` begins where ``piece`` (already moved by ``shifted_m``, metres)
-    ended before it moved: one continuous profile, no step between them."""
+def _continues(piece: CubicPiece, nxt: CubicPiece) -> bool:
+    """Whether ``nxt`` begins where ``piece`` ends: one continuous profile, no step."""
     h = nxt.s0 - piece.s0
-    end = piece.a + piece.b * h + piece.c * h**2 + piece.d * h**3 - shifted_m
-    return abs(end - nxt.a) < 1e-6
+    return abs(piece.a + piece.b * h + piece.c * h**2 + piece.d * h**3 - nxt.a) < 1e-6
 
 
 def fit_reference_edge(

@@ -248,9 +248,10 @@ def common_shift(
         (``follow``) the lines seen before it are not found moved inside it."""
         total = float(np.sum(rates)) * STEP_M
         s_a, s_b = mids[a] - 0.5 * STEP_M, mids[b - 1] + 0.5 * STEP_M
-        matched = _pattern_shift(s, d, owner, s_a, s_b, total)
+        patterns = _line_patterns(s, d, owner, s_a, s_b, PATTERN_M)
+        matched = _pattern_shift(s, d, owner, s_a, s_b, total, patterns=patterns)
         if matched is not None and abs(total) > 1e-9:
-            matched = _straightest(s, d, owner, rates, s_a, s_b, matched)
+            matched = _straightest(s, d, owner, rates, s_a, s_b, matched, patterns)
             rates = rates * (matched / total)
             total = matched
         if abs(total) < MIN_TOTAL_M or _a_line_stays(peak_s, peak_d, peak_track, s_a, s_b):
@@ -636,22 +637,12 @@ def _stretch_move(rates: FloatArray, s_a: float) -> Callable[[FloatArray], Float
     return lambda x: np.interp(x, knots, made)
 
 
-def _pattern_shift(
-    s: FloatArray,
-    d: FloatArray,
-    owner: IntArray,
-    s_a: float,
-    s_b: float,
-    total: float,
-    near_m: float | None = None,
-) -> float | None:
-    """The shift (metres) that best maps the line pattern over ``PATTERN_M`` before
-    ``s_a`` onto the one after ``s_b``, within ``SNAP_M`` of ``total``; None without lines
-    on either side. The rates integrate to a total a few tenths short or long (a window's
-    sharpest rate averages over the window); the patterns say it to a bin. With
-    ``near_m`` (metres): the best shift within that of ``total`` (the outer edge's move,
-    which tells the lane), None where it matches less than ``EDGE_MATCH_SHARE`` as well
-    as the best shift by ``MIN_TOTAL_M`` up to ``SNAP_M`` past ``total`` that way."""
+def _line_patterns(
+    s: FloatArray, d: FloatArray, owner: IntArray, s_a: float, s_b: float, reach: float
+) -> tuple[FloatArray, FloatArray] | None:
+    """The line patterns over ``reach`` (metres) before ``s_a`` and after ``s_b``: per
+    ``BIN_M`` offset bin, each line's samples weighing one line in all, smoothed; None
+    without lines on either side."""
     from scipy.ndimage import gaussian_filter1d
 
     lo_d = float(np.min(d)) - 10.0
@@ -665,13 +656,39 @@ def _pattern_shift(
         b = np.clip(((d[sel] - lo_d) / BIN_M).astype(np.int64), 0, n_bin - 1)
         return gaussian_filter1d(np.bincount(b, 1.0 / counts[inverse], minlength=n_bin), 2.0)
 
-    # near the edge's move the patterns are compared over twice the length: no other
-    # lane's shift competes, and broken lines give few dashes over one
-    reach = PATTERN_M if near_m is None else 2.0 * PATTERN_M
     before = pattern(s_a - reach, s_a)
     after = pattern(s_b, s_b + reach)
-    if before is None or after is None:
+    return None if before is None or after is None else (before, after)
+
+
+def _pattern_shift(
+    s: FloatArray,
+    d: FloatArray,
+    owner: IntArray,
+    s_a: float,
+    s_b: float,
+    total: float,
+    near_m: float | None = None,
+    patterns: tuple[FloatArray, FloatArray] | None = None,
+) -> float | None:
+    """The shift (metres) that best maps the line pattern over ``PATTERN_M`` before
+    ``s_a`` onto the one after ``s_b``, within ``SNAP_M`` of ``total``; None without lines
+    on either side. The rates integrate to a total a few tenths short or long (a window's
+    sharpest rate averages over the window); the patterns say it to a bin. With
+    ``near_m`` (metres): the best shift within that of ``total`` (the outer edge's move,
+    which tells the lane), None where it matches less than ``EDGE_MATCH_SHARE`` as well
+    as the best shift by ``MIN_TOTAL_M`` up to ``SNAP_M`` past ``total`` that way.
+    ``patterns``: :func:`_line_patterns` over ``PATTERN_M`` already made (without
+    ``near_m``)."""
+    # near the edge's move the patterns are compared over twice the length: no other
+    # lane's shift competes, and broken lines give few dashes over one
+    if patterns is None:
+        reach = PATTERN_M if near_m is None else 2.0 * PATTERN_M
+        patterns = _line_patterns(s, d, owner, s_a, s_b, reach)
+    if patterns is None:
         return None
+    before, after = patterns
+    n_bin = before.size
     lo, hi = total - SNAP_M, total + SNAP_M
     if near_m is not None:
         # every shift by half a lane or more the edge's way up to past its move competes
@@ -706,6 +723,7 @@ def _straightest(
     s_a: float,
     s_b: float,
     matched: float,
+    patterns: tuple[FloatArray, FloatArray] | None = None,
 ) -> float:
     """Of the shift ``matched`` (metres) and the pattern's best matches a lane more and
     a lane less the same way (at least ``MIN_TOTAL_M``), the one whose move (``rates``
@@ -716,9 +734,12 @@ def _straightest(
     median, the pattern shifted by 7.0 m, the rates said 5.1 m and the pattern snapped to
     3.6 m, the lines linked a lane apart from their own; -s2+560: one lane added, the
     pattern snapped to 6.8 m). ``matched`` unless another piles the lines up sharper by
-    ``STRAIGHT_GAIN``, or where the lines in the stretch are not seen."""
+    ``STRAIGHT_GAIN``, or where the lines in the stretch are not seen. ``patterns``: the
+    stretch's :func:`_line_patterns` over ``PATTERN_M`` if already made."""
     if abs(matched) < MIN_TOTAL_M:
         return matched
+    if patterns is None:
+        patterns = _line_patterns(s, d, owner, s_a, s_b, PATTERN_M)
     total = float(np.sum(rates)) * STEP_M
     lo, hi = s_a - STRAIGHT_MARGIN_M, s_b + STRAIGHT_MARGIN_M
     sel = (s >= lo) & (s <= hi) & (owner >= 0)
@@ -729,7 +750,7 @@ def _straightest(
         return matched
     candidates = [matched]
     for k in (-1.0, 1.0):
-        other = _pattern_shift(s, d, owner, s_a, s_b, matched + k * LANE_STEP_M)
+        other = _pattern_shift(s, d, owner, s_a, s_b, matched + k * LANE_STEP_M, patterns=patterns)
         if (
             other is not None
             and np.sign(other) == np.sign(matched)
