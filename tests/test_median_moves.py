@@ -235,6 +235,31 @@ def test_a_move_next_to_a_gore_begins_and_ends_at_the_gore():
     np.testing.assert_array_equal(far, move)
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_move_begins_at_a_gore_between_grid_stations(sign):
+    """melbourne-1226-s11 with a noisier sensor (seed offset 440): the median step (an
+    inner entry's gore, where the lane section changes) lies at 531.5 m, between grid
+    stations, and the move began at 532 m: the lane offset stepped there by the move
+    (0.59 m half a metre inside the section, the check's ``lane_jump``). The move begins
+    at the gore at its first station's size, and ends at one between stations."""
+    gore_in, gore_out = 100.5, 160.5
+    base = CubicProfile(
+        (CubicPiece(0.0, 0.0), CubicPiece(gore_in, sign * 3.5), CubicPiece(gore_out, sign * 7.0))
+    )
+    g = GRID
+    move = np.where((g > gore_in) & (g < gore_out), 0.6 + 0.01 * (g - 101.0), 0.0)
+    prof = with_edge_moves(base, GRID, move, sign, np.array([gore_in, gore_out]))
+    eps = 1e-6
+    v = prof.value(np.array([gore_in - eps, gore_in, gore_in + 0.5, 101.0]))
+    assert v[1] - v[0] == pytest.approx(sign * 3.5 - sign * 0.6, abs=1e-6)  # one step
+    assert v[2] == pytest.approx(v[1], abs=1e-3)  # no second one half a metre on
+    assert v[3] == pytest.approx(sign * 3.5 - sign * 0.6, abs=1e-3)
+    # held from the last moved station to the gore, then on the step profile
+    v = prof.value(np.array([160.0, gore_out - eps, gore_out]))
+    assert v[1] == pytest.approx(v[0], abs=1e-6)
+    assert v[2] == pytest.approx(sign * 7.0, abs=1e-9)
+
+
 def test_relevelling_at_a_step_moves_the_records_that_continue_it():
     """Re-levelled at a step, only the record there moved: where a median-side move's
     records (every 4 m) continue it, the border then jumped by the re-levelling a record

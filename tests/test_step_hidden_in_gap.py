@@ -300,3 +300,47 @@ def test_lines_drifting_with_the_lanes_that_stay_have_not_left():
     alone = lines_held_to(s, u - 4.7 + tilt, gap, 0.0, -9.7, forward=True)
     assert alone is not None
     assert alone[1] is True
+
+
+def _fork_case(exit_: bool):
+    """A 4-lane inner exit (melbourne-1226-s11 with a noisier sensor, seed offset 680),
+    offsets towards the carriageway: the through line 14.8 m from the old edge; the line
+    between the last through lane and the first exiting one forks from it at 100 m and
+    leaves towards the median (7 m apart at 200 m); the median edge unseen from 110 m and
+    seen again, 13.8 m in, from 202 m, where the step was placed. Mirrored (``exit_``
+    False) about 250 m: an inner entry joining at 400 m, its step at 300 m."""
+    rng = np.random.default_rng(11)
+    x = GRID if exit_ else 500.0 - GRID
+    fork = np.where(x >= 100.0, 14.8 - 7.0 * np.clip((x - 100.0) / 100.0, 0.0, 1.0) ** 2, np.nan)
+    d_median = np.where(x < 200.0, 0.0, 13.8)
+    through = _track(1, np.full(GRID.size, 14.8))
+    have = np.isfinite(fork)
+    leaving = BoundaryTrack(2, GRID[have], fork[have], "broken", 300)
+    s_lane = np.arange(0.0, 500.0, 0.5)
+    d_lane = 14.8 + rng.normal(0.0, 0.04, s_lane.size)
+    s_edge = GRID[(x < 110.0) | (x > 202.0)]
+    d_edge = np.interp(s_edge, GRID, d_median)
+    gaps = unseen_stretches(s_edge, d_edge, GRID, d_median, 0.8)
+    step = 200.0 if exit_ else 300.0
+    return gaps, step, (through, leaving), s_lane, d_lane, d_median
+
+
+@pytest.mark.parametrize("exit_", [True, False])
+def test_an_inner_exit_leaves_where_its_line_forks_from_the_through_line(exit_):
+    """The step found where the edge is seen again is 100 m past the gore: the edge now
+    moves to the new level from the fork (the lanes end there), not along the leaving
+    lanes' line up to the step (their lanes were the mainline's, 6.7 m off)."""
+    gaps, step, tracks, s_lane, d_lane, d_median = _fork_case(exit_)
+    move, ends = moves_beside_steps(gaps, np.array([step]), tracks, s_lane, d_lane, GRID, d_median)
+    gore = 100.0 if exit_ else 400.0
+    assert sorted(ends.tolist()) == sorted([gore, step])
+    g = GRID
+    between = (g >= gore) & (g < step) if exit_ else (g > step) & (g <= gore)
+    np.testing.assert_allclose(d_median[between] + move[between], 13.8, atol=1e-9)
+    assert not np.any(move[~between])
+    # a line that leaves by less than a lane is no ramp's: the old rule
+    near = BoundaryTrack(2, tracks[1].s_m, 14.8 - 0.3 * (14.8 - tracks[1].d_m), "broken", 300)
+    _, ends = moves_beside_steps(
+        gaps, np.array([step]), (tracks[0], near), s_lane, d_lane, GRID, d_median
+    )
+    assert gore not in ends.tolist()

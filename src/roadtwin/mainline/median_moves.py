@@ -355,6 +355,12 @@ def moves_beside_steps(
         for seen_i, lo, hi in ((a - 1, float(grid[a - 1]), st), (b, st, float(grid[b]))):
             if hi - lo < GAP_MIN_M:
                 continue
+            fork = _fork_beside_step(tracks, s_lane, d_lane, grid, d_median, st, lo < st)
+            if fork is not None:
+                part, shift, s_fork = fork
+                move[part] = shift
+                ends.extend((st, s_fork))
+                continue
             part = (grid > lo) & (grid < hi)
             best = None
             for tr in tracks:
@@ -373,6 +379,99 @@ def moves_beside_steps(
                 move[part] = shift
                 ends.append(st)
     return move, np.unique(np.asarray(ends, dtype=float))
+
+
+FORK_MEET_M = 0.6
+"""Two lane lines this close (metres) meet: a ramp's line leaves (joins) a through line."""
+FORK_APART_M = 3.0
+"""... and the ramp's line lies at least this much (metres) farther towards the median
+at the step: it left with the ramp's lanes."""
+FORK_PARTING_M = 30.0
+"""The lines part over at most this (metres) before they are :data:`FORK_MEET_M` apart."""
+FORK_SEARCH_M = 150.0
+"""How far (metres) from a step the meeting is searched for."""
+FORK_STRAIGHT_M = 1.0
+"""The through line stays within this (metres) of its offset at the step from the
+meeting to the step."""
+
+
+def _fork_beside_step(
+    tracks: tuple[BoundaryTrack, ...],
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+    grid: FloatArray,
+    d_median: FloatArray,
+    st: float,
+    exit_: bool,
+) -> tuple[NDArray[np.bool_], FloatArray, float] | None:
+    """Where the lanes beyond the through lanes leave at a median-side step found only
+    where the edge is seen again (an inner exit's; ``exit_``) or join before the edge
+    became unseen (an inner entry's): the gore is where the line between the last
+    through lane and the first ramp lane forks, one branch going on beside the through
+    lanes (the edge's new level a shoulder beyond it), the other leaving with the ramp's
+    lanes towards the median (at least :data:`FORK_APART_M` away at the step). A 4-lane
+    inner exit whose mainline edge was unseen for 90 m after its gore
+    (melbourne-1226-s11 with a noisier sensor, seed offset 680) had the step placed
+    where the edge was seen again, and the edge moved with the leaving lanes up to it:
+    the ramp's lanes were the mainline's, 6.7 m off and the ramp missed.
+
+    Returns the grid stations between the fork and the step, the edge's move there
+    (metres towards the carriageway: the new level beside the through line) and the
+    fork's station; None where no line forks within :data:`FORK_SEARCH_M` of the step."""
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    i_new = int(np.searchsorted(grid, st)) if exit_ else int(np.searchsorted(grid, st)) - 1
+    if not 0 <= i_new < grid.size:
+        return None
+    level = float(d_median[i_new])
+    at_step = float(grid[i_new])
+
+    def at(tr: BoundaryTrack, s: FloatArray) -> FloatArray:
+        inside = (s >= tr.s_m[0]) & (s <= tr.s_m[-1])
+        return np.where(inside, np.interp(s, tr.s_m, tr.d_m), np.nan)
+
+    # the through line: the innermost line beyond the edge's new level, a shoulder away
+    through = [
+        (float(at(tr, np.array([at_step]))[0]) - level, tr) for tr in tracks if tr.n_samples > 0
+    ]
+    through = [(w, tr) for w, tr in through if 0.0 < w <= SHOULDER_MAX_M]
+    if not through:
+        return None
+    width, line = min(through, key=lambda item: item[0])
+    lo, hi = (st - FORK_SEARCH_M, at_step) if exit_ else (at_step, st + FORK_SEARCH_M)
+    span = grid[(grid >= lo) & (grid <= hi)]
+    t_line = at(line, span)
+    best: float | None = None
+    for tr in tracks:
+        if tr is line or tr.n_samples == 0:
+            continue
+        t_other = at(tr, span)
+        gap = t_line - t_other  # > 0: the other line lies towards the median
+        near_step = gap[-1] if exit_ else gap[0]
+        meet = np.flatnonzero(np.abs(gap) <= FORK_MEET_M)
+        if not meet.size or not np.isfinite(near_step) or near_step < FORK_APART_M:
+            continue
+        # the lines part where the run of meeting stations next to the parting begins
+        # (ends): the ramp's line starts on the through line and leaves it gradually
+        last = meet[-1] if exit_ else meet[0]
+        run = true_runs(np.abs(gap) <= FORK_MEET_M)
+        first = next(lo_ if exit_ else hi_ - 1 for lo_, hi_ in run if lo_ <= last < hi_)
+        s_meet = float(span[first])
+        if abs(s_meet - float(span[last])) > FORK_PARTING_M:
+            s_meet = float(span[last]) + (FORK_PARTING_M if not exit_ else -FORK_PARTING_M)
+        if best is None or abs(st - s_meet) < abs(st - best):
+            best = s_meet
+    if best is None:
+        return None
+    part = (grid >= best) & (grid < st) if exit_ else (grid > st) & (grid <= best)
+    t_part = at(line, grid[part])
+    if not np.all(np.isfinite(t_part)):
+        return None
+    if t_part.size and np.max(np.abs(t_part - (level + width))) > FORK_STRAIGHT_M:
+        return None
+    lo, hi = (best, st) if exit_ else (st, best)
+    if hi - lo < 2.0 * step or _seen_share(line, s_lane, d_lane, lo, hi) < LINE_SEEN_SHARE:
+        return None
+    return part, t_part - width - d_median[part], best
 
 
 def with_edge_moves(
@@ -398,31 +497,52 @@ def with_edge_moves(
     def gore_at(s: float) -> bool:
         return bool(at_gore.size) and float(np.min(np.abs(at_gore - s))) <= 1.5 * step
 
+    def gore_between(lo: float, hi: float) -> float | None:
+        inside = at_gore[(at_gore > lo) & (at_gore < hi)]
+        return float(inside[0]) if inside.size else None
+
     def base(s: float) -> float:
         return float(offset.value(np.array([s]))[0])
 
     knots: set[float] = {p.s0 for p in offset.pieces}
     on_spans: list[tuple[float, float]] = []  # stations where the move is applied
     hold: set[float] = set()  # last knots of a move that steps back at a gore
+    # a move that begins at a gore between two grid stations begins at the gore itself,
+    # where the lane section changes, at its first station's size: begun at the next
+    # station, the lanes jumped by the move half a metre inside the section
+    at_start: dict[float, float] = {}
     every = max(1, round(KNOT_M / step))
     for a, b in true_runs(move != 0.0):
         first = a if a == 0 or gore_at(float(grid[a])) else a - 1
         idx = [*range(first, b, every), b - 1]
         knots.update(float(grid[i]) for i in idx)
+        begin = float(grid[first])
+        gore = gore_between(float(grid[a - 1]), begin) if a > 0 and first == a else None
+        if gore is not None:
+            begin = gore
+            at_start[gore] = float(move[a])
+            knots.add(gore)
         if b < n:
             knots.add(float(grid[b]))  # back on the step profile
             if gore_at(float(grid[b])):
                 hold.add(float(grid[b - 1]))
-        on_spans.append((float(grid[first]), float(grid[b - 1])))
+                gore = gore_between(float(grid[b - 1]), float(grid[b]))
+                if gore is not None:
+                    knots.add(gore)  # back on it at the gore, where the section changes
+        on_spans.append((begin, float(grid[b - 1])))
     ordered = sorted(knots)
     on = [any(lo <= s0 <= hi for lo, hi in on_spans) for s0 in ordered]
+
+    def moved(s0: float) -> float:
+        return at_start.get(s0, float(np.interp(s0, grid, move)))
+
     new: list[CubicPiece] = []
     for k, s0 in enumerate(ordered):
-        a_val = base(s0) - sign * float(np.interp(s0, grid, move)) * on[k]
+        a_val = base(s0) - sign * moved(s0) * on[k]
         slope = 0.0
         if on[k] and k + 1 < len(ordered) and s0 not in hold:
             s1 = ordered[k + 1]
-            a_next = base(s1 - 1e-9) - sign * float(np.interp(s1, grid, move)) * on[k + 1]
+            a_next = base(s1 - 1e-9) - sign * moved(s1) * on[k + 1]
             slope = (a_next - a_val) / (s1 - s0)
         new.append(CubicPiece(float(s0), a_val, slope))
     return CubicProfile(tuple(new))
