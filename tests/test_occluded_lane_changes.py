@@ -878,3 +878,23 @@ def test_of_two_edge_steps_closer_than_a_section_the_larger_one_starts_it():
     d_late = np.where(grid < 387.0, 14.3, np.where(grid < 399.0, 14.0, 8.3))
     sections, _, _ = _sections_from_tracks(tracks, grid, d_late, np.array([387.0, 399.0]), 1.0, cfg)
     assert [round(sc.s0, 1) for sc in sections] == [0.0, 399.0]
+
+
+@pytest.mark.parametrize("at_end", [True, False])
+def test_the_edge_follows_the_outermost_line_into_a_gap_at_the_runs_end(at_end):
+    """oakland-28393854-lane1-s21 with a noisier sensor: the outer edge is unseen over the
+    run's last 117 m while a lane opens at the edge over the last 80 m, its new outer line
+    seen moving out by 3.6 m. The edge keeps the 3.2 m shoulder it had beside that line
+    (it was carried straight on, 3.5 m inside the new line). Mirrored: a gap at the run's
+    start. A line that does not move leaves the fitted edge as it was."""
+    grid = np.arange(0.0, 500.5, MainlineConfig().grid_step_m)
+    x = grid if at_end else grid[::-1]
+    line = 5.4 + 3.6 * _smoothstep(x, 420.0, 80.0)
+    d_edge = np.full(grid.size, 8.6)
+    covered = x < 383.0
+    moving = _Track(1, 0.0, 500.0, grid, line, "solid", grid.size, grid)
+    tracks = [_track(0, grid, 0.0, 1.7), moving]
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid)
+    np.testing.assert_allclose(out, line + 3.2, atol=1e-9)
+    still = [tracks[0], _track(1, grid, 0.0, 5.4)]
+    np.testing.assert_array_equal(_bridge_edge_gaps(d_edge, covered, still, grid), d_edge)

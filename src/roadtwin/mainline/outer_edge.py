@@ -487,7 +487,10 @@ def _bridge_edge_gaps(
         )
     )
     for a, b in true_runs(~covered):
-        if a == 0 or b >= grid.size or b - a < 5:
+        if b - a < 5:
+            continue
+        if a == 0 or b >= grid.size:
+            _follow_line_to_run_end(out, d_edge, d_last, a, b)
             continue
         i0, i1 = a - 1, b
         if not (np.isfinite(d_last[i0]) and np.isfinite(d_last[i1])):
@@ -562,6 +565,36 @@ def _bridge_edge_gaps(
                 hw = taper_widths(taper, grid[a:b])
         out[a:b][ok] = inner[ok] + hw[ok]
     return out
+
+
+_OPEN_GAP_MOVE_M = 1.0  # the outermost line moves this much across a gap at the run's end
+_OPEN_GAP_JUMP_M = 1.5  # ... with no jump larger than this (a gore) on the way
+
+
+def _follow_line_to_run_end(
+    out: FloatArray, d_edge: FloatArray, d_last: FloatArray, a: int, b: int
+) -> None:
+    """Across a gap of the outer edge that reaches the run's start or end (grid indices
+    ``a`` to ``b``), the edge keeps the shoulder width it had where last seen beside the
+    outermost marking (``d_last``), as far as that marking goes on without a jump, when the
+    marking moves by ``_OPEN_GAP_MOVE_M`` or more: a lane opening at the edge over the last
+    80 m (oakland-28393854-lane1-s21 with a noisier sensor, the edge unseen over the run's
+    last 117 m) left the edge carried straight on at its old level, 3.5 m inside the new
+    lane's line. ``out`` (metres, on the grid) is changed in place; ``d_edge`` is the
+    fitted edge."""
+    seen = a - 1 if b >= d_edge.size else b
+    if not 0 <= seen < d_edge.size or not np.isfinite(d_last[seen]):
+        return
+    order = np.arange(a, b) if seen < a else np.arange(b - 1, a - 1, -1)  # from the seen end
+    line = d_last[order]
+    prev = np.concatenate([[d_last[seen]], line[:-1]])
+    bad = ~np.isfinite(line) | (np.abs(line - prev) > _OPEN_GAP_JUMP_M)
+    n = int(np.argmax(bad)) if np.any(bad) else line.size
+    if n == 0 or float(np.max(np.abs(line[:n] - d_last[seen]))) < _OPEN_GAP_MOVE_M:
+        return
+    width = float(d_edge[seen] - d_last[seen])
+    out[order[:n]] = line[:n] + width
+    out[order[n:]] = line[n - 1] + width  # held where the marking ends
 
 
 _FITTED_JUMP_M = 0.1  # a fitted taper this much wider than the seen shoulder at the gap
