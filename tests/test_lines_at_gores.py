@@ -270,3 +270,33 @@ def test_a_line_leaving_where_the_edge_narrows_is_an_exits():
         tracks, [(581.0, 11.83, False)], covered, stations, CFG, d_edge
     )
     assert gores.size == 0
+
+
+@pytest.mark.parametrize("entry", [True, False])
+def test_a_ramp_line_seen_from_the_gaps_start_is_cut_at_the_gore_on_its_side(entry):
+    """a9-10959882-opp-s7 with a noisier sensor (seed offset 620): the outer edge unseen
+    from 352 to 425 m, an entry's nose at 419 m (a ramp line met the outermost line
+    there). The ramp's line, seen from the gap's start 66 m before the nose and linked on
+    past it for 37 m, was cut to *end* at the nose as if an exit's: the ramp's lane was
+    the mainline's over 66 m, 5.7 m wide beside three shoulders (edge 0.351 m). Cut at the
+    entry's gore it begins there; mirrored for an exit."""
+    x = stations if entry else 900.0 - stations
+
+    def line(k, d):
+        return _Track(k, 0.0, 900.0, stations, np.full(stations.size, d), "broken", 1, stations)
+
+    ramp_x = (x >= 353.0) & (x <= 456.0)
+    g = stations[ramp_x]
+    d = np.interp(x[ramp_x], [353.0, 419.0, 456.0], [13.8, 10.9, 9.8])
+    ramp = _Track(3, float(g[0]), float(g[-1]), g, d, "solid", g.size, g)
+    tracks = [line(0, 0.8), line(1, 4.5), line(2, 8.1), ramp]
+    covered = (x < 352.0) | (x > 425.0)
+    gore = 419.0 if entry else 481.0
+    out, gores = _snap_to_hidden_gores(tracks, [(gore, 8.27, not entry)], covered, stations, CFG)
+    assert gores.tolist() == [gore]
+    cut = out[3]
+    if entry:
+        assert (cut.lo, cut.hi) == (gore, 456.0)
+    else:
+        assert (cut.lo, cut.hi) == (444.0, gore)
+    assert [(tr.lo, tr.hi) for tr in out[:3]] == [(0.0, 900.0)] * 3

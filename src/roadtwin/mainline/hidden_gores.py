@@ -173,7 +173,7 @@ def _snap_to_hidden_gores(
     ramp line (:func:`_moves_with_seen_edge`). Returns the tracks and the gore stations.
     """
     gores: list[float] = []
-    at_lines: list[tuple[float, float]] = []  # (gore, offset) of the ramp lines cut
+    at_lines: list[tuple[float, float, bool]] = []  # (gore, offset, exit) of the ramp lines cut
     out = list(tracks)
     step = cfg.grid_step_m
     # gaps inside the run only: where the edge is not seen again up to the run's end (its
@@ -211,7 +211,7 @@ def _snap_to_hidden_gores(
                 i0 = min(int(met[0]), tr.s.size - 2)
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
                 gores.append(tr.lo)
-                at_lines.append((tr.lo, float(tr.d[0])))
+                at_lines.append((tr.lo, float(tr.d[0]), False))
             elif (
                 par.size
                 and par[0] > 0
@@ -223,7 +223,7 @@ def _snap_to_hidden_gores(
                 i0 = par[0]
                 tr = replace(tr, lo=float(tr.s[i0]), s=tr.s[i0:], d=tr.d[i0:])
                 gores.append(tr.lo)
-                at_lines.append((tr.lo, float(tr.d[0])))
+                at_lines.append((tr.lo, float(tr.d[0]), False))
         # a line ending on a line that converges onto it is a lane closing from both
         # sides, no ramp line (melbourne-921-s2: cut back 70 m to where it began to bend)
         if (
@@ -240,7 +240,7 @@ def _snap_to_hidden_gores(
                 i1 = max(int(met[-1]), 1) + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
                 gores.append(tr.hi)
-                at_lines.append((tr.hi, float(tr.d[-1])))
+                at_lines.append((tr.hi, float(tr.d[-1]), True))
             elif (
                 par.size
                 and par[-1] < tr.s.size - 1
@@ -252,13 +252,13 @@ def _snap_to_hidden_gores(
                 i1 = par[-1] + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
                 gores.append(tr.hi)
-                at_lines.append((tr.hi, float(tr.d[-1])))
+                at_lines.append((tr.hi, float(tr.d[-1]), True))
         out[k] = tr
     # the ramp's other lines beside such a gore begin (end) there too (melbourne-921-s9
     # with a noisier sensor: an entry's outer line, first seen 32 m before its gore, made
     # the ramp's lane the mainline's there and the edge 4 m off)
-    for s_gore, d_g in at_lines:
-        out = _cut_beside_gore(out, s_gore, d_g, step)
+    for s_gore, d_g, leaves in at_lines:
+        out = _cut_beside_gore(out, s_gore, d_g, step, _gap_around(gap, grid, s_gore), leaves)
     for s_g, d_g, leaves in evidence:
         i_g = int(_grid_index(s_g, grid, step))
         # inside (or within 10 m of) a gap of the outer-edge points
@@ -285,7 +285,7 @@ def _snap_to_hidden_gores(
         if any(abs(g - s_gore) < 30.0 for g in gores):
             continue
         gores.append(s_gore)
-        out = _cut_beside_gore(out, s_gore, d_g, step)
+        out = _cut_beside_gore(out, s_gore, d_g, step, _gap_around(gap, grid, s_gore), leaves)
     return out, np.asarray(gores, dtype=float)
 
 
@@ -356,24 +356,57 @@ def _moves_with_seen_edge(
     )
 
 
+def _gap_around(gap: NDArray[np.bool_], grid: FloatArray, s_at: float) -> tuple[float, float]:
+    """The stations (metres) where the occlusion gap of the outer edge around ``s_at``
+    (within 10 grid stations of it) begins and ends; an empty span where there is none."""
+    i = int(np.clip(np.searchsorted(grid, s_at), 0, grid.size - 1))
+    for a, b in true_runs(gap):
+        if a - 10 <= i < b + 10:
+            return float(grid[a]), float(grid[b - 1])
+    return s_at, s_at
+
+
+_CUT_NEAR_M = 60.0  # a line beginning (ending) this close to a gore is the ramp's ...
+_GAP_SLACK_M = 5.0  # ... or beginning (ending) in the same occlusion gap, within this
+_RUNS_ON_M = 10.0  # a line cut at a gore of known kind runs on this far past it (metres)
+
+
 def _cut_beside_gore(
-    tracks: list[_Track], s_gore: float, d_gore: float, step: float
+    tracks: list[_Track],
+    s_gore: float,
+    d_gore: float,
+    step: float,
+    gap: tuple[float, float] | None = None,
+    leaves: bool | None = None,
 ) -> list[_Track]:
     """Lines beside a gore at ``s_gore`` (metres; its ramp line at ``d_gore`` metres) that
-    begin less than 60 m before it (end less than 60 m after it) and run on 60 m beyond
-    it, cut to begin (end) at the gore: the ramp's lines. Only the lines beside the gore:
-    a through line nearer the median that happens to begin within 60 m (after an inner
-    exit) has nothing to do with it (melbourne-921-s2: the inner shoulder's line was cut
-    back 51 m to an outer lane drop's gore, the shoulder became part of a lane 3.9 m
-    wide)."""
+    begin less than 60 m before it (end less than 60 m after it), or anywhere in the
+    occlusion gap of the outer edge the gore lies in (``gap``: its first and last
+    stations, metres), and run on 60 m beyond it, cut to begin (end) at the gore: the
+    ramp's lines. An entry's lines seen 66 m before its nose, from where the edge became
+    unseen, were the mainline's and its acceleration lane began there, 5.7 m wide beside
+    three shoulders (a9-10959882-opp-s7 with a noisier sensor, seed offset 620). Only the
+    lines beside the gore: a through line nearer the median that happens to begin within
+    60 m (after an inner exit) has nothing to do with it (melbourne-921-s2: the inner
+    shoulder's line was cut back 51 m to an outer lane drop's gore, the shoulder became
+    part of a lane 3.9 m wide).
+
+    ``leaves``: the gore is an exit's (True: only lines that end after it are cut) or an
+    entry's (False: only lines that begin before it); None: either. At an entry the line
+    of the ramp seen from the gap on had been cut to end at the gore instead, as if an
+    exit's (it ran on only 37 m past the nose)."""
+    lo_gap, hi_gap = gap if gap is not None else (s_gore, s_gore)
+    beyond = _CUT_NEAR_M if leaves is None else _RUNS_ON_M  # a line left after the cut
     out = list(tracks)
     for k, tr in enumerate(out):
         if float(np.interp(s_gore, tr.s, tr.d)) < d_gore - _BESIDE_GORE_M:
             continue
-        if abs(tr.lo - s_gore) < 60.0 and tr.lo < s_gore - step and tr.hi > s_gore + 60.0:
+        near_lo = abs(tr.lo - s_gore) < _CUT_NEAR_M or lo_gap - _GAP_SLACK_M <= tr.lo < s_gore
+        near_hi = abs(tr.hi - s_gore) < _CUT_NEAR_M or s_gore < tr.hi <= hi_gap + _GAP_SLACK_M
+        if leaves is not True and near_lo and tr.lo < s_gore - step and tr.hi > s_gore + beyond:
             sel = tr.s >= s_gore
             out[k] = replace(tr, lo=s_gore, s=tr.s[sel], d=tr.d[sel])
-        elif abs(tr.hi - s_gore) < 60.0 and tr.hi > s_gore + step and tr.lo < s_gore - 60.0:
+        elif leaves is not False and near_hi and tr.hi > s_gore + step and tr.lo < s_gore - beyond:
             sel = tr.s <= s_gore
             out[k] = replace(tr, hi=s_gore, s=tr.s[sel], d=tr.d[sel])
     return out
