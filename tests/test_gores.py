@@ -130,3 +130,36 @@ def test_a_gap_of_every_marking_is_missing_frames_not_a_dash_gap():
     assert abs(lo - 1000.0) < 0.3
     # without knowing the hole is everywhere, the solid line seems to end at 990 m
     assert marking_gore_interval(s, 995.0, entry=True) != (lo, hi)
+
+
+@pytest.mark.parametrize("linked", [True, False])
+def test_a_line_that_begins_beside_a_lane_going_on_is_no_gore(linked):
+    """soderleden-s2 with a noisier sensor (seed offset 260): the outer lane's edge line
+    was first painted (seen) 75 m before an entry's nose, where the outer lane goes on
+    (linked across the section border there). Its start was an abrupt birth of that
+    lane, a measured entry gore, and the ramp joined 75 m early (missed, spurious). A
+    lane born there (not linked) still is one."""
+    from roadtwin.mainline.sections import _events
+    from roadtwin.model import Lane, LaneSection, constant_lane
+
+    grid = np.arange(0.0, 400.5, 0.5)
+    before = LaneSection(0.0, right=(constant_lane(-1, 3.5), constant_lane(-2, 3.5)))
+    after = LaneSection(
+        165.0,
+        right=(
+            Lane(-1, "driving", constant_lane(-1, 3.5).width, predecessor=-1),
+            Lane(-2, "driving", constant_lane(-2, 3.5).width, predecessor=-2 if linked else None),
+            constant_lane(-3, 1.2, lane_type="shoulder"),
+        ),
+    )
+    dmat = np.full((3, grid.size), np.nan)
+    dmat[0] = 3.5
+    dmat[1, grid >= 165.0] = 7.0
+    dmat[2] = 8.2
+    events = _events(
+        [(1, "start", 165.0, 0.0, None)], [before, after], [[0, 2], [0, 1, 2]], dmat, grid,
+        "right", 1.0,
+    )  # fmt: skip
+    assert [(e.kind, e.lane_id, e.s_m) for e in events] == (
+        [] if linked else [("birth", -2, 165.0)]
+    )

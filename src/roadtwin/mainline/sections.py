@@ -577,6 +577,11 @@ def _events(
         if lane_idx >= len(lanes) - 1:
             continue
         lane = lanes[lane_idx]
+        if taper == 0.0 and (lane.predecessor if end == "start" else lane.successor) is not None:
+            # the lane goes on across the border (its line merely begins or ends there: an
+            # edge line first painted 75 m before an entry's nose, soderleden-s2 with a
+            # noisier sensor, was an entry's gore there, and the ramp joined 75 m early)
+            continue
         driving = [ln for ln in lanes if ln.type == "driving"]
         position = (
             "outer" if driving and lane.id == driving[-1].id and len(driving) > 1 else "inner"
