@@ -803,6 +803,27 @@ def test_a_ramp_fit_that_turns_back_against_its_osm_line_is_not_used():
     assert not _turns_back(fitted, loop)
 
 
+def test_a_fit_turning_back_far_from_the_gore_ends_before_it():
+    """melbourne-408-lane1-s21 with a noisier sensor (seed offset 80): an entry's OSM line
+    turns 95 degrees within 10 m where it meets the local roads, 371 m from the gore; the
+    fit turned back there, and the OSM line used as drawn instead kept that 4 m radius
+    hook, where esmini's car jumped 4.3 m. Where the knot lies is known: the ramp ends
+    before it (``_KNOT_KEEP_M`` from the gore or more), else the OSM line is used."""
+    from roadtwin.ramps.road import _KNOT_KEEP_M, _turn_back_start
+
+    x = np.linspace(0.0, 400.0, 401)
+    line = np.c_[x, np.zeros(x.size)]
+    theta = np.linspace(0.0, np.pi, 50)
+    hook = np.r_[np.c_[x[:301], np.zeros(301)],
+                 np.c_[300.0 + 15.0 * np.sin(theta), 15.0 - 15.0 * np.cos(theta)][1:],
+                 np.c_[300.0 - np.linspace(1.0, 30.0, 30), np.full(30, 30.0)]]  # fmt: skip
+    knot = _turn_back_start(hook, line)
+    assert knot is not None
+    assert knot >= _KNOT_KEEP_M
+    assert 300.0 < knot < 300.0 + 15.0 * np.pi  # in the half circle
+    assert _turn_back_start(line + np.array([0.0, 1.5]), line) is None
+
+
 def _loop_back_graph(leave_x: float, way: int = 5) -> tuple[nx.MultiDiGraph, np.ndarray]:
     """A straight 1 km carriageway (x east, nodes at 0, 300, ``leave_x``, 1000 m) and a
     link that leaves it at ``leave_x``, swings out 80 m to the right and back west, and

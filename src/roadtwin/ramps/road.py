@@ -44,13 +44,22 @@ def _refuse_folded(ref: FloatArray, centre: FloatArray, road_id: str) -> None:
 
 _KNOT_DEG = 100.0  # a fitted line heading this far from the OSM line beside it turned back
 _KNOT_RUN_M = 5.0  # ... over at least this length (metres)
+_KNOT_KEEP_M = 100.0  # a fit turning back this far from the gore (metres) ends before it ...
+_KNOT_MARGIN_M = 10.0  # ... by this much (metres)
 
 
 def _turns_back(fitted: FloatArray, target: FloatArray) -> bool:
     """True if the fitted reference line ``fitted`` turns back against the OSM line
     ``target`` it was fitted to (both ``(N, 2)``, metres, in the same order): over
     ``_KNOT_RUN_M`` its heading differs by more than ``_KNOT_DEG`` from the heading of the
-    nearest stretch of ``target``.
+    nearest stretch of ``target`` (:func:`_turn_back_start`)."""
+    return _turn_back_start(fitted, target) is not None
+
+
+def _turn_back_start(fitted: FloatArray, target: FloatArray) -> float | None:
+    """Where (metres along ``fitted`` from its first point) the fitted reference line
+    first turns back against the OSM line ``target`` (see :func:`_turns_back`); None
+    where it does not.
 
     The clothoid spline compares each target point with the curve at the same arc length;
     where the OSM line turns more sharply than the curvature bound allows (Town06's exit
@@ -60,12 +69,14 @@ def _turns_back(fitted: FloatArray, target: FloatArray) -> bool:
     fit = resample_polyline(fitted, 1.0)
     line = resample_polyline(target, 1.0)
     if fit.shape[0] < 3 or line.shape[0] < 3:
-        return False
+        return None
     h_fit = np.arctan2(*np.gradient(fit, axis=0)[:, ::-1].T)
     h_line = np.arctan2(*np.gradient(line, axis=0)[:, ::-1].T)
     _, nearest = cKDTree(line).query(fit)
     back = np.degrees(np.abs(_wrap(h_fit - h_line[nearest]))) > _KNOT_DEG
-    return any(b - a >= _KNOT_RUN_M for a, b in true_runs(back))
+    along = arc_length(fit)
+    runs = [a for a, b in true_runs(back) if along[b - 1] - along[a] >= _KNOT_RUN_M - 1.0]
+    return float(along[runs[0]]) if runs else None
 
 
 def _build_ramp_road(
@@ -294,7 +305,23 @@ def _build_ramp_road(
                 w_hs,
             )
     fitted = osm_fit.xy if fit is None else shape.xy
-    if _turns_back(fitted, target_line):
+    knot = _turn_back_start(fitted, target_line)
+    if knot is not None and knot >= _KNOT_KEEP_M:
+        # far from the gore (where the ramp meets the local roads, whose corners OSM
+        # draws as sharp as they are): the ramp ends before it. The OSM line as drawn
+        # kept a 4 m radius hook at an entry's start, where esmini's car jumped 4.3 m
+        # (melbourne-408-lane1-s21 with a noisier sensor, seed offset 80)
+        log.warning(
+            "%s: the fitted ramp turns back against its OSM line %.0f m from the gore; "
+            "it ends %.0f m before there",
+            road_id,
+            knot,
+            _KNOT_MARGIN_M,
+        )
+        fitted = fitted[arc_length(fitted) <= knot - _KNOT_MARGIN_M]
+        if fit is not None:
+            fit = replace(fit, xy=fitted[::-1] if backwards else fitted)
+    elif knot is not None:
         log.warning(
             "%s: the fitted ramp turns back against its OSM line (a loop); the OSM line "
             "is used as drawn",
