@@ -15,6 +15,7 @@ would lose part of them.
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from roadtwin.config import MainlineConfig
 from roadtwin.mainline.hidden_gores import _snap_to_hidden_gores
@@ -177,3 +178,29 @@ def test_a_taper_line_first_seen_in_its_middle_is_carried_back_along_its_slope()
     for st in (115.0, 130.0):
         want = _linear(np.array([st]), 7.9, 11.3, 100.0, 165.0)[0]
         assert abs(np.interp(st, tr.s, tr.d) - want) < 0.3, st
+
+
+@pytest.mark.parametrize("end", ["start", "end"])
+def test_a_line_beside_a_neighbour_moving_away_keeps_its_course(end):
+    """melbourne-18-s11 with a noisier sensor (seed offset 560): where two lanes are added
+    at the edge, the edge line moves out by 5 m over 60 m and a broken line begins where
+    it was, straight on. Modelled as the broken line tapering away from the moving one, it
+    crossed the lane inside it (3.7 m to 0 and back within 10 m; esmini's car jumped 1.6 m
+    and stuck). The lane between them opens by the neighbour's move; the line keeps its
+    course. Mirrored: a lane closing onto a line that ends."""
+    from roadtwin.config import MainlineConfig
+    from roadtwin.mainline.tapers import _taper
+
+    grid = np.arange(0.0, 600.5, 0.5)
+    x = grid if end == "start" else 600.0 - grid
+    dmat = np.full((3, grid.size), np.nan)
+    dmat[0] = 7.9  # the line inside
+    dmat[1] = 11.4 + 5.0 * np.clip((x - 250.0) / 60.0, 0.0, 1.0)  # the edge line moving out
+    dmat[2, x >= 242.0] = 11.4  # the broken line, from where the edge line was
+    rng = np.random.default_rng(5)
+    s_samples = grid[seen := x >= 242.0][::2]
+    samples = (s_samples, 11.4 + rng.normal(0.0, 0.03, s_samples.size))
+    found = _taper(dmat, 2, grid, end, MainlineConfig(), None, samples)
+    assert found is not None
+    assert found[2] == 1  # beside the moving line
+    np.testing.assert_allclose(dmat[2, seen], 11.4)

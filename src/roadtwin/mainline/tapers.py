@@ -202,6 +202,18 @@ def _taper(
         # outside the edge, town06-auto-lane1-s21+80)
         return None
     refined = _fit_taper(samples, dmat[jn], grid, s_zero, taper, w_full, end, cfg)
+    if _neighbour_moves(dmat, k, jn, i_edge, end, grid):
+        # the lane between them opens (closes) by the neighbour's move, seen: the line
+        # keeps its own course, held back to where the two part
+        s_zero = refined[0] if refined is not None else s_zero
+        taper = refined[1] if refined is not None else taper
+        if end == "start":
+            dmat[k, grid < s_zero] = np.nan
+            dmat[k, (grid >= s_zero) & (grid < s_edge)] = dmat[k, i_edge]
+        else:
+            dmat[k, grid > s_zero] = np.nan
+            dmat[k, (grid > s_edge) & (grid <= s_zero)] = dmat[k, i_edge]
+        return s_zero, taper, jn
     if refined is not None:
         # the taper model replaces the smoothed track over the whole taper: the smoother
         # rounds a taper's steep start off
@@ -220,6 +232,36 @@ def _taper(
     ok = fill & np.isfinite(dmat[jn])
     dmat[k, ok] = dmat[jn, ok] + sgn * w_full * smoothstep(x[ok[fill]])
     return s_zero, taper, jn
+
+
+_MOVER_WINDOW_M = 60.0  # the two lines' courses are compared over this much (metres) ...
+_MOVER_MIN_M = 1.0  # ... where the neighbour moves by this much at least ...
+_MOVER_SHARE = 0.25  # ... and the line by at most this share of that
+
+
+def _neighbour_moves(
+    dmat: FloatArray, k: int, jn: int, i_edge: int, end: str, grid: FloatArray
+) -> bool:
+    """Whether line ``k``, beginning (``end`` "start") or ending at grid index ``i_edge``
+    beside line ``jn``, holds its course there while ``jn`` moves away (towards it): the
+    lane between them opens (closes) by ``jn``'s move. An edge line moving out by two
+    lanes over 60 m while the broken line beginning where it was ran on straight
+    (melbourne-18-s11 with a noisier sensor, seed offset 560): modelled as the straight
+    line tapering away from the moving one, it crossed the lane inside it, 3.7 m to 0
+    and back within 10 m, and esmini's car on that lane jumped 1.6 m and stuck."""
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    n = max(int(_MOVER_WINDOW_M / step), 2)
+    if end == "start":
+        window = slice(i_edge, i_edge + n)
+    else:
+        window = slice(max(i_edge - n + 1, 0), i_edge + 1)
+    both = np.flatnonzero(np.isfinite(dmat[k, window]) & np.isfinite(dmat[jn, window]))
+    if both.size < 2:
+        return False
+    first, last = both[0], both[-1]
+    move_k = abs(float(dmat[k, window][last] - dmat[k, window][first]))
+    move_jn = abs(float(dmat[jn, window][last] - dmat[jn, window][first]))
+    return move_jn >= _MOVER_MIN_M and move_k <= _MOVER_SHARE * move_jn
 
 
 def _close_strip(dmat: FloatArray, k: int, grid: FloatArray, end: str) -> bool:
