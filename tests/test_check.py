@@ -218,6 +218,36 @@ def test_a_lane_border_jump_inside_a_lane_section_is_caught(offset, width, jump_
     assert jumps[0].s == pytest.approx(1.0 if offset is not None else 40.0)
 
 
+@pytest.mark.parametrize(
+    ("pieces", "pinched_at"),
+    [
+        # melbourne-18-s11 with a noisier sensor: 3.66 m to 0 within 6 m and back to 3.5 m
+        # 10 m on (esmini's car jumped 1.6 m into the next lane and stuck)
+        (((0.0, 3.66, -0.6), (6.0, 0.06, 0.0), (8.0, 0.06, 0.85), (12.0, 3.46, 0.0)), 6.0),
+        # a lane closing by a 60 m taper and opening again 40 m later: no pinch
+        (((0.0, 3.5, -3.5 / 60.0), (60.0, 0.0, 0.0), (100.0, 0.0, 3.5 / 60.0)), None),
+        # a lane that opens by a taper (narrow at the start only): nothing
+        (((0.0, 0.0, 0.1), (35.0, 3.5, 0.0)), None),
+    ],
+)
+def test_a_driving_lane_pinched_inside_a_section_is_caught(pieces, pinched_at):
+    """``lane_pinch``: a driving lane that narrows to almost nothing and widens back within
+    30 m: two lanes swapping their space. Width records that continue each other pass
+    every other rule."""
+    road = straight_road()
+    sec = road.lane_sections[0]
+    lane = replace(sec.right[1], width=CubicProfile(tuple(CubicPiece(*p) for p in pieces)))
+    road = replace(road, lane_sections=(replace(sec, right=(sec.right[0], lane, *sec.right[2:])),))
+    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_pinch"]
+    if pinched_at is None:
+        assert found == []
+        return
+    assert len(found) == 1
+    assert found[0].severity == "error"
+    assert found[0].s == pytest.approx(pinched_at, abs=2.0)
+    assert found[0].value < 0.5
+
+
 def test_dangling_link_is_caught(tmp_path):
     net = mainline_exit_network("default")
     road3 = replace(net.road("3"), successor=RoadLink("road", "99", "start"))

@@ -22,6 +22,10 @@ Own checks (:func:`check_network`, on the model):
   offset or width record begins whose value does not continue the one before it (a lane
   offset stepped a metre past a gore moved every lane 3 m there; esmini's car jumped);
   thresholds of ``link_gap``.
+* ``lane_pinch``: a driving lane that narrows from at least ``pinch_wide_m`` to below
+  ``pinch_narrow_m`` and widens back within ``pinch_length_m`` inside a lane section: two
+  lanes swapping their space (a line modelled as tapering away from a neighbour that moved
+  itself crossed the lane beside it; esmini's car jumped 1.6 m and stuck).
 * ``negative_width`` (sampled every metre in each lane section) and ``width_jump`` between
   consecutive lane sections for lanes that continue (lane links, or equal ids where a side
   has no links and the same lane count).
@@ -114,6 +118,12 @@ class CheckConfig:
     """A lane end narrower than this (metres) counts as zero width: it must not be linked."""
     dead_end_width_m: float = 1.0
     """A driving lane ending (beginning) unlinked at least this wide (metres) is a dead end."""
+    pinch_wide_m: float = 2.5
+    """A driving lane at least this wide (metres) ... """
+    pinch_narrow_m: float = 0.5
+    """... narrower than this (metres) ..."""
+    pinch_length_m: float = 30.0
+    """... and as wide again within this (metres) is pinched (``lane_pinch``)."""
     width_sample_step_m: float = 1.0
     consumer_timeout_s: float = 600.0
 
@@ -530,6 +540,46 @@ class _Checker:
                     float(s_k),
                 )
 
+    def lane_pinches(self, road: Road) -> None:
+        """``lane_pinch``: driving lanes narrowing to almost nothing and widening back
+        inside a lane section (sampled every half metre; one finding per lane and section,
+        the narrowest station)."""
+        cfg = self.cfg
+        secs = road.lane_sections
+        ends = [sc.s0 for sc in secs[1:]] + [road.length]
+        for sec, s_end in zip(secs, ends, strict=False):
+            ds = np.arange(0.0, s_end - sec.s0, 0.5)
+            if ds.size < 3:
+                continue
+            for ln in (*sec.left, *sec.right):
+                if ln.type != "driving":
+                    continue
+                w = ln.width.value(ds)
+                wide = np.flatnonzero(w >= cfg.pinch_wide_m)
+                if wide.size < 2:
+                    continue
+                # narrow stations with a wide one within pinch_length_m before and after
+                before = np.searchsorted(wide, np.arange(ds.size), side="right") - 1
+                after = np.searchsorted(wide, np.arange(ds.size), side="left")
+                ok = (before >= 0) & (after < wide.size)
+                span = np.full(ds.size, np.inf)
+                span[ok] = ds[wide[after[ok]]] - ds[wide[before[ok]]]
+                pinched = (w < cfg.pinch_narrow_m) & (span <= cfg.pinch_length_m)
+                if not pinched.any():
+                    continue
+                i = int(np.flatnonzero(pinched)[np.argmin(w[pinched])])
+                s_k = float(sec.s0 + ds[i])
+                self.add(
+                    "error",
+                    "lane_pinch",
+                    f"driving lane {ln.id} narrows to {float(w[i]):.2f} m at s={s_k:.2f} and "
+                    f"is {cfg.pinch_wide_m:g} m wide again within {float(span[i]):.1f} m, "
+                    f"inside the lane section at s={sec.s0:.2f}",
+                    road=road.id,
+                    s=s_k,
+                    value=float(w[i]),
+                )
+
     def _dead_ends(self, road: Road, a: LaneSection, b: LaneSection, len_a: float) -> None:
         """A driving lane that ends at full width inside a road with no successor (or
         begins so with no predecessor): a car in it has nowhere to go (a lane that leaves
@@ -917,6 +967,7 @@ class _Checker:
             self.geometry(road)
             self.widths(road)
             self.lane_jumps(road)
+            self.lane_pinches(road)
             self.links(road)
         for j in self.net.junctions:
             self.junction(j)
