@@ -204,3 +204,34 @@ def test_a_line_beside_a_neighbour_moving_away_keeps_its_course(end):
     assert found is not None
     assert found[2] == 1  # beside the moving line
     np.testing.assert_allclose(dmat[2, seen], 11.4)
+
+
+@pytest.mark.parametrize("end", ["end", "start"])
+def test_the_innermost_line_goes_on_beside_the_moving_median_edge(end):
+    """town06-auto-lane2-s22 with a noisier sensor (seed offset 260): a lane beside the
+    median dropped by a taper, its inner line seen only to where the taper began, the
+    median-side edge unseen and moved over the 80 m to where it was seen again, a lane
+    further in. The lane ended at full width where its line was last seen, a 4.1 m
+    shoulder beside it, and the drive's car in it had nowhere to go. The line goes on a
+    shoulder's width beside the moving edge until it meets the next line: the lane closes
+    by a taper. Mirrored: a lane opening. No move of the edge, no extension."""
+    from roadtwin.mainline.tapers import _lines_with_median_edge
+
+    grid = np.arange(0.0, 500.5, 0.5)
+    x = grid if end == "end" else 500.0 - grid
+    d_median = np.interp(x, [330.0, 410.0], [0.0, 3.5])
+    dmat = np.full((2, grid.size), np.nan)
+    dmat[0, x <= 329.0] = 1.1
+    dmat[1] = 4.6
+    _lines_with_median_edge(dmat, grid, d_median, np.zeros(0))
+    seen = np.isfinite(dmat[0])
+    meet = float(np.max(x[seen]))
+    assert 400.0 <= meet <= 410.0  # d_median + 1.1 reaches 4.5 at 407 m
+    np.testing.assert_allclose(
+        dmat[0, seen & (x > 329.0)], (d_median + 1.1)[seen & (x > 329.0)].clip(max=4.6)
+    )
+    still = np.full((2, grid.size), np.nan)
+    still[0, x <= 329.0] = 1.1
+    still[1] = 4.6
+    _lines_with_median_edge(still, grid, np.zeros(grid.size), np.zeros(0))
+    assert np.max(x[np.isfinite(still[0])]) == 329.0

@@ -31,7 +31,13 @@ from ._common import (
 )
 from .markings import _dashed, _mark_type, _Track
 from .section_links import _link_sections, _side_lanes
-from .tapers import _close_strip, _lines_from_splits, _lines_to_gores, _taper
+from .tapers import (
+    _close_strip,
+    _lines_from_splits,
+    _lines_to_gores,
+    _lines_with_median_edge,
+    _taper,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -235,6 +241,7 @@ def _sections_from_tracks(
         dmat[k, sel] = np.interp(grid[sel], tr.s, tr.d)
     at_entry_gore = _lines_to_gores(dmat, grid, d_edge, outer_steps)
     _lines_from_splits(dmat, grid)
+    _lines_with_median_edge(dmat, grid, d_median, median_steps)
     # births / ends inside the run
     raw_events: list[tuple[int, str, float, float, int | None]] = []
     # observed markings first: an inferred (unobserved) one opens/closes like its sibling

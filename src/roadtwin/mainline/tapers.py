@@ -264,6 +264,73 @@ def _neighbour_moves(
     return move_jn >= _MOVER_MIN_M and move_k <= _MOVER_SHARE * move_jn
 
 
+_WITH_MEDIAN_SHOULDER_M = (0.3, 2.0)  # the innermost line this far from the median edge ...
+_WITH_MEDIAN_REACH_M = 150.0  # ... goes on beside it this far at most ...
+_WITH_MEDIAN_MOVE_M = 1.0  # ... where the edge moves by this much towards the next line ...
+_WITH_MEDIAN_STEP_M = 20.0  # ... and no step of the edge lies this close to its end
+
+
+def _lines_with_median_edge(
+    dmat: FloatArray, grid: FloatArray, d_median: FloatArray, median_steps: FloatArray
+) -> None:
+    """The innermost line ending (beginning) a shoulder's width from the median-side edge
+    while that edge goes on moving towards the next line out: the line goes on beside the
+    edge at that width until it meets the next line, and the lane between them closes
+    (opens) there by a taper. A lane dropped beside the median by a taper whose lines were
+    unseen but where it began (town06-auto-lane2-s22 with a noisier sensor, seed offset
+    260: the edge moved over the 80 m to where it was seen again) ended at full width
+    where its line was last seen, the shoulder 4.1 m wide beside it: the drive's car in
+    that lane had nowhere to go. ``dmat`` (tracks x ``grid``, metres towards the
+    carriageway, NaN where a track is absent) is filled in place; ``d_median`` (on
+    ``grid``) is the median-side edge with its moves, ``median_steps`` its steps and the
+    gores its moves begin at (metres)."""
+    step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
+    reach = int(_WITH_MEDIAN_REACH_M / step)
+    n_g = grid.size
+    for k in range(dmat.shape[0]):
+        for end in ("end", "start"):
+            idx = np.flatnonzero(np.isfinite(dmat[k]))
+            if idx.size < 2:
+                break
+            i_edge = int(idx[-1] if end == "end" else idx[0])
+            if i_edge in (0, n_g - 1):
+                continue
+            if (
+                median_steps.size
+                and np.min(np.abs(median_steps - grid[i_edge])) < _WITH_MEDIAN_STEP_M
+            ):
+                continue
+            d_k = float(dmat[k, i_edge])
+            width = d_k - float(d_median[i_edge])
+            if not _WITH_MEDIAN_SHOULDER_M[0] < width <= _WITH_MEDIAN_SHOULDER_M[1]:
+                continue
+            at = dmat[:, i_edge]
+            with np.errstate(invalid="ignore"):
+                if np.any((at > d_median[i_edge]) & (at < d_k)):
+                    continue  # not the innermost line
+                outward = np.flatnonzero(np.isfinite(at) & (at > d_k + 1.0))
+            if not outward.size:
+                continue
+            jn = int(outward[np.argmin(at[outward])])
+            far = (
+                np.arange(i_edge + 1, min(i_edge + 1 + reach, n_g))
+                if end == "end"
+                else np.arange(i_edge - 1, max(i_edge - 1 - reach, -1), -1)
+            )
+            line = d_median[far] + width
+            meets = np.flatnonzero(~np.isfinite(dmat[jn, far]) | (line >= dmat[jn, far] - 0.1))
+            if not meets.size or not np.isfinite(dmat[jn, far[meets[0]]]) or meets[0] < 2:
+                continue
+            part = far[: meets[0] + 1]
+            if abs(float(d_median[part[-1]] - d_median[i_edge])) < _WITH_MEDIAN_MOVE_M:
+                continue
+            others = np.delete(dmat[:, part], [k, jn], axis=0)
+            with np.errstate(invalid="ignore"):
+                if np.any((others > d_median[part]) & (others < dmat[jn, part])):
+                    continue  # another line between the edge and the next one
+            dmat[k, part] = np.minimum(line[: meets[0] + 1], dmat[jn, part])
+
+
 def _close_strip(dmat: FloatArray, k: int, grid: FloatArray, end: str) -> bool:
     """Let line ``k``, whose paint starts/ends beside another line closer than a lane's
     rest (``_RESIDUAL_WIDTH_M``), meet that line over ``_STRIP_CLOSE_M`` beyond its end.
