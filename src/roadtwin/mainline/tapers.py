@@ -236,7 +236,8 @@ def _taper(
 
 _MOVER_WINDOW_M = 60.0  # the two lines' courses are compared over this much (metres) ...
 _MOVER_MIN_M = 1.0  # ... where the neighbour moves by this much at least ...
-_MOVER_SHARE = 0.25  # ... and the line by at most this share of that
+_MOVER_SHARE = 0.25  # ... and the line by at most this share of that ...
+_MOVER_STRAIGHT_M = 0.3  # ... and this much (metres): it runs straight on
 
 
 def _neighbour_moves(
@@ -261,7 +262,7 @@ def _neighbour_moves(
     first, last = both[0], both[-1]
     move_k = abs(float(dmat[k, window][last] - dmat[k, window][first]))
     move_jn = abs(float(dmat[jn, window][last] - dmat[jn, window][first]))
-    return move_jn >= _MOVER_MIN_M and move_k <= _MOVER_SHARE * move_jn
+    return move_jn >= _MOVER_MIN_M and move_k <= min(_MOVER_SHARE * move_jn, _MOVER_STRAIGHT_M)
 
 
 _WITH_MEDIAN_SHOULDER_M = (0.3, 2.0)  # the innermost line this far from the median edge ...
