@@ -247,7 +247,7 @@ def test_a_line_that_moves_itself_keeps_its_taper_model():
     grid = np.arange(0.0, 400.5, 0.5)
     dmat = np.full((2, grid.size), np.nan)
     dmat[0] = 1.7 + 6.0 * np.clip((grid - 240.0) / 80.0, 0.0, 1.0)  # the faster line
-    dmat[1, grid >= 265.0] = 3.3 + 1.3 * np.clip((grid[grid >= 265.0] - 265.0) / 55.0, 0, 1)
+    dmat[1, grid >= 265.0] = 3.3 + 0.8 * np.clip((grid[grid >= 265.0] - 265.0) / 55.0, 0, 1)
     i_edge = int(np.flatnonzero(np.isfinite(dmat[1]))[0])
     assert not _neighbour_moves(dmat, 1, 0, i_edge, "start", grid)
     dmat[1, grid >= 265.0] = 3.3
