@@ -182,6 +182,14 @@ def test_width_jump_between_sections_is_caught():
     assert jumps[0].s == pytest.approx(100.0)
 
 
+def _with_second_lane_width(road, pieces):
+    """``road`` (one lane section) with its second right lane's width records ``pieces``
+    (``(s0, a, b)`` tuples, metres)."""
+    sec = road.lane_sections[0]
+    lane = replace(sec.right[1], width=CubicProfile(tuple(CubicPiece(*p) for p in pieces)))
+    return replace(road, lane_sections=(replace(sec, right=(sec.right[0], lane, *sec.right[2:])),))
+
+
 @pytest.mark.parametrize(
     ("offset", "width", "jump_mm"),
     [
@@ -202,11 +210,7 @@ def test_a_lane_border_jump_inside_a_lane_section_is_caught(offset, width, jump_
     if offset is not None:
         road = replace(road, lane_offset=CubicProfile(tuple(CubicPiece(*p) for p in offset)))
     if width is not None:
-        sec = road.lane_sections[0]
-        lane = replace(sec.right[1], width=CubicProfile(tuple(CubicPiece(*p) for p in width)))
-        road = replace(
-            road, lane_sections=(replace(sec, right=(sec.right[0], lane, *sec.right[2:])),)
-        )
+        road = _with_second_lane_width(road, width)
     net = RoadNetwork(Header(), (road,))
     jumps = [f for f in check_network(net) if f.code == "lane_jump"]
     if jump_mm is None:
@@ -234,10 +238,7 @@ def test_a_driving_lane_pinched_inside_a_section_is_caught(pieces, pinched_at):
     """``lane_pinch``: a driving lane that narrows to almost nothing and widens back within
     30 m: two lanes swapping their space. Width records that continue each other pass
     every other rule."""
-    road = straight_road()
-    sec = road.lane_sections[0]
-    lane = replace(sec.right[1], width=CubicProfile(tuple(CubicPiece(*p) for p in pieces)))
-    road = replace(road, lane_sections=(replace(sec, right=(sec.right[0], lane, *sec.right[2:])),))
+    road = _with_second_lane_width(straight_road(), pieces)
     found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_pinch"]
     if pinched_at is None:
         assert found == []

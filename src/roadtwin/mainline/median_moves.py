@@ -447,14 +447,16 @@ def _fork_beside_step(
         t_other = at(tr, span)
         gap = t_line - t_other  # > 0: the other line lies towards the median
         near_step = gap[-1] if exit_ else gap[0]
-        meet = np.flatnonzero(np.abs(gap) <= FORK_MEET_M)
+        meets = np.abs(gap) <= FORK_MEET_M
+        meet = np.flatnonzero(meets)
         if not meet.size or not np.isfinite(near_step) or near_step < FORK_APART_M:
             continue
         # the lines part where the run of meeting stations next to the parting begins
         # (ends): the ramp's line starts on the through line and leaves it gradually
         last = meet[-1] if exit_ else meet[0]
-        run = true_runs(np.abs(gap) <= FORK_MEET_M)
-        first = next(lo_ if exit_ else hi_ - 1 for lo_, hi_ in run if lo_ <= last < hi_)
+        first = next(
+            lo_ if exit_ else hi_ - 1 for lo_, hi_ in true_runs(meets) if lo_ <= last < hi_
+        )
         s_meet = float(span[first])
         if abs(s_meet - float(span[last])) > FORK_PARTING_M:
             s_meet = float(span[last]) + (FORK_PARTING_M if not exit_ else -FORK_PARTING_M)
