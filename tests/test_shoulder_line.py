@@ -72,3 +72,32 @@ def test_no_pattern_seen_long_enough_no_line():
     )
     assert out[1].lo == 400.0
     assert out[1].hi == 460.0
+
+
+def test_a_lane_line_where_the_road_widened_is_not_continued_as_the_shoulders():
+    """A track that is the shoulder's line over 0-600 m (0.65 m inside the edge) goes on
+    as a lane's line where the road is a lane wider (the edge 3.5 m farther out from
+    600 m, the added lane's outer line 0.5 m inside the shoulder line's place): its end
+    10 m before the run's end lies 3.5 m inside the shoulder line's place. It is not
+    continued there (continued, it jumped 4 m out over the run's last metres,
+    town06-auto-lane2-s22 with a noisier sensor, and a lane 7.5 m wide)."""
+    grid = GRID
+    car = np.full(grid.size, 3.0)
+    edge = np.where(grid < 600.0, 16.25, 19.75)
+    s = grid[grid <= 990.0]
+    widened = _Track(3, 0.0, 990.0, s, np.full(s.size, 15.6), "solid", 300, s.copy())
+    tracks = [
+        _track(0, 0.0, 1000.0, 4.6, "broken"),
+        _track(1, 0.0, 1000.0, 8.1, "broken"),
+        _track(2, 0.0, 1000.0, 15.1, "broken"),
+        widened,
+        _track(4, 600.0, 1000.0, 18.6),  # the added lane's outer line
+    ]
+    s_lane = np.repeat(grid, 5)
+    d_lane = 3.0 + np.tile(np.linspace(-12.0, 12.0, 5), grid.size)
+    out = continue_shoulder_line(
+        tracks, grid, edge, np.ones(grid.size, dtype=bool), (s_lane, d_lane), (grid, car)
+    )
+    line = out[3]
+    assert line.hi == 990.0
+    assert float(np.max(np.abs(np.diff(line.d)))) < 0.01

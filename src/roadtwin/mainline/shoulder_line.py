@@ -35,6 +35,7 @@ _PATTERN_M = 0.25  # ... and this close to where the pattern puts it (metres)
 _REACH_PERCENT = 99.0  # the sensor's reach: this percentile of the samples' distance
 _REACH_MARGIN_M = 1.0  # a place this close inside the reach would have been seen
 _CLEAR_M = 0.3  # no line of the run this close to the inferred one
+_JOIN_M = 0.5  # the seen line's end this close to where the pattern puts it goes on
 
 
 def _reach(s_lane: FloatArray, d_lane: FloatArray, car: tuple[FloatArray, FloatArray]) -> float:
@@ -97,10 +98,16 @@ def continue_shoulder_line(
     if own.size == 0:
         return tracks
     a, b = int(own[0]), int(own[-1]) + 1
+    # it goes on only from an end where it is the shoulder's line (the track may be a
+    # lane's line there, the road wider than where the pattern was seen: continued, it
+    # jumped 4 m out to the shoulder's place over the run's last 2 m, town06-auto-lane2-s22
+    # with a noisier sensor, and a lane 7.5 m wide)
+    joins_start = own[0] > 0 and abs(float(tr.d[0]) - float(line[own[0] - 1])) <= _JOIN_M
+    joins_end = b < grid.size and abs(float(tr.d[-1]) - float(line[b])) <= _JOIN_M
     for lo, hi in true_runs(where):
-        if lo < own[0] <= hi:
+        if joins_start and lo < own[0] <= hi:
             a = lo  # the stretch that reaches the seen line's start
-        if lo <= own[-1] + 1 < hi:
+        if joins_end and lo <= own[-1] + 1 < hi:
             b = hi  # ... and the one that goes on from its end
     if a == own[0] and b == own[-1] + 1:
         return tracks
