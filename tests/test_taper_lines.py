@@ -252,3 +252,24 @@ def test_a_line_that_moves_itself_keeps_its_taper_model():
     assert not _neighbour_moves(dmat, 1, 0, i_edge, "start", grid)
     dmat[1, grid >= 265.0] = 3.3
     assert _neighbour_moves(dmat, 1, 0, i_edge, "start", grid)
+
+
+def test_a_line_swept_past_by_a_ramps_line_is_no_split():
+    """melbourne-408-opp-s4 with a noisier sensor (seed offset 260): at an inner entry a
+    ramp's line sweeps past where a straight line begins. Taken for the line's own split
+    (the two one line before it), the line kept its course, a lane chain broke there and
+    1 of 13 driven routes failed. Only where the neighbour lay at the line's place 5 m
+    before its start were they one line."""
+    from roadtwin.mainline.tapers import _neighbour_moves
+
+    grid = np.arange(0.0, 400.5, 0.5)
+    dmat = np.full((2, grid.size), np.nan)
+    dmat[1, grid >= 265.0] = 3.3  # the straight line, from 265 m
+    i_edge = int(np.flatnonzero(np.isfinite(dmat[1]))[0])
+    # the ramp's line sweeping across: 2 m off the line's place 5 m before its start
+    dmat[0] = 3.3 - 0.4 * (grid - 265.0)
+    dmat[0] = np.clip(dmat[0], -4.0, 8.0)
+    assert not _neighbour_moves(dmat, 1, 0, i_edge, "start", grid)
+    # leaving from the line's place (a split): it keeps its course
+    dmat[0] = 3.3 + np.clip((grid - 265.0) * 0.08, 0.0, 4.0)
+    assert _neighbour_moves(dmat, 1, 0, i_edge, "start", grid)

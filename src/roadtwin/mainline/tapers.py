@@ -237,7 +237,9 @@ def _taper(
 _MOVER_WINDOW_M = 60.0  # the two lines' courses are compared over this much (metres) ...
 _MOVER_MIN_M = 1.0  # ... where the neighbour moves by this much at least ...
 _MOVER_SHARE = 0.25  # ... and the line by at most this share of that ...
-_MOVER_STRAIGHT_M = 0.3  # ... and this much (metres): it runs straight on
+_MOVER_STRAIGHT_M = 0.3  # ... and this much (metres): it runs straight on ...
+_SPLIT_BACK_M = 5.0  # ... where the neighbour lay this far before its start (after its end) ...
+_SPLIT_NEAR_M = 0.5  # ... this close to it (metres): the two were one line
 
 
 def _neighbour_moves(
@@ -252,6 +254,7 @@ def _neighbour_moves(
     and back within 10 m, and esmini's car on that lane jumped 1.6 m and stuck."""
     step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
     n = max(int(_MOVER_WINDOW_M / step), 2)
+    n_split = max(int(_SPLIT_BACK_M / step), 1)
     if end == "start":
         window = slice(i_edge, i_edge + n)
     else:
@@ -262,7 +265,15 @@ def _neighbour_moves(
     first, last = both[0], both[-1]
     move_k = abs(float(dmat[k, window][last] - dmat[k, window][first]))
     move_jn = abs(float(dmat[jn, window][last] - dmat[jn, window][first]))
-    return move_jn >= _MOVER_MIN_M and move_k <= min(_MOVER_SHARE * move_jn, _MOVER_STRAIGHT_M)
+    if not (move_jn >= _MOVER_MIN_M and move_k <= min(_MOVER_SHARE * move_jn, _MOVER_STRAIGHT_M)):
+        return False
+    # the neighbour left from where the line is (arrives where it was): one line before
+    # the split; a neighbour sweeping past the line's start (a ramp's line crossing at an
+    # inner entry, melbourne-408-opp-s4 at seed offset 260) is no split
+    i_out = i_edge - n_split if end == "start" else i_edge + n_split
+    if not 0 <= i_out < grid.size or not np.isfinite(dmat[jn, i_out]):
+        return False
+    return abs(float(dmat[jn, i_out] - dmat[k, i_edge])) <= _SPLIT_NEAR_M
 
 
 _WITH_MEDIAN_SHOULDER_M = (0.3, 2.0)  # the innermost line this far from the median edge ...
