@@ -336,6 +336,34 @@ def test_thresholds_are_configurable():
     assert _codes(check_network(net, config=strict)) == ["geometry_gap"]
 
 
+@pytest.mark.parametrize(
+    ("pieces", "widest"),
+    [
+        # town06-auto-lane2-s22 with a noisier sensor: a lane line continued 4 m out to
+        # the shoulder's place over the run's last metres, a lane widening to 7.5 m
+        (((0.0, 3.5, 0.0), (90.0, 3.5, 0.4)), 7.5),
+        # a lane 4.5 m wide (a wide lane on a bend): nothing
+        (((0.0, 4.5, 0.0),), None),
+    ],
+)
+def test_a_driving_lane_wider_than_any_real_lane_is_reported(pieces, widest):
+    """``lane_wide``: a driving lane wider than 6 m anywhere (a warning: valid OpenDRIVE,
+    but two lanes' space in one or a shoulder taken for a lane; the maps that had one
+    passed every check)."""
+    road = _with_second_lane_width(straight_road(), pieces)
+    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_wide"]
+    if widest is None:
+        assert found == []
+        return
+    assert len(found) == 1
+    assert found[0].severity == "warning"
+    assert found[0].value == pytest.approx(widest, abs=0.05)
+    assert found[0].s == pytest.approx(100.0, abs=1.0)
+    net = RoadNetwork(Header(), (road,))
+    looser = check_network(net, config=CheckConfig(wide_lane_m=8.0))
+    assert looser == [f for f in check_network(net) if f.code != "lane_wide"]
+
+
 def test_other_tools_clean_map_has_no_errors():
     report = check_file(DATA / "e6mini.xodr", external=False)
     assert report.errors == 0

@@ -26,6 +26,9 @@ Own checks (:func:`check_network`, on the model):
   ``pinch_narrow_m`` and widens back within ``pinch_length_m`` inside a lane section: two
   lanes swapping their space (a line modelled as tapering away from a neighbour that moved
   itself crossed the lane beside it; esmini's car jumped 1.6 m and stuck).
+* ``lane_wide`` (a warning): a driving lane wider than ``wide_lane_m`` (6 m) anywhere,
+  wider than any real lane: the lane structure was mis-inferred there (two lanes' space
+  in one, or a shoulder taken for a lane).
 * ``negative_width`` (sampled every metre in each lane section) and ``width_jump`` between
   consecutive lane sections for lanes that continue (lane links, or equal ids where a side
   has no links and the same lane count).
@@ -124,6 +127,8 @@ class CheckConfig:
     """... narrower than this (metres) ..."""
     pinch_length_m: float = 30.0
     """... and as wide again within this (metres) is pinched (``lane_pinch``)."""
+    wide_lane_m: float = 6.0
+    """A driving lane wider than this (metres) is reported (``lane_wide``)."""
     width_sample_step_m: float = 1.0
     consumer_timeout_s: float = 600.0
 
@@ -136,6 +141,9 @@ class CheckConfig:
             raise InputError(msg)
         if self.width_sample_step_m <= 0:
             msg = "CheckConfig: width_sample_step_m must be > 0"
+            raise InputError(msg)
+        if self.wide_lane_m <= 0:
+            msg = "CheckConfig: wide_lane_m must be > 0"
             raise InputError(msg)
 
 
@@ -440,6 +448,17 @@ class _Checker:
                     )
                 w = lane.width.value(ds)
                 self._zero_width_links(road, sec, lane, w, ds)
+                widest = int(np.argmax(w))
+                if lane.type == "driving" and w[widest] > cfg.wide_lane_m:
+                    self.add(
+                        "warning",
+                        "lane_wide",
+                        f"driving lane {lane.id} is {w[widest]:.2f} m wide at "
+                        f"s={sec.s0 + ds[widest]:.2f}: wider than any real lane",
+                        road=road.id,
+                        s=float(sec.s0 + ds[widest]),
+                        value=float(w[widest]),
+                    )
                 k = int(np.argmin(w))
                 if w[k] < -1e-6:
                     sev: Severity = (
