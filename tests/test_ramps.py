@@ -787,20 +787,20 @@ def test_a_ramp_fit_that_turns_back_against_its_osm_line_is_not_used():
     melbourne-1226 the gore lay 8.5 m beside the branch's OSM line: a U-turn 30 m across.
     Such a fit is detected and the OSM line is used as drawn; a fit beside its line, and a
     loop ramp's fit along its looping OSM line, are kept."""
-    from roadtwin.ramps.road import _turns_back
+    from roadtwin.ramps.road import _turn_back_start
 
     x = np.linspace(0.0, 60.0, 61)
     line = np.c_[x, -20.0 - 0.2 * x]
     theta = np.linspace(0.0, np.pi, 50)  # a half circle of 15 m radius, then back
     u_turn = np.r_[np.c_[15.0 * np.sin(theta), -15.0 + 15.0 * np.cos(theta)],
                    np.c_[-np.linspace(1.0, 10.0, 10), np.full(10, -30.0)]]  # fmt: skip
-    assert _turns_back(u_turn, line)
-    assert not _turns_back(line + np.array([0.0, 1.5]), line)
+    assert _turn_back_start(u_turn, line) is not None
+    assert _turn_back_start(line + np.array([0.0, 1.5]), line) is None
     # a 270 degree loop ramp fitted 1 m inside its OSM line
     phi = np.linspace(0.0, 1.5 * np.pi, 120)
     loop = np.c_[40.0 * np.sin(phi), 40.0 - 40.0 * np.cos(phi)]
     fitted = np.c_[39.0 * np.sin(phi), 40.0 - 39.0 * np.cos(phi)]
-    assert not _turns_back(fitted, loop)
+    assert _turn_back_start(fitted, loop) is None
 
 
 def test_a_fit_turning_back_far_from_the_gore_ends_before_it():

@@ -48,18 +48,12 @@ _KNOT_KEEP_M = 100.0  # a fit turning back this far from the gore (metres) ends 
 _KNOT_MARGIN_M = 10.0  # ... by this much (metres)
 
 
-def _turns_back(fitted: FloatArray, target: FloatArray) -> bool:
-    """True if the fitted reference line ``fitted`` turns back against the OSM line
-    ``target`` it was fitted to (both ``(N, 2)``, metres, in the same order): over
-    ``_KNOT_RUN_M`` its heading differs by more than ``_KNOT_DEG`` from the heading of the
-    nearest stretch of ``target`` (:func:`_turn_back_start`)."""
-    return _turn_back_start(fitted, target) is not None
-
-
 def _turn_back_start(fitted: FloatArray, target: FloatArray) -> float | None:
     """Where (metres along ``fitted`` from its first point) the fitted reference line
-    first turns back against the OSM line ``target`` (see :func:`_turns_back`); None
-    where it does not.
+    first turns back against the OSM line ``target`` it was fitted to (both ``(N, 2)``,
+    metres, in the same order): over ``_KNOT_RUN_M`` its heading differs by more than
+    ``_KNOT_DEG`` from the heading of the nearest stretch of ``target``. None where it
+    does not.
 
     The clothoid spline compares each target point with the curve at the same arc length;
     where the OSM line turns more sharply than the curvature bound allows (Town06's exit
