@@ -182,6 +182,16 @@ def test_width_jump_between_sections_is_caught():
     assert jumps[0].s == pytest.approx(100.0)
 
 
+def _second_lane_findings(pieces, code, config=None):
+    """The findings ``code`` on a straight road whose second right lane has the width
+    records ``pieces``: exactly one (returned) or none (None)."""
+    road = _with_second_lane_width(straight_road(), pieces)
+    net = RoadNetwork(Header(), (road,))
+    found = [f for f in check_network(net, config=config) if f.code == code]
+    assert len(found) <= 1
+    return found[0] if found else None
+
+
 def _with_second_lane_width(road, pieces):
     """``road`` (one lane section) with its second right lane's width records ``pieces``
     (``(s0, a, b)`` tuples, metres)."""
@@ -238,15 +248,13 @@ def test_a_driving_lane_pinched_inside_a_section_is_caught(pieces, pinched_at):
     """``lane_pinch``: a driving lane that narrows to almost nothing and widens back within
     30 m: two lanes swapping their space. Width records that continue each other pass
     every other rule."""
-    road = _with_second_lane_width(straight_road(), pieces)
-    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_pinch"]
+    found = _second_lane_findings(pieces, "lane_pinch")
     if pinched_at is None:
-        assert found == []
+        assert found is None
         return
-    assert len(found) == 1
-    assert found[0].severity == "error"
-    assert found[0].s == pytest.approx(pinched_at, abs=2.0)
-    assert found[0].value < 0.5
+    assert found.severity == "error"
+    assert found.s == pytest.approx(pinched_at, abs=2.0)
+    assert found.value < 0.5
 
 
 def test_dangling_link_is_caught(tmp_path):
@@ -350,18 +358,14 @@ def test_a_driving_lane_wider_than_any_real_lane_is_reported(pieces, widest):
     """``lane_wide``: a driving lane wider than 6 m anywhere (a warning: valid OpenDRIVE,
     but two lanes' space in one or a shoulder taken for a lane; the maps that had one
     passed every check)."""
-    road = _with_second_lane_width(straight_road(), pieces)
-    found = [f for f in check_network(RoadNetwork(Header(), (road,))) if f.code == "lane_wide"]
+    found = _second_lane_findings(pieces, "lane_wide")
     if widest is None:
-        assert found == []
+        assert found is None
         return
-    assert len(found) == 1
-    assert found[0].severity == "warning"
-    assert found[0].value == pytest.approx(widest, abs=0.05)
-    assert found[0].s == pytest.approx(100.0, abs=1.0)
-    net = RoadNetwork(Header(), (road,))
-    looser = check_network(net, config=CheckConfig(wide_lane_m=8.0))
-    assert looser == [f for f in check_network(net) if f.code != "lane_wide"]
+    assert found.severity == "warning"
+    assert found.value == pytest.approx(widest, abs=0.05)
+    assert found.s == pytest.approx(100.0, abs=1.0)
+    assert _second_lane_findings(pieces, "lane_wide", CheckConfig(wide_lane_m=8.0)) is None
 
 
 def test_other_tools_clean_map_has_no_errors():
