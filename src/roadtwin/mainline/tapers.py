@@ -268,11 +268,13 @@ def _neighbour_moves(
     if not (move_jn >= _MOVER_MIN_M and move_k <= min(_MOVER_SHARE * move_jn, _MOVER_STRAIGHT_M)):
         return False
     # the neighbour left from where the line is (arrives where it was): one line before
-    # the split; a neighbour sweeping past the line's start (a ramp's line crossing at an
-    # inner entry, melbourne-408-opp-s4 at seed offset 260) is no split
+    # the split; a neighbour seen sweeping past the line's start (a ramp's line crossing
+    # at an inner entry, melbourne-408-opp-s4 at seed offset 260) is no split. Where the
+    # neighbour was not seen there (both first seen mid-fan where lanes are added at the
+    # edge, melbourne-18-s11 at seed offset 200) nothing says otherwise
     i_out = i_edge - n_split if end == "start" else i_edge + n_split
     if not 0 <= i_out < grid.size or not np.isfinite(dmat[jn, i_out]):
-        return False
+        return True
     return abs(float(dmat[jn, i_out] - dmat[k, i_edge])) <= _SPLIT_NEAR_M
 
 
