@@ -672,6 +672,34 @@ def test_an_entry_gore_hidden_in_a_gap_closes_the_shoulder_to_it():
     np.testing.assert_allclose(out[inside], d_exit[inside], atol=0.05)
 
 
+def test_a_lane_wide_strip_before_an_entry_gore_in_a_gap_stays_with_a_fitted_taper_or_a_seen_step():
+    """soderleden-s9 with a noisier sensor (seed offset 740): the outer lane's edge line was
+    seen only as edge points before a gap of the edge, first as a marking inside it; the
+    strip beyond the outermost marking was a lane wide. A shoulder taper fitted at the
+    gore (and, the same, an entry's step seen just past the gap) closed that lane over 60 m
+    before the entry and it opened again past the gore: the ramp joined 75 m early and was
+    missed (edge 0.298 m). A strip a lane wide is a lane: it stays, however the gore is
+    known."""
+    from roadtwin.mainline.gores import ShoulderTaper
+
+    cfg = MainlineConfig()
+    grid = np.arange(0.0, 800.5, cfg.grid_step_m)
+    covered = (grid < 522.0) | (grid > 605.0)
+    d_lane = np.where(grid < 560.0, 11.0, 13.6)
+    tracks = [_track(0, grid, 0.0, 4.0), _track(1, grid, 0.0, 7.6), _track(2, grid, 600.0, 11.2)]
+    taper = ShoulderTaper(599.75, 60.0, 3.4, True, 0.02)
+    out = _bridge_edge_gaps(d_lane, covered, tracks, grid, [taper])
+    np.testing.assert_allclose(np.interp([530.0, 590.0], grid, out), [11.0, 11.0], atol=0.03)
+    seen = _bridge_edge_gaps(d_lane, covered, tracks, grid, None, None, np.array([606.0]), 60.0)
+    np.testing.assert_allclose(np.interp([530.0, 590.0], grid, seen), [11.0, 11.0], atol=0.03)
+    # a shoulder (2 m beside the line at 7.6 m) still closes to the gore
+    d_edge = np.where(grid < 560.0, 9.6, 13.6)
+    tracks = [_track(0, grid, 0.0, 7.6), _track(1, grid, 600.0, 11.2)]
+    taper = ShoulderTaper(599.75, 60.0, 2.0, True, 0.02)
+    out = _bridge_edge_gaps(d_edge, covered, tracks, grid, [taper])
+    assert float(np.interp(598.0, grid, out)) - 7.6 < 0.1
+
+
 def test_a_ramp_lines_tip_short_of_the_line_it_meets_still_places_the_gore():
     """a9-206615404-opp-s9 with a noisier sensor: the outer edge is hidden from 7861 to
     7912 m; an entry's ramp line, converging onto the outermost line (8.1 m) at 0.12 m/m,

@@ -5,6 +5,7 @@ path smoothed per segment between its gore steps, and bridged where nothing was 
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +32,7 @@ from .markings import _last_marking, _Track, typical_lane_width
 
 FloatArray = NDArray[np.float64]
 
-
+_LANE_SLACK_M = 0.4  # a strip this much narrower than a lane (metres) is still a lane
 _EXCURSION_MAX_M = 60.0  # a step outward and back within this many metres ...
 _EXCURSION_AGREE_M = 0.6  # ... to within this of the level before is another road's edge
 _SPLIT_GAP_M = 10.0  # an occlusion gap of the outer edge this long splits its fit
@@ -360,6 +361,7 @@ def _shoulder_at_gore(
     hw1: float,
     taper_length_m: float,
     tapered: NDArray[np.bool_],
+    lane_m: float = math.inf,
 ) -> bool:
     """The edge (``out``, filled in place) over the gap ``a:b`` and from a gore just
     before / after it to it, where an exit's step lies just before the gap or an entry's
@@ -375,14 +377,22 @@ def _shoulder_at_gore(
     off the truth's beside it; edge 0.162 -> 0.112 and 0.117 -> 0.057 m), unless a
     shoulder taper was fitted at it (``tapered``, one per step of ``seen``): that shapes
     it (melbourne-1019-s11+20: an entry's taper fitted over 125 m, closed over the last
-    60 m instead, 0.45 m off). Returns whether a gore was there (see
-    :func:`_bridge_edge_gaps`)."""
+    60 m instead, 0.45 m off). A strip a lane wide (``lane_m`` less ``_LANE_SLACK_M``,
+    metres) beside the outermost marking is a lane whose edge line was not seen, not a
+    shoulder: it does not close at an entry's gore (open at an exit's) (soderleden-s9 with a
+    noisier sensor, seed offset 740: the outer lane closed over 60 m before an entry and
+    opened again past it, the ramp joined 75 m early and was missed). Returns whether a
+    gore was there (see :func:`_bridge_edge_gaps`)."""
     near_start, near_end = seen.beside(grid, a, b, inside_m=_GORE_AT_GAP_M)
     inside = (seen.stations > grid[a]) & (seen.stations < grid[b - 1])
     near_start &= ~(inside & tapered)
     near_end &= ~(inside & tapered)
     exits = seen.stations[near_start & (seen.before - d_edge[b] > _GORE_LEVEL_M)]
     entries = seen.stations[near_end & (seen.after - d_edge[a - 1] > _GORE_LEVEL_M)]
+    if hw1 >= lane_m - _LANE_SLACK_M:
+        exits = exits[:0]
+    if hw0 >= lane_m - _LANE_SLACK_M:
+        entries = entries[:0]
     if not exits.size and not entries.size:
         return False
     lo = int(np.searchsorted(grid, exits[-1], side="right")) if exits.size else a
@@ -503,7 +513,7 @@ def _bridge_edge_gaps(
         ok = np.isfinite(inner)
         hw = (1 - x) * hw0 + x * hw1
         if seen is not None and _shoulder_at_gore(
-            out, d_edge, d_last, grid, a, b, seen, hw0, hw1, taper_length_m, tapered
+            out, d_edge, d_last, grid, a, b, seen, hw0, hw1, taper_length_m, tapered, lane_m
         ):
             continue
         # a lane that starts/ends inside the gap (a gore): each side keeps its own width,
@@ -522,7 +532,14 @@ def _bridge_edge_gaps(
             k = np.arange(b - a)
             hw = np.where(k < j, hw0, hw1)
             s_jump = 0.5 * (grid[i0 + j] + grid[i0 + j + 1])
-            fitted = [tp for tp in tapers or () if abs(tp.s_gore - s_jump) <= grid[1] - grid[0]]
+            # (a strip a lane wide beside the outermost marking is a lane, not a shoulder
+            # that closes at an entry's gore or opens at an exit's: see _shoulder_at_gore)
+            fitted = [
+                tp
+                for tp in tapers or ()
+                if abs(tp.s_gore - s_jump) <= grid[1] - grid[0]
+                and (hw0 if tp.entry else hw1) < lane_m - _LANE_SLACK_M
+            ]
             for tp in fitted:
                 side = k < j if tp.entry else k >= j
                 hw[side] = _fitted_from_seen(tp, grid[a:b][side], grid[i0], grid[i1], hw0, hw1)
@@ -548,7 +565,7 @@ def _bridge_edge_gaps(
                     m0 = -narrowing / 20.0 * span
                     hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
                     narrowed = True
-            if entry and not narrowed and j > 0 and hw0 < lane_m - 0.4:
+            if entry and not narrowed and j > 0 and hw0 < lane_m - _LANE_SLACK_M:
                 hw[:j] = _closing_at_gore(grid[a : a + j], hw0, grid, i0, s_jump, taper_length_m)
             i_a, i_b = i1 + 5, i1 + 25
             n_after = b - a - (j + 1)
