@@ -914,7 +914,9 @@ def test_the_edge_follows_the_outermost_line_into_a_gap_at_the_runs_end(at_end):
     run's last 117 m while a lane opens at the edge over the last 80 m, its new outer line
     seen moving out by 3.6 m. The edge keeps the 3.2 m shoulder it had beside that line
     (it was carried straight on, 3.5 m inside the new line). Mirrored: a gap at the run's
-    start. A line that does not move leaves the fitted edge as it was."""
+    start. Beside a line that does not move the shoulder is held too: after a lane dropped
+    by a taper just before the gap the fit carried the taper's slope on and closed a 2.9 m
+    shoulder to nothing (krems-46762523-s1 with a noisier sensor, edge 0.156 -> 0.042 m)."""
     grid = np.arange(0.0, 500.5, MainlineConfig().grid_step_m)
     x = grid if at_end else grid[::-1]
     line = 5.4 + 3.6 * _smoothstep(x, 420.0, 80.0)
@@ -925,4 +927,6 @@ def test_the_edge_follows_the_outermost_line_into_a_gap_at_the_runs_end(at_end):
     out = _bridge_edge_gaps(d_edge, covered, tracks, grid)
     np.testing.assert_allclose(out, line + 3.2, atol=1e-9)
     still = [tracks[0], _track(1, grid, 0.0, 5.4)]
-    np.testing.assert_array_equal(_bridge_edge_gaps(d_edge, covered, still, grid), d_edge)
+    sloping = np.where(covered, 8.6, 8.6 - 0.03 * np.abs(x - 383.0))  # the taper's slope on
+    out = _bridge_edge_gaps(sloping, covered, still, grid)
+    np.testing.assert_allclose(out, 8.6, atol=1e-9)

@@ -584,8 +584,8 @@ def _bridge_edge_gaps(
     return out
 
 
-_OPEN_GAP_MOVE_M = 1.0  # the outermost line moves this much across a gap at the run's end
-_OPEN_GAP_JUMP_M = 1.5  # ... with no jump larger than this (a gore) on the way
+_OPEN_GAP_JUMP_M = 1.5  # the outermost line followed into a gap at the run's end as far as
+# it goes on without a jump larger than this (a gore)
 
 
 def _follow_line_to_run_end(
@@ -593,11 +593,14 @@ def _follow_line_to_run_end(
 ) -> None:
     """Across a gap of the outer edge that reaches the run's start or end (grid indices
     ``a`` to ``b``), the edge keeps the shoulder width it had where last seen beside the
-    outermost marking (``d_last``), as far as that marking goes on without a jump, when the
-    marking moves by ``_OPEN_GAP_MOVE_M`` or more: a lane opening at the edge over the last
-    80 m (oakland-28393854-lane1-s21 with a noisier sensor, the edge unseen over the run's
-    last 117 m) left the edge carried straight on at its old level, 3.5 m inside the new
-    lane's line. ``out`` (metres, on the grid) is changed in place; ``d_edge`` is the
+    outermost marking (``d_last``), as far as that marking goes on without a jump
+    (``_OPEN_GAP_JUMP_M``), and is held beyond. Nothing is seen there but the lines: a lane
+    opening at the edge over the last 80 m (oakland-28393854-lane1-s21 with a noisier
+    sensor, the edge unseen over the run's last 117 m) left the edge carried straight on
+    at its old level, 3.5 m inside the new lane's line; after a lane dropped by a taper
+    just before the gap (krems-46762523-s1 with a noisier sensor, the edge unseen over the
+    run's last 125 m) the fit carried the taper's slope on and closed the 2.9 m shoulder
+    to nothing. ``out`` (metres, on the grid) is changed in place; ``d_edge`` is the
     fitted edge."""
     seen = a - 1 if b >= d_edge.size else b
     if not 0 <= seen < d_edge.size or not np.isfinite(d_last[seen]):
@@ -607,7 +610,7 @@ def _follow_line_to_run_end(
     prev = np.concatenate([[d_last[seen]], line[:-1]])
     bad = ~np.isfinite(line) | (np.abs(line - prev) > _OPEN_GAP_JUMP_M)
     n = int(np.argmax(bad)) if np.any(bad) else line.size
-    if n == 0 or float(np.max(np.abs(line[:n] - d_last[seen]))) < _OPEN_GAP_MOVE_M:
+    if n == 0:
         return
     width = float(d_edge[seen] - d_last[seen])
     out[order[:n]] = line[:n] + width
