@@ -299,14 +299,6 @@ def _lane_border_points(road: Road, s: float, lane_id: int) -> np.ndarray:
 # ---------------------------------------------------------------------------
 
 
-def _sections_with_ends(road: Road) -> list[tuple[LaneSection, float]]:
-    """Each lane section of ``road`` with the station (metres) where it ends: the next
-    section's start, the road's length for the last."""
-    secs = road.lane_sections
-    ends = [sc.s0 for sc in secs[1:]] + [road.length]
-    return list(zip(secs, ends, strict=False))
-
-
 class _Checker:
     def __init__(self, network: RoadNetwork, config: CheckConfig) -> None:
         self.net = network
@@ -428,7 +420,7 @@ class _Checker:
     def widths(self, road: Road) -> None:
         cfg = self.cfg
         secs = road.lane_sections
-        for sec, s_end in _sections_with_ends(road):
+        for sec, s_end in road.sections_with_ends():
             span = max(s_end - sec.s0, 0.0)
             n = max(2, math.ceil(span / cfg.width_sample_step_m) + 1)
             ds = np.linspace(0.0, span, n)
@@ -448,8 +440,8 @@ class _Checker:
                     )
                 w = lane.width.value(ds)
                 self._zero_width_links(road, sec, lane, w, ds)
-                widest = int(np.argmax(w))
-                if lane.type == "driving" and w[widest] > cfg.wide_lane_m:
+                widest = int(np.argmax(w)) if lane.type == "driving" else -1
+                if widest >= 0 and w[widest] > cfg.wide_lane_m:
                     self.add(
                         "warning",
                         "lane_wide",
@@ -539,7 +531,7 @@ class _Checker:
         section where a lane offset or width record begins (one finding per station, the
         largest jump)."""
         offsets = np.array([p.s0 for p in road.lane_offset.pieces[1:]], dtype=float)
-        for sec, s_end in _sections_with_ends(road):
+        for sec, s_end in road.sections_with_ends():
             lanes = (*sec.left, *sec.right)
             widths = [sec.s0 + np.array([p.s0 for p in ln.width.pieces[1:]]) for ln in lanes]
             at = np.unique(np.concatenate([offsets, *widths]))
@@ -569,7 +561,7 @@ class _Checker:
         inside a lane section (sampled every half metre; one finding per lane and section,
         the narrowest station)."""
         cfg = self.cfg
-        for sec, s_end in _sections_with_ends(road):
+        for sec, s_end in road.sections_with_ends():
             ds = np.arange(0.0, s_end - sec.s0, 0.5)
             if ds.size < 3:
                 continue

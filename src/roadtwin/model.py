@@ -582,6 +582,12 @@ class Road:
     def _section_s0(self) -> FloatArray:
         return np.array([ls.s0 for ls in self.lane_sections], dtype=float)
 
+    def sections_with_ends(self) -> list[tuple[LaneSection, float]]:
+        """Each lane section with the station (metres) where it ends: the next section's
+        start, the road's length for the last."""
+        ends = [sec.s0 for sec in self.lane_sections[1:]] + [self.length]
+        return list(zip(self.lane_sections, ends, strict=True))
+
     def section_index(self, s: ArrayLike) -> NDArray[np.int64]:
         """Index of the lane section containing each station."""
         idx = np.searchsorted(self._section_s0, np.asarray(s, dtype=float), side="right") - 1

@@ -5,7 +5,6 @@ path smoothed per segment between its gore steps, and bridged where nothing was 
 from __future__ import annotations
 
 import itertools
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -349,6 +348,12 @@ class _SeenSteps:
         return near_start, near_end
 
 
+def _lane_wide(width_m: float, lane_m: float) -> bool:
+    """Whether a strip ``width_m`` wide beyond the outermost marking is a lane (``lane_m``
+    wide less ``_LANE_SLACK_M``, metres) whose edge line was not seen, not a shoulder."""
+    return width_m >= lane_m - _LANE_SLACK_M
+
+
 def _shoulder_at_gore(
     out: FloatArray,
     d_edge: FloatArray,
@@ -361,7 +366,7 @@ def _shoulder_at_gore(
     hw1: float,
     taper_length_m: float,
     tapered: NDArray[np.bool_],
-    lane_m: float = math.inf,
+    lane_m: float,
 ) -> bool:
     """The edge (``out``, filled in place) over the gap ``a:b`` and from a gore just
     before / after it to it, where an exit's step lies just before the gap or an entry's
@@ -377,9 +382,9 @@ def _shoulder_at_gore(
     off the truth's beside it; edge 0.162 -> 0.112 and 0.117 -> 0.057 m), unless a
     shoulder taper was fitted at it (``tapered``, one per step of ``seen``): that shapes
     it (melbourne-1019-s11+20: an entry's taper fitted over 125 m, closed over the last
-    60 m instead, 0.45 m off). A strip a lane wide (``lane_m`` less ``_LANE_SLACK_M``,
-    metres) beside the outermost marking is a lane whose edge line was not seen, not a
-    shoulder: it does not close at an entry's gore (open at an exit's) (soderleden-s9 with a
+    60 m instead, 0.45 m off). A strip a lane wide beside the outermost marking
+    (:func:`_lane_wide`, ``lane_m`` metres the run's lane width) is no shoulder: it does
+    not close at an entry's gore (open at an exit's) (soderleden-s9 with a
     noisier sensor, seed offset 740: the outer lane closed over 60 m before an entry and
     opened again past it, the ramp joined 75 m early and was missed). Returns whether a
     gore was there (see :func:`_bridge_edge_gaps`)."""
@@ -389,9 +394,9 @@ def _shoulder_at_gore(
     near_end &= ~(inside & tapered)
     exits = seen.stations[near_start & (seen.before - d_edge[b] > _GORE_LEVEL_M)]
     entries = seen.stations[near_end & (seen.after - d_edge[a - 1] > _GORE_LEVEL_M)]
-    if hw1 >= lane_m - _LANE_SLACK_M:
+    if _lane_wide(hw1, lane_m):
         exits = exits[:0]
-    if hw0 >= lane_m - _LANE_SLACK_M:
+    if _lane_wide(hw0, lane_m):
         entries = entries[:0]
     if not exits.size and not entries.size:
         return False
@@ -532,13 +537,13 @@ def _bridge_edge_gaps(
             k = np.arange(b - a)
             hw = np.where(k < j, hw0, hw1)
             s_jump = 0.5 * (grid[i0 + j] + grid[i0 + j + 1])
-            # (a strip a lane wide beside the outermost marking is a lane, not a shoulder
-            # that closes at an entry's gore or opens at an exit's: see _shoulder_at_gore)
+            # (a lane-wide strip is no shoulder closing at an entry's gore or opening at
+            # an exit's: see _shoulder_at_gore)
             fitted = [
                 tp
                 for tp in tapers or ()
                 if abs(tp.s_gore - s_jump) <= grid[1] - grid[0]
-                and (hw0 if tp.entry else hw1) < lane_m - _LANE_SLACK_M
+                and not _lane_wide(hw0 if tp.entry else hw1, lane_m)
             ]
             for tp in fitted:
                 side = k < j if tp.entry else k >= j
@@ -565,7 +570,7 @@ def _bridge_edge_gaps(
                     m0 = -narrowing / 20.0 * span
                     hw[before] = np.maximum(_hermite01(x, hw0, m0), 0.0)
                     narrowed = True
-            if entry and not narrowed and j > 0 and hw0 < lane_m - _LANE_SLACK_M:
+            if entry and not narrowed and j > 0 and not _lane_wide(hw0, lane_m):
                 hw[:j] = _closing_at_gore(grid[a : a + j], hw0, grid, i0, s_jump, taper_length_m)
             i_a, i_b = i1 + 5, i1 + 25
             n_after = b - a - (j + 1)

@@ -251,10 +251,11 @@ def _neighbour_moves(
     lanes over 60 m while the broken line beginning where it was ran on straight
     (melbourne-18-s11 with a noisier sensor, seed offset 560): modelled as the straight
     line tapering away from the moving one, it crossed the lane inside it, 3.7 m to 0
-    and back within 10 m, and esmini's car on that lane jumped 1.6 m and stuck."""
+    and back within 10 m, and esmini's car on that lane jumped 1.6 m and stuck. Not where
+    ``jn`` was seen away from the line's start ``_SPLIT_BACK_M`` before it (from its end
+    after it): the two were not one line before a split."""
     step = float(grid[1] - grid[0]) if grid.size > 1 else 1.0
     n = max(int(_MOVER_WINDOW_M / step), 2)
-    n_split = max(int(_SPLIT_BACK_M / step), 1)
     if end == "start":
         window = slice(i_edge, i_edge + n)
     else:
@@ -272,6 +273,7 @@ def _neighbour_moves(
     # at an inner entry, melbourne-408-opp-s4 at seed offset 260) is no split. Where the
     # neighbour was not seen there (both first seen mid-fan where lanes are added at the
     # edge, melbourne-18-s11 at seed offset 200) nothing says otherwise
+    n_split = max(int(_SPLIT_BACK_M / step), 1)
     i_out = i_edge - n_split if end == "start" else i_edge + n_split
     if not 0 <= i_out < grid.size or not np.isfinite(dmat[jn, i_out]):
         return True
