@@ -47,6 +47,7 @@ from ._common import (
 )
 from .edge_levels import EdgeSteps, edge_level_path, edge_steps
 from .lanes import fit_lanes
+from .median_gaps import edge_along_shoulder_line
 from .median_moves import (
     edge_moves,
     moves_beside_steps,
@@ -658,6 +659,7 @@ def fit_median_edge(
     step = cfg.grid_step_m
     frame = traj
     side, has_steps = 1.0, False
+    filled = np.zeros((0, 2))  # stretches filled along the inner shoulder's line
     for it in range(3):
         s_all, t_all = frame.project(ref_pts)
         inside = (s_all >= -5.0) & (s_all <= frame.length + 5.0)
@@ -717,6 +719,19 @@ def fit_median_edge(
                 steps = _smoothest_steps(frame, s[near], t[near], side, steps, cfg)
             shift = steps.from_base(lo, hi)
             s, t = s[near], t[near] - side * shift.at(s[near])
+        # where the edge is unseen the inner shoulder's line, followed through, says
+        # where it went (a taper the smooth bridge would begin too early); in a frame
+        # that follows the edge (the trajectory's moves with the car's lane changes),
+        # and in the last pass where the one before found it
+        lines = _in_frame(frame, lane_pts, side) if it > 0 else None
+        if lines is not None and (it == 1 or filled.size):
+            s_add, u_add, filled = edge_along_shoulder_line(
+                centres, level_road, *lines, again=filled if it > 1 else None
+            )
+            if s_add.size:
+                if has_steps:
+                    u_add = u_add - shift.at(s_add)
+                s, t = np.r_[s, s_add], np.r_[t, side * u_add]
         if it > 0:
             # the frame is the previous fit (on the base level): t is each point's residual
             # from it; a second line of points beyond the edge (the other carriageway's,
