@@ -13,7 +13,10 @@ end to the other through the stretch, says where the edge went in between
 (:func:`edge_along_shoulder_line`). The edge points it adds are points like the others to
 the fit; nothing is added where the line is not followed through, where its distance from
 the edge differs at the two ends (a lane begins or ends between them), or where it goes
-where the bridge would (an occlusion of a straight edge).
+where the bridge would (an occlusion of a straight edge). The fit asks in its second
+pass, whose frame follows the edge (the trajectory's first moves with the car's lane
+changes, which a straight bridge does not), and in its third over the stretches the
+second filled (in a frame that follows the line already, it leaves the bridge no more).
 
 Stations ``s`` are metres along the fitting frame; offsets ``u`` metres towards the
 median (the edge's side), in the same frame.

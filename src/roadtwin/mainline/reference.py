@@ -653,7 +653,10 @@ def fit_median_edge(
     beyond the gore (:func:`median_excursions`), the ramp's points are left out.
     ``outer_pts`` (the other edge's points) tell a step hidden in an occlusion gap from
     the car's own lane change there, and ``lane_pts`` (the lane samples) where in the gap
-    the edge's own line leaves for a ramp (:func:`~.edge_levels.edge_steps`).
+    the edge's own line leaves for a ramp (:func:`~.edge_levels.edge_steps`), and where
+    the edge went across a stretch it is unseen: along the inner shoulder's line, where
+    that line is followed through the stretch and keeps its distance from the edge
+    (:func:`~.median_gaps.edge_along_shoulder_line`).
     """
     cfg = config or MainlineConfig()
     step = cfg.grid_step_m
