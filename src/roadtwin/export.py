@@ -59,7 +59,7 @@ def _role(road: Road) -> str:
 
 def _section_stations(road: Road, k: int, step_m: float) -> NDArray[np.float64]:
     sec = road.lane_sections[k]
-    end = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+    end = road.section_end(k)
     n = max(2, math.ceil((end - sec.s0) / step_m) + 1)
     s = np.linspace(sec.s0, end, n)
     # stay inside this section at its end (the next section starts there)

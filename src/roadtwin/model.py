@@ -588,6 +588,11 @@ class Road:
         ends = [sec.s0 for sec in self.lane_sections[1:]] + [self.length]
         return list(zip(self.lane_sections, ends, strict=True))
 
+    def section_end(self, k: int) -> float:
+        """Station (metres) where lane section ``k`` ends: the next section's start, the
+        road's length for the last."""
+        return self.lane_sections[k + 1].s0 if k + 1 < len(self.lane_sections) else self.length
+
     def section_index(self, s: ArrayLike) -> NDArray[np.int64]:
         """Index of the lane section containing each station."""
         idx = np.searchsorted(self._section_s0, np.asarray(s, dtype=float), side="right") - 1

@@ -662,9 +662,7 @@ def _width_at(road: Road, section: int, lane_id: int, at_end: bool) -> float | N
     lane = next((ln for ln in (*sec.left, *sec.right) if ln.id == lane_id), None)
     if lane is None:
         return None
-    hi = (
-        road.lane_sections[section + 1].s0 if section + 1 < len(road.lane_sections) else road.length
-    )
+    hi = road.section_end(section)
     return float(lane.width.value(np.array([hi - sec.s0 if at_end else 0.0]))[0])
 
 

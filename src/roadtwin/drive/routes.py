@@ -116,7 +116,7 @@ def _forward(lane_id: int, side: str) -> bool:
 
 def _section_range(road: Road, k: int) -> tuple[float, float]:
     s0 = road.lane_sections[k].s0
-    s1 = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+    s1 = road.section_end(k)
     return s0, s1
 
 

@@ -90,7 +90,7 @@ def compare_mainline_road(
     out["lane_boundary"] = np.concatenate(errs) if errs else np.zeros(0)
     mids = []
     for k, sec in enumerate(truth.lane_sections):
-        hi = truth.lane_sections[k + 1].s0 if k + 1 < len(truth.lane_sections) else truth.length
+        hi = truth.section_end(k)
         if hi - sec.s0 > 20.0 and s_lo <= 0.5 * (sec.s0 + hi) <= s_hi:
             mids.append(0.5 * (sec.s0 + hi))
     if mids:

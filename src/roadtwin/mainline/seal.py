@@ -316,7 +316,7 @@ def nonnegative_widths(road: Road) -> Road:
     check``: no negative lane width anywhere)."""
     sections: list[LaneSection] = []
     for k, sec in enumerate(road.lane_sections):
-        end = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+        end = road.section_end(k)
         length = end - sec.s0
         sections.append(
             replace(

@@ -302,7 +302,7 @@ def through_lane_counts(truth: RouteTruth) -> list[tuple[float, int]]:
     road = truth.mainline
     out: list[tuple[float, int]] = []
     for k, sec in enumerate(road.lane_sections):
-        s1 = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+        s1 = road.section_end(k)
         mid = 0.5 * (sec.s0 + s1) - sec.s0
         n = sum(
             1

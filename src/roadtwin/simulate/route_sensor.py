@@ -392,7 +392,7 @@ def painted_points(
     painted_m = worn_m = 0.0
     for road, is_main in _truth_roads(truth):
         for k, sec in enumerate(road.lane_sections):
-            s1 = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+            s1 = road.section_end(k)
             aux = _aux_borders(truth, road, k)
             borders = [(0, sec.center.road_marks)]
             borders += [(ln.id, ln.road_marks) for ln in (sec.right or sec.left)]
@@ -447,7 +447,7 @@ def opposite_painted_points(
         if road.junction != "-1":
             continue
         for k, sec in enumerate(road.lane_sections):
-            s1 = road.lane_sections[k + 1].s0 if k + 1 < len(road.lane_sections) else road.length
+            s1 = road.section_end(k)
             for sign, lanes in ((-1, sec.right), (1, sec.left)):
                 if not any(ln.type in TRAFFIC_LANE_TYPES for ln in lanes):
                     continue
