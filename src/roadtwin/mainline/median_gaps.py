@@ -64,7 +64,8 @@ FOLLOW_SLOPE_MAX = 0.15
 FOLLOW_MISS_M = 24.0
 """... and not unseen over more than this (metres; longer than a dash period's gap)."""
 ARRIVE_M = 0.3
-"""The line followed must end this close (metres) to its level beyond the stretch."""
+"""The line followed on beyond the stretch must lie this close (metres) to the distance
+from the edge it has there (the median over its bins there)."""
 MIN_MOVE_M = 0.5
 """A line whose course (its level per bin) takes the edge less than this far (metres)
 from the straight bridge between the stretch's ends leaves the edge to the fit: an
@@ -131,11 +132,22 @@ def edge_along_shoulder_line(
         gap_hi = _shoulder_width(s_sorted, u_sorted, hi, hi + END_WINDOW_M, edge)
         if gap_lo is None or gap_hi is None or abs(gap_lo - gap_hi) > KEEPS_DISTANCE_M:
             continue
-        line_lo, line_hi = edge_lo - gap_lo, edge_hi - gap_hi
-        followed = _follow(s_sorted, u_sorted, lo, hi, line_lo, step)
-        if followed is None or abs(followed[2] - line_hi) > ARRIVE_M:
+        line_lo = edge_lo - gap_lo
+        # followed on into the window beyond the stretch, where the edge is seen again:
+        # there it must keep the distance it has there (a taper may end past the gap)
+        followed = _follow(s_sorted, u_sorted, lo, hi + END_WINDOW_M, line_lo, step)
+        if followed is None:
             continue
-        s_on, u_on, s_bin, u_bin = followed[0], followed[1], followed[3], followed[4]
+        s_taken, u_taken, s_bin, u_bin = followed
+        beyond = s_bin > hi
+        if np.count_nonzero(beyond) < END_BINS:
+            continue
+        width_beyond = np.interp(s_bin[beyond], *edge) - u_bin[beyond]
+        if abs(float(np.median(width_beyond)) - gap_hi) > ARRIVE_M:
+            continue
+        on = s_taken <= hi
+        s_on, u_on = s_taken[on], u_taken[on]
+        s_bin, u_bin = s_bin[~beyond], u_bin[~beyond]
 
         def width(at: FloatArray, lo=lo, hi=hi, a=gap_lo, b=gap_hi) -> FloatArray:
             return a + (b - a) * (at - lo) / (hi - lo)
@@ -185,10 +197,9 @@ def _follow(
     hi: float,
     start: float,
     step: float,
-) -> tuple[FloatArray, FloatArray, float, FloatArray, FloatArray] | None:
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None:
     """The line at level ``start`` at station ``lo`` followed through ``[lo, hi]`` bin by
-    bin (``step`` metres): the
-    stations and offsets of the lane samples taken, the line's level at ``hi``, and the
+    bin (``step`` metres): the stations and offsets of the lane samples taken, and the
     bin centres where it was seen with its level (the samples' median) there; None where
     it is lost (unseen over more than ``FOLLOW_MISS_M``)."""
     i, j = np.searchsorted(s_sorted, [lo, hi])
@@ -217,8 +228,7 @@ def _follow(
         slope = _recent_slope(s_bin, u_bin)
     if hi - s_bin[-1] > FOLLOW_MISS_M:
         return None
-    end = u_bin[-1] + slope * (hi - s_bin[-1])
-    return s[take], u[take], end, np.asarray(s_bin[1:]), np.asarray(u_bin[1:])
+    return s[take], u[take], np.asarray(s_bin[1:]), np.asarray(u_bin[1:])
 
 
 SLOPE_BINS = 5
