@@ -38,11 +38,11 @@ def _samples(rng: np.random.Generator, x: np.ndarray, y: np.ndarray, sd: float) 
     return np.column_stack([x, y + rng.normal(0.0, sd, x.size)])
 
 
-def _scene(*, shoulder_line_seen: bool = True):
-    """Edge points (unseen in ``UNSEEN``), lane samples and a straight trajectory along x."""
+def _scene(*, shoulder_line_seen: bool = True, unseen: tuple[float, float] = UNSEEN):
+    """Edge points (unseen in ``unseen``), lane samples and a straight trajectory along x."""
     rng = np.random.default_rng(RNG_SEED)
     x = np.arange(0.0, 700.0, 0.2)
-    seen = (x < UNSEEN[0]) | (x > UNSEEN[1])
+    seen = (x < unseen[0]) | (x > unseen[1])
     edge_pts = _samples(rng, x[seen], _edge(x[seen]), 0.05)
     xl = np.arange(0.0, 700.0, 0.5)
     lines = [
@@ -63,9 +63,11 @@ def _reference_offset(xy: np.ndarray, x: np.ndarray) -> np.ndarray:
     return np.interp(x, xy[order, 0], xy[order, 1])
 
 
-def test_the_reference_line_follows_the_taper_the_shoulder_line_takes():
-    edge_pts, lane_pts, traj = _scene()
-    x = np.arange(*UNSEEN, 1.0)
+# the edge seen again after the taper, or 7 m before its end (town06-auto-lane2-s22+800)
+@pytest.mark.parametrize("unseen", [UNSEEN, (310.0, 355.0)])
+def test_the_reference_line_follows_the_taper_the_shoulder_line_takes(unseen):
+    edge_pts, lane_pts, traj = _scene(unseen=unseen)
+    x = np.arange(*unseen, 1.0)
     with_line = fit_median_edge(edge_pts, traj, config=MainlineConfig(), lane_pts=lane_pts)
     bridged = fit_median_edge(edge_pts, traj, config=MainlineConfig())
     err_line = _reference_offset(with_line.xy, x) - _edge(x)
