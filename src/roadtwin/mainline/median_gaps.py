@@ -110,6 +110,7 @@ def edge_along_shoulder_line(
     seen = np.isfinite(level)
     order = np.argsort(s_lane, kind="stable")
     s_sorted, u_sorted = s_lane[order], u_lane[order]
+    edge = (centres[seen], level[seen])
     out_s: list[FloatArray] = []
     out_u: list[FloatArray] = []
     spans: list[tuple[float, float]] = []
@@ -127,7 +128,6 @@ def edge_along_shoulder_line(
             continue
         edge_lo = float(np.mean(level[a - END_BINS : a]))
         edge_hi = float(np.mean(level[b : b + END_BINS]))
-        edge = (centres[seen], level[seen])
         gap_lo = _shoulder_width(s_sorted, u_sorted, lo - END_WINDOW_M, lo, edge)
         gap_hi = _shoulder_width(s_sorted, u_sorted, hi, hi + END_WINDOW_M, edge)
         if gap_lo is None or gap_hi is None or abs(gap_lo - gap_hi) > KEEPS_DISTANCE_M:
