@@ -49,7 +49,7 @@ SHOULDER_MAX_M = 2.0
 LINE_MIN_SAMPLES = 5
 """Lane samples the line needs in an end window."""
 LINE_SAME_M = 0.3
-"""Lane samples this close (metres) to the line's level are the line's."""
+"""Lane samples whose distances from the edge lie this close (metres) are one line's."""
 KEEPS_DISTANCE_M = 0.3
 """The line's distance from the edge at the two ends of the stretch differs by at most
 this (metres): it runs beside the edge through the stretch."""
