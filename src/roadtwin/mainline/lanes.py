@@ -71,6 +71,95 @@ def _edge_bound(d_edge: FloatArray, covered: NDArray[np.bool_]) -> FloatArray:
     return bound
 
 
+_BEYOND_BIN_M = 10.0  # lane samples beyond the bound in a gap, binned this long (metres) ...
+_BEYOND_MAX_M = 5.0  # ... up to this far beyond it (metres) ...
+_BEYOND_STEP_M = 0.5  # ... one line where neighbouring bins' levels differ by at most this ...
+_BEYOND_MIN_M = 50.0  # ... over at least this long (metres) ...
+_BEYOND_SLOPE = 0.02  # ... running parallel (m/m from its first bins to its last) ...
+_BEYOND_LANE_M = (2.5, 4.5)  # ... a lane width out from a line inside it ...
+_BEYOND_INSIDE_SHARE = 0.5  # ... seen in this share of its bins
+
+
+def _with_lane_lines_beyond(
+    bound: FloatArray,
+    covered: NDArray[np.bool_],
+    grid: FloatArray,
+    s_lane: FloatArray,
+    d_lane: FloatArray,
+) -> FloatArray:
+    """``bound`` (:func:`_edge_bound`, metres on ``grid``) raised over an occlusion gap of
+    the outer edge to a lane line seen beyond it there: lane samples 0.3-5 m beyond the
+    bound that run as one line parallel to the road over 50 m or more, a lane width out
+    from a line inside the bound. An auxiliary lane opened by a long taper while the edge
+    beyond it was unseen (a9-10959882-opp-s7 with a noisier sensor, seed offset 800: its
+    outer line seen over 95 m 11.1-11.9 m out, the bound held at 10.9 m, the line cut and
+    the lane typed a shoulder); a ramp's line leaves the road, it does not run along it.
+    Stations and offsets ``d`` (towards the carriageway) in metres."""
+    out = bound.copy()
+    for a, b in true_runs(~covered):
+        lo, hi = float(grid[a]), float(grid[b - 1])
+        if hi - lo < _BEYOND_MIN_M:
+            continue
+        at = (s_lane >= lo) & (s_lane <= hi)
+        s_in, d_in = s_lane[at], d_lane[at]
+        over = d_in - np.interp(s_in, grid, bound)
+        beyond = (over > 0.3) & (over < _BEYOND_MAX_M)
+        if np.count_nonzero(beyond) < 10:
+            continue
+        edges = np.arange(lo, hi + _BEYOND_BIN_M, _BEYOND_BIN_M)
+        k = np.clip(np.searchsorted(edges, s_in[beyond], side="right") - 1, 0, edges.size - 2)
+        n = np.bincount(k, minlength=edges.size - 1)
+        level = np.full(edges.size - 1, np.nan)
+        for j in np.flatnonzero(n >= 2):
+            level[j] = float(np.median(d_in[beyond][k == j]))
+        line = _longest_line(level)
+        if line is None:
+            continue
+        i, j = line
+        centres = 0.5 * (edges[:-1] + edges[1:])
+        seen = np.flatnonzero(np.isfinite(level[i:j])) + i
+        span = float(centres[seen[-1]] - centres[seen[0]])
+        if span < _BEYOND_MIN_M:
+            continue
+        if abs(float(level[seen[-1]] - level[seen[0]])) > _BEYOND_SLOPE * span:
+            continue
+        # a line a lane width inside it, seen beside it
+        inside = 0
+        for m in seen:
+            sel = (s_in >= edges[m]) & (s_in < edges[m + 1])
+            w = level[m] - d_in[sel]
+            inside += bool(np.any((w >= _BEYOND_LANE_M[0]) & (w <= _BEYOND_LANE_M[1])))
+        if inside < _BEYOND_INSIDE_SHARE * seen.size:
+            continue
+        g = (grid >= lo) & (grid <= hi)
+        out[g] = np.maximum(out[g], np.interp(grid[g], centres[seen], level[seen]))
+    return out
+
+
+def _longest_line(level: FloatArray) -> tuple[int, int] | None:
+    """Index range ``[i, j)`` of the longest run of bins whose seen levels (NaN: unseen,
+    at most two in a row) step by at most ``_BEYOND_STEP_M`` from one to the next."""
+    best: tuple[int, int] | None = None
+    start, last, miss = -1, -1, 0
+    for m, v in enumerate(level.tolist()):
+        if not np.isfinite(v):
+            miss += 1
+            if start >= 0 and miss > 2:
+                if best is None or last + 1 - start > best[1] - best[0]:
+                    best = (start, last + 1)
+                start = -1
+            continue
+        if start >= 0 and abs(v - level[last]) <= _BEYOND_STEP_M:
+            last, miss = m, 0
+            continue
+        if start >= 0 and (best is None or last + 1 - start > best[1] - best[0]):
+            best = (start, last + 1)
+        start, last, miss = m, m, 0
+    if start >= 0 and (best is None or last + 1 - start > best[1] - best[0]):
+        best = (start, last + 1)
+    return best
+
+
 def fit_lanes(
     s_lane: FloatArray,
     d_lane: FloatArray,
@@ -127,7 +216,8 @@ def fit_lanes(
     keep = (s_lane >= 0) & (s_lane <= length)
     keep &= d_lane > np.interp(s_lane, grid, d_median) - 0.5
     if np.all(np.isfinite(d_edge)):
-        keep &= d_lane < np.interp(s_lane, grid, _edge_bound(d_edge, covered)) + 0.3
+        bound = _with_lane_lines_beyond(_edge_bound(d_edge, covered), covered, grid, s_lane, d_lane)
+        keep &= d_lane < np.interp(s_lane, grid, bound) + 0.3
     s_l, d_l = s_lane[keep], d_lane[keep]
     # on a segment between median-side gores the median edge lies below the reference
     # line, and so do its lanes' markings (Town06's inner shoulder line, 2.4 m below: never
