@@ -585,8 +585,7 @@ class Road:
     def sections_with_ends(self) -> list[tuple[LaneSection, float]]:
         """Each lane section with the station (metres) where it ends: the next section's
         start, the road's length for the last."""
-        ends = [sec.s0 for sec in self.lane_sections[1:]] + [self.length]
-        return list(zip(self.lane_sections, ends, strict=True))
+        return [(sec, self.section_end(k)) for k, sec in enumerate(self.lane_sections)]
 
     def section_end(self, k: int) -> float:
         """Station (metres) where lane section ``k`` ends: the next section's start, the

@@ -107,11 +107,12 @@ def _with_lane_lines_beyond(
         if np.count_nonzero(beyond) < 10:
             continue
         edges = np.arange(lo, hi + _BEYOND_BIN_M, _BEYOND_BIN_M)
+        d_beyond = d_in[beyond]
         k = np.clip(np.searchsorted(edges, s_in[beyond], side="right") - 1, 0, edges.size - 2)
         n = np.bincount(k, minlength=edges.size - 1)
         level = np.full(edges.size - 1, np.nan)
         for j in np.flatnonzero(n >= 2):
-            level[j] = float(np.median(d_in[beyond][k == j]))
+            level[j] = float(np.median(d_beyond[k == j]))
         line = _longest_line(level)
         if line is None:
             continue
@@ -124,12 +125,11 @@ def _with_lane_lines_beyond(
         if abs(float(level[seen[-1]] - level[seen[0]])) > _BEYOND_SLOPE * span:
             continue
         # a line a lane width inside it, seen beside it
-        inside = 0
-        for m in seen:
-            sel = (s_in >= edges[m]) & (s_in < edges[m + 1])
-            w = level[m] - d_in[sel]
-            inside += bool(np.any((w >= _BEYOND_LANE_M[0]) & (w <= _BEYOND_LANE_M[1])))
-        if inside < _BEYOND_INSIDE_SHARE * seen.size:
+        k_all = np.searchsorted(edges, s_in, side="right") - 1
+        in_seen = np.isin(k_all, seen)
+        w = level[k_all[in_seen]] - d_in[in_seen]
+        lane_wide = (w >= _BEYOND_LANE_M[0]) & (w <= _BEYOND_LANE_M[1])
+        if np.unique(k_all[in_seen][lane_wide]).size < _BEYOND_INSIDE_SHARE * seen.size:
             continue
         g = (grid >= lo) & (grid <= hi)
         out[g] = np.maximum(out[g], np.interp(grid[g], centres[seen], level[seen]))

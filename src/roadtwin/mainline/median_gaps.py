@@ -149,21 +149,26 @@ def edge_along_shoulder_line(
         on = s_taken <= hi
         s_on, u_on = s_taken[on], u_taken[on]
         s_bin, u_bin = s_bin[~beyond], u_bin[~beyond]
-
-        def width(at: FloatArray, lo=lo, hi=hi, a=gap_lo, b=gap_hi) -> FloatArray:
-            return a + (b - a) * (at - lo) / (hi - lo)
-
-        bridge = edge_lo + (edge_hi - edge_lo) * (s_bin - lo) / (hi - lo)
         if s_bin.size == 0:
             continue
-        if again is None and float(np.max(np.abs(u_bin + width(s_bin) - bridge))) < MIN_MOVE_M:
-            continue
+        # the line's distance from the edge, and the straight bridge, linear in station
+        if again is None:
+            course = u_bin + _linear(s_bin, lo, hi, gap_lo, gap_hi)
+            bridge = _linear(s_bin, lo, hi, edge_lo, edge_hi)
+            if float(np.max(np.abs(course - bridge))) < MIN_MOVE_M:
+                continue
         out_s.append(s_on)
-        out_u.append(u_on + width(s_on))
+        out_u.append(u_on + _linear(s_on, lo, hi, gap_lo, gap_hi))
         spans.append((lo, hi))
     if not out_s:
         return empty
     return np.concatenate(out_s), np.concatenate(out_u), np.asarray(spans, dtype=float)
+
+
+def _linear(s: FloatArray, lo: float, hi: float, at_lo: float, at_hi: float) -> FloatArray:
+    """The value linear in station ``s`` (metres) from ``at_lo`` at ``lo`` to ``at_hi`` at
+    ``hi``."""
+    return at_lo + (at_hi - at_lo) * (s - lo) / (hi - lo)
 
 
 def _shoulder_width(
