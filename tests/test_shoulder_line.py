@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from roadtwin.mainline.markings import _Track
-from roadtwin.mainline.shoulder_line import continue_shoulder_line
+from roadtwin.mainline.shoulder_line import continue_median_shoulder_line, continue_shoulder_line
 
 GRID = np.arange(0.0, 1001.0, 1.0)
 
@@ -101,3 +101,48 @@ def test_a_lane_line_where_the_road_widened_is_not_continued_as_the_shoulders():
     line = out[3]
     assert line.hi == 990.0
     assert float(np.max(np.abs(np.diff(line.d)))) < 0.01
+
+
+def _median_side(car_d: np.ndarray, innermost: list[_Track] | None = None) -> list[_Track]:
+    """The median side of a road widened by an entry, driven in its outermost lane: the
+    inner shoulder's line 0.7 m from the median edge (d = 0) seen over 0-600 m only, the
+    innermost lane line 3.7 m beyond it and the lane lines beyond that seen all along;
+    lane samples up to 12 m either side of the car."""
+    tracks = [
+        _track(0, 0.0, 600.0, 0.7),
+        *(innermost or [_track(1, 0.0, 1000.0, 4.4, "broken")]),
+        _track(2, 0.0, 1000.0, 8.1, "broken"),
+        _track(3, 0.0, 1000.0, 11.8, "broken"),
+    ]
+    s_lane = np.repeat(GRID, 5)
+    d_lane = np.interp(s_lane, GRID, car_d) + np.tile(np.linspace(-12.0, 12.0, 5), GRID.size)
+    return continue_median_shoulder_line(
+        tracks, GRID, np.zeros(GRID.size), (s_lane, d_lane), (GRID, car_d)
+    )
+
+
+def test_the_inner_shoulders_line_goes_on_out_of_reach():
+    """Unseen beyond the sensor's reach is not absent on the median side either
+    (a9-239192816-opp-s12 at seed offset 860: the strip from the median edge to the
+    innermost line seen, 0.7 + 3.7 m, was built as a 4.3 m lane over its last 230 m)."""
+    out = _median_side(np.full(GRID.size, 13.7))  # 13 m from the line: out of reach
+    line = out[0]
+    assert line.lo == 0.0
+    assert line.hi == 1000.0
+    np.testing.assert_allclose(np.interp([300.0, 700.0, 990.0], line.s, line.d), 0.7, atol=0.01)
+    assert [tr.hi for tr in out[1:]] == [1000.0, 1000.0, 1000.0]
+
+
+def test_the_inner_shoulders_line_stops_where_the_car_came_near():
+    car = np.where(GRID < 800.0, 13.7, 6.0)
+    line = _median_side(car)[0]
+    assert 798.0 <= line.hi <= 800.0
+
+
+def test_the_inner_shoulders_line_stops_where_the_pattern_ends():
+    """Where the innermost lane line is no longer a lane width beyond the shoulder's
+    place (the lanes move a lane away from the median from 750 m), the strip is no
+    longer a shoulder and a lane: the line is not continued there."""
+    moved = [_track(1, 0.0, 749.0, 4.4, "broken"), _track(4, 750.0, 1000.0, 8.1, "solid")]
+    line = _median_side(np.full(GRID.size, 13.7), moved)[0]
+    assert 748.0 <= line.hi <= 750.0

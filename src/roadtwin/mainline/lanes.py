@@ -39,7 +39,7 @@ from .markings import _merge_collinear, _tracks_from_samples, typical_lane_width
 from .outer_edge import _bridge_edge_gaps, _outer_edge_with_levels, fit_outer_edge
 from .painted_gores import move_gores_to_paint
 from .sections import _sections_from_tracks
-from .shoulder_line import continue_shoulder_line
+from .shoulder_line import continue_median_shoulder_line, continue_shoulder_line
 from .unpainted import follow_edge_across_unpainted
 
 FloatArray = NDArray[np.float64]
@@ -309,6 +309,7 @@ def fit_lanes(
     tracks = _merge_collinear(tracks, cfg, grid, d_edge, with_inferred_only=True)
     if np.all(np.isfinite(d_edge)):
         tracks = continue_shoulder_line(tracks, grid, d_edge, covered, (s_l, d_l), car)
+    tracks = continue_median_shoulder_line(tracks, grid, d_median, (s_l, d_l), car)
     tracks, breaks = split_edge_lines_at_steps(tracks, grid, d_edge, breaks, cfg.edge_line_m)
     sections, events, out_tracks = _sections_from_tracks(
         tracks, grid, d_edge, breaks, sign, cfg, car, d_median, median_steps

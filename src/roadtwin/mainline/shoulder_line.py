@@ -31,6 +31,7 @@ _TO_EDGE_M = (0.25, 1.2)  # a shoulder's line lies this far inside the edge (met
 _STEADY_M = 0.15  # ... steady to within this (interquartile range, metres) ...
 _SEEN_MIN_M = 100.0  # ... over this much of the run at least (metres)
 _GAP_M = (0.25, 1.5)  # the lane's outer line lies this far inside the shoulder's line ...
+_MEDIAN_GAP_M = (0.25, 4.5)  # ... on the median side, also a lane width (metres) ...
 _PATTERN_M = 0.25  # ... and this close to where the pattern puts it (metres)
 _REACH_PERCENT = 99.0  # the sensor's reach: this percentile of the samples' distance
 _REACH_MARGIN_M = 1.0  # a place this close inside the reach would have been seen
@@ -52,14 +53,67 @@ def continue_shoulder_line(
     lane_samples: tuple[FloatArray, FloatArray],
     car: tuple[FloatArray, FloatArray] | None,
 ) -> list[_Track]:
-    """``tracks`` with the shoulder's line (see the module) continued from its ends over
-    the stretches next to them where it lies out of reach. ``d_edge`` (on ``grid``) is the
-    outer edge, ``covered`` where it was seen; ``lane_samples`` and ``car`` the samples'
-    and the car's stations and offsets (metres, the lanes' frame)."""
+    """``tracks`` with the outer shoulder's line (see the module) continued from its ends
+    over the stretches next to them where it lies out of reach. ``d_edge`` (on ``grid``)
+    is the outer edge, ``covered`` where it was seen; ``lane_samples`` and ``car`` the
+    samples' and the car's stations and offsets (metres, the lanes' frame)."""
     if car is None or car[0].size < 2 or not tracks:
         return tracks
+    return _continued(tracks, grid, np.where(covered, d_edge, np.nan), lane_samples, car, _GAP_M)
+
+
+def continue_median_shoulder_line(
+    tracks: list[_Track],
+    grid: FloatArray,
+    d_median: FloatArray,
+    lane_samples: tuple[FloatArray, FloatArray],
+    car: tuple[FloatArray, FloatArray] | None,
+) -> list[_Track]:
+    """``tracks`` with the inner shoulder's line continued from its ends where it lies out
+    of reach: the same as :func:`continue_shoulder_line` on the median side (``d_median``
+    the median-side edge on ``grid``, metres in the lanes' frame), where the line next to
+    the shoulder's is the innermost lane's, a lane width away or a split shoulder's
+    (``_MEDIAN_GAP_M``). Driven in an outer lane of a road widened by an entry, the inner
+    shoulder's line, seen before the road widened, lies beyond the sensor's reach; the
+    strip from the median edge to the innermost line seen, a lane and a 0.6-0.7 m
+    shoulder, is read as one lane or as a lane and a shoulder station by station, as it is
+    a little wider or narrower than a lane and 0.6 m (a9-239192816-opp-s12 at seed
+    offset 860: the shoulder's line inferred to 1196 m of 1432, then a 4.3 m lane).
+
+    Computed in the mirrored frame (``-d``), where the median edge is the outer one."""
+    if car is None or car[0].size < 2 or not tracks:
+        return tracks
+    mirrored = [_mirrored(tr) for tr in tracks]
+    out = _continued(
+        mirrored,
+        grid,
+        -d_median,
+        (lane_samples[0], -lane_samples[1]),
+        (car[0], -car[1]),
+        _MEDIAN_GAP_M,
+    )
+    if out is mirrored:
+        return tracks
+    return [tr if o is m else _mirrored(o) for tr, o, m in zip(tracks, out, mirrored, strict=True)]
+
+
+def _mirrored(tr: _Track) -> _Track:
+    """``tr`` with its offsets negated (the median side as the outer one)."""
+    return replace(tr, d=-tr.d, d_samples=-tr.d_samples)
+
+
+def _continued(
+    tracks: list[_Track],
+    grid: FloatArray,
+    seen_edge: FloatArray,
+    lane_samples: tuple[FloatArray, FloatArray],
+    car: tuple[FloatArray, FloatArray],
+    gap_range: tuple[float, float],
+) -> list[_Track]:
+    """The work of :func:`continue_shoulder_line` with the edge where it was seen
+    (``seen_edge``, NaN elsewhere) and the range of the gap between the shoulder's line
+    and the next line inside it (metres): ``tracks`` itself where nothing is continued."""
     marks = _marking_matrix(tracks, grid)  # (tracks, grid), NaN where a track is absent
-    seen_edge = np.where(covered, d_edge, np.nan)
     step = float(grid[1] - grid[0])
     best: tuple[float, int, float, float] | None = None  # seen metres, track, to edge, gap
     for k, tr in enumerate(tracks):
@@ -70,7 +124,7 @@ def continue_shoulder_line(
         gap = marks[k] - inner
         on = np.isfinite(to_edge) & np.isfinite(inner)
         on &= (to_edge >= _TO_EDGE_M[0]) & (to_edge <= _TO_EDGE_M[1])
-        on &= (gap >= _GAP_M[0]) & (gap <= _GAP_M[1])
+        on &= (gap >= gap_range[0]) & (gap <= gap_range[1])
         seen = np.count_nonzero(on) * step
         if seen < _SEEN_MIN_M:
             continue
