@@ -29,6 +29,7 @@ from ._common import (
     edge_move_at,
     true_runs,
 )
+from .mark_changes import pattern_changes
 from .markings import _dashed, _mark_type, _Track
 from .section_links import _link_sections, _side_lanes
 from .tapers import (
@@ -48,6 +49,9 @@ _SHOULDER_MIN_M = 1.8  # ... where its shoulder is at least this wide (metres)
 # the shoulder opens (closes) where its line is this far from the edge (metres): the truth's
 # shoulder tapers to zero, and at edge_line_m it ended 15 m early (melbourne-18-s11+80)
 _SHOULDER_MEET_M = 0.1
+# a marking's change between solid and broken starts a section this far (metres) from any
+# other start only
+_PATTERN_ALONE_M = 50.0
 
 
 def _lane_types(
@@ -309,6 +313,15 @@ def _sections_from_tracks(
     for k in edge_lines:
         edges = np.flatnonzero(np.diff(shoulder_of[k].astype(np.int8))) + 1
         starts.extend(int(i) for i in edges)
+    # so does a marking beside an edge strip turning from solid to broken (a lane gained
+    # beyond it) or back, where no other change of the lanes explains it: next to a lane
+    # opening or ending the aux lane's line turns solid a dash before the taper's end (it
+    # moved a11 such section starts by 8-12 m at seed offset 860)
+    known = np.asarray([*starts, *(_grid_index(b, grid, cfg) for b in breaks)], dtype=float)
+    alone = round(_PATTERN_ALONE_M / cfg.grid_step_m)
+    starts.extend(
+        i for i in pattern_changes(tracks, dmat, grid, cfg) if np.min(np.abs(known - i)) > alone
+    )
     # edge steps start a section too
     forced: set[int] = set()
     s0_at: dict[int, float] = {}  # a section that starts at an edge step starts exactly there
