@@ -4,7 +4,9 @@ Two conventions of real truths are not mapping errors of a build:
 
 * an HD map may split a shoulder into two unmarked strips (CARLA Town06: 0.64 m + 0.5 m
   beside the median): the border between them marks nothing on the road, and a build
-  measured 0.5 m off it over the whole run;
+  measured 0.5 m off it over the whole run; where the truth paints it, it counts only
+  where the run's lane samples show that paint (a split beyond the sensor's reach is
+  as unknowable as an unpainted one);
 * a truth may keep a diverging lane on the mainline road for metres after the ramp road
   has begun on the same pavement (or grow an entry's lanes under the ramp's end): the
   mainline's "edge" then sweeps across the ramp's lanes.
@@ -73,22 +75,60 @@ def test_a_split_painted_over_part_of_a_section_is_seen_there_only():
     assert not unseen_boundary(section, -2, ds).any()
 
 
-def test_a_partly_painted_split_is_measured_where_it_is_painted():
-    """The truth's split (0.5 m from the build's nearest border) painted from 100 to
-    250 m of road 1 only: those 150 m are measured, 0.5 m off; a perfect map elsewhere.
-    Before, the whole section's split counted (every point of road 1's 400 m)."""
+def _split_built_and_truth(s_a: float, s_b: float):
+    """The truth with road 1's inner shoulder split 0.64 + 0.5 m, painted from ``s_a`` to
+    ``s_b`` (metres) only; the build with one 1.14 m shoulder (else perfect)."""
     built = make_truth()
     whole = ((-1, "shoulder", 1.14), *MAIN_WIDTHS[1:])
-    truth = _with_first_section(built, "1", _painted_between(100.0, 250.0))
+    truth = _with_first_section(built, "1", _painted_between(s_a, s_b))
     built = _with_first_section(built, "1", LaneSection(0.0, right=_lanes(whole)))
-    run = make_run(built, edge_sigma=0.0, lane_sigma=0.0, seed=5)
+    return built, truth
+
+
+def _split_errors(built, truth, run) -> np.ndarray:
     rep = evaluate(built, run, truth=truth, truth_info=TRUTH_INFO).runs[0]
-    err = rep.details["truth/lane_boundary"].error_m
+    return rep.details["truth/lane_boundary"].error_m
+
+
+def test_a_partly_painted_split_is_measured_where_it_is_painted():
+    """The truth's split (0.5 m from the build's nearest border) painted from 100 to
+    250 m of road 1 only, and the run saw it: those 150 m are measured, 0.5 m off; a
+    perfect map elsewhere. Before, the whole section's split counted (all of its 400 m)."""
+    built, truth = _split_built_and_truth(100.0, 250.0)
+    run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=5)
+    err = _split_errors(built, truth, run)
     off = np.abs(err) > 0.4
-    assert rep.truth["lane_boundary"]["max_m"] == pytest.approx(0.5, abs=1e-3)
+    assert np.max(np.abs(err)) == pytest.approx(0.5, abs=1e-3)
     step = 150.0 / np.count_nonzero(off)  # one point per truth_step_m along the 150 m
     assert 0.4 <= step <= 2.1
     assert np.count_nonzero(np.abs(err[~off]) > 1e-6) == 0
+
+
+def test_a_painted_split_the_run_never_saw_is_not_measured():
+    """The same painted split beyond the sensor's reach (no lane sample on it; Town06's
+    0.64 + 0.5 m shoulders seen from the far lane): no build can place it, and it had
+    made every Town06 run 0.5 m off over 400 m of its inner shoulder."""
+    built, truth = _split_built_and_truth(100.0, 250.0)
+    run = make_run(built, edge_sigma=0.0, lane_sigma=0.0, seed=5)  # no line at the split
+    err = _split_errors(built, truth, run)
+    assert np.max(np.abs(err)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_a_split_seen_over_part_of_its_paint_is_measured_near_that_part():
+    """Paint on the split seen only up to x = 150 m of road 1 (painted 100-250 m): it is
+    measured from 100 m to 20 m past the last sample seen, not beyond."""
+    built, truth = _split_built_and_truth(100.0, 250.0)
+    run = make_run(truth, edge_sigma=0.0, lane_sigma=0.0, seed=5)
+    split_t = -0.64  # road 1 runs along +x from the origin, its right side is -y
+    x, y = run.lane_samples[:, 0], run.lane_samples[:, 1]
+    unseen = (np.abs(y - split_t) < 0.05) & (x > 150.0) & (x < 400.0)
+    run = replace(run, lane_samples=run.lane_samples[~unseen])
+    run = replace(run, lane_sample_frame=np.zeros(run.lane_samples.shape[0], dtype=np.int64))
+    rep = evaluate(built, run, truth=truth, truth_info=TRUTH_INFO).runs[0]
+    pe = rep.details["truth/lane_boundary"]
+    off = np.abs(pe.error_m) > 0.4
+    assert pe.station_m[off].min() == pytest.approx(100.0, abs=1.0)
+    assert pe.station_m[off].max() == pytest.approx(170.0, abs=1.0)
 
 
 def _with_first_section(network, road_id: str, section: LaneSection):

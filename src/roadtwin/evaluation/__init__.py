@@ -146,7 +146,7 @@ def evaluate(
 
         # a map of the whole highway is measured on the carriageways the truth holds
         measured = carriageways_of_truth(network, truth)
-        truth_result, d1 = _truth_mainline(measured, truth, cfg)
+        truth_result, d1 = _truth_mainline(measured, truth, cfg, getattr(run, "lane_samples", None))
         ramps, d2 = _truth_ramps(measured, truth, cfg)
         truth_result.update(ramps)
         details.update(d1)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..model import SAME_LEVEL_M, LaneSection, Road, RoadNetwork
+from ..model import SAME_LEVEL_M, Lane, LaneSection, Road, RoadNetwork
 
 FloatArray = NDArray[np.float64]
 
@@ -144,25 +144,33 @@ def unseen_boundary(
     """
     ds = np.zeros(1) if ds is None else np.asarray(ds, dtype=float)
     unseen = np.zeros(ds.shape, dtype=bool)
+    lane = split_border(section, lane_id)
+    if lane is None:
+        return unseen
+    marks = sorted(lane.road_marks, key=lambda mark: mark.s_offset)
+    if not marks:
+        return ~unseen
+    starts = np.array([mark.s_offset for mark in marks])
+    painted = np.array([mark.type != "none" for mark in marks])
+    # before the first mark's offset nothing is painted either (OpenDRIVE: no mark)
+    k = np.searchsorted(starts, ds, side="right") - 1
+    return np.where(k >= 0, ~painted[np.clip(k, 0, None)], True)
+
+
+def split_border(section: LaneSection, lane_id: int) -> Lane | None:
+    """Lane ``lane_id`` if its outer border divides two lanes of which neither is a driving
+    lane (a split of one paved strip, e.g. CARLA's inner shoulder 0.64 + 0.5 m), else
+    ``None`` (a border of a driving lane, the road edge, or no such lane)."""
     for side in (section.right, section.left):
         ids = [lane.id for lane in side]
         if lane_id not in ids:
             continue
         i = ids.index(lane_id)
         if i + 1 >= len(side):
-            return unseen  # the road edge
+            return None  # the road edge
         lane, outer = side[i], side[i + 1]
-        if "driving" in (lane.type, outer.type):
-            return unseen
-        marks = sorted(lane.road_marks, key=lambda mark: mark.s_offset)
-        if not marks:
-            return ~unseen
-        starts = np.array([mark.s_offset for mark in marks])
-        painted = np.array([mark.type != "none" for mark in marks])
-        # before the first mark's offset nothing is painted either (OpenDRIVE: no mark)
-        k = np.searchsorted(starts, ds, side="right") - 1
-        return np.where(k >= 0, ~painted[np.clip(k, 0, None)], True)
-    return unseen
+        return None if "driving" in (lane.type, outer.type) else lane
+    return None
 
 
 def _section_centre_t(road: Road, s: FloatArray, section: LaneSection) -> FloatArray:

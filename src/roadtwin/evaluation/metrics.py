@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from ..config import EvaluationConfig
 from ..model import SAME_LEVEL_M, Road, RoadNetwork
@@ -33,6 +34,7 @@ from .frenet import (
     project_points,
     ramp_roads,
     section_boundaries,
+    split_border,
     unseen_boundary,
 )
 
@@ -294,11 +296,42 @@ def self_consistency(
 # ---------------------------------------------------------------------------
 
 
+_SPLIT_PAINT_M = 0.25
+"""A lane sample within this distance (metres) of a split's line is paint seen on it; the
+line beside a split lies 0.5 m or more away."""
+
+_SPLIT_SEEN_ALONG_M = 20.0
+"""A split's line counts this far (metres, along the road) from paint seen on it: over
+the gaps of a dashed or worn line, never over a stretch the sensor did not reach."""
+
+
+def _split_seen(road: Road, s: FloatArray, lane_id: int, paint: cKDTree) -> NDArray[np.bool_]:
+    """Which stations ``s`` (metres) of the border split off by lane ``lane_id`` lie within
+    ``_SPLIT_SEEN_ALONG_M`` of lane samples (``paint``: their mapping-frame xy) on it."""
+    if s.size == 0:
+        return np.zeros(0, dtype=bool)
+    dense = np.arange(s.min(), s.max() + _SPLIT_PAINT_M, _SPLIT_PAINT_M)
+    xy = road.to_xy(dense, road.lane_border_t(dense, lane_id)).reshape(-1, 2)
+    dist, _ = paint.query(xy, distance_upper_bound=_SPLIT_PAINT_M)
+    hits = dense[np.isfinite(dist)]
+    if hits.size == 0:
+        return np.zeros(s.shape, dtype=bool)
+    i = np.searchsorted(hits, s)
+    before = hits[np.clip(i - 1, 0, hits.size - 1)]
+    after = hits[np.clip(i, 0, hits.size - 1)]
+    return np.minimum(np.abs(s - before), np.abs(s - after)) <= _SPLIT_SEEN_ALONG_M
+
+
 def _sample_boundaries(
-    road: Road, step_m: float, *, seen_only: bool = False
+    road: Road, step_m: float, *, seen_only: bool = False, paint: cKDTree | None = None
 ) -> tuple[FloatArray, FloatArray, list[str], NDArray[np.int64], FloatArray]:
-    """Points every ``step_m`` along every boundary of a road; ``seen_only``: without the
-    unmarked borders between two non-driving lanes (:func:`~.frenet.unseen_boundary`).
+    """Points every ``step_m`` along every boundary of a road.
+
+    ``seen_only``: without the unmarked borders between two non-driving lanes
+    (:func:`~.frenet.unseen_boundary`); with ``paint`` (a KD-tree of the run's lane
+    samples, mapping-frame xy) also without the painted stretches of such a split that no
+    lane sample shows: a split beyond the sensor's reach is a line no build can place (a
+    driving lane's border out of reach stays measured: lane widths infer it).
 
     Returns ``s, t, kinds, lane_ids, z`` (flat arrays over boundaries and stations).
     """
@@ -312,6 +345,8 @@ def _sample_boundaries(
             at = s
             if seen_only and kind == LANE:
                 at = s[~unseen_boundary(section, lid, s - section.s0)]
+                if paint is not None and split_border(section, lid) is not None:
+                    at = at[_split_seen(road, at, lid, paint)]
             s_list.append(at)
             t_list.append(road.lane_border_t(at, lid))
             kinds += [kind] * at.size
@@ -405,14 +440,24 @@ def _junction_errors(
 
 
 def _truth_mainline(
-    network: RoadNetwork, truth: RoadNetwork, cfg: EvaluationConfig
+    network: RoadNetwork,
+    truth: RoadNetwork,
+    cfg: EvaluationConfig,
+    lane_samples: FloatArray | None = None,
 ) -> tuple[dict[str, Any], dict[str, PointErrors]]:
+    """Every true mainline boundary against the built map (``lane_samples``: the run's,
+    ``(M, >=2)`` mapping frame, to leave out the splits it never saw)."""
+    paint = None
+    if lane_samples is not None and len(lane_samples):
+        paint = cKDTree(np.asarray(lane_samples, dtype=float)[:, :2])
     true_roads = mainline_roads(truth)
     built = mainline_roads(network)
     offsets = np.concatenate([[0.0], np.cumsum([r.length for r in true_roads])])
     xy_l, st_l, kind_l, z_l, id_l, twin_l, h_l = [], [], [], [], [], [], []
     for i, road in enumerate(true_roads):
-        s, t, kinds, lane_ids, z = _sample_boundaries(road, cfg.truth_step_m, seen_only=True)
+        s, t, kinds, lane_ids, z = _sample_boundaries(
+            road, cfg.truth_step_m, seen_only=True, paint=paint
+        )
         twin_l.append(_twins(s, t, np.asarray(kinds)))
         h_l.append(road.heading(s))
         xy_l.append(road.to_xy(s, t).reshape(-1, 2))

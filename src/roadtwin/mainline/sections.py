@@ -315,8 +315,9 @@ def _sections_from_tracks(
         starts.extend(int(i) for i in edges)
     # so does a marking beside an edge strip turning from solid to broken (a lane gained
     # beyond it) or back, where no other change of the lanes explains it: next to a lane
-    # opening or ending the aux lane's line turns solid a dash before the taper's end (it
-    # moved a11 such section starts by 8-12 m at seed offset 860)
+    # opening or ending, the aux lane's line turns solid a dash or two before the taper's
+    # end, and that change moved the lane's own section start by 2-15 m (7 runs of the
+    # quiet seed-offset-860 batch)
     known = np.asarray([*starts, *(_grid_index(b, grid, cfg) for b in breaks)], dtype=float)
     alone = round(_PATTERN_ALONE_M / cfg.grid_step_m)
     starts.extend(
