@@ -695,6 +695,7 @@ def fit_median_edge(
         # (the first pass's trajectory frame drifting beside it, a 1.8 m step sized
         # there bent town06-auto-s3's reference 0.6 m at an inner exit)
         road, level_road, spans = _without_excursions(s, u, centres, level, drifting=it == 0)
+        road &= ~_beyond_level(s, u, edges, level_road)
         s, t, u = s[road], t[road], u[road]
         if it == 0 or has_steps:
             steps = edge_steps(
@@ -786,6 +787,28 @@ def fit_median_edge(
         lines=functools.partial(_in_frame, frame, lane_pts, side),
     )
     return MedianEdge(frame.xy, steps, frame.z, unseen)
+
+
+_BEYOND_LEVEL_M = 0.8
+"""An edge point this far (metres) beyond the level its bin's path is on, away from the
+road, is another road's edge or the median's: the road's own edge is the level nearest
+the carriageway. Left in, the robust fit of a pass may follow a dense line of them."""
+
+
+def _beyond_level(
+    s: FloatArray, u: FloatArray, edges: FloatArray, level: FloatArray
+) -> NDArray[np.bool_]:
+    """Mask of edge points (stations ``s``, offsets ``u`` towards the median, metres)
+    lying more than ``_BEYOND_LEVEL_M`` beyond the level path (per bin of ``edges``,
+    NaN where unseen: no point is dropped there).
+
+    A ramp whose edge line ends 7 m beside the median edge (krems-30799129-s11+920: 670
+    points over 60 m, denser than the edge's own) pulled the first pass's fit 7 m
+    outward though the level path stayed on the edge; the knot it tied was then cut out
+    and bridged 0.9 m off over 100 m."""
+    b = np.clip(np.searchsorted(edges, s, side="right") - 1, 0, level.size - 1)
+    at = level[b]
+    return np.isfinite(at) & (u > at + _BEYOND_LEVEL_M)
 
 
 def _without_excursions(
