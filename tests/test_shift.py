@@ -425,6 +425,51 @@ def test_the_innermost_line_seen_by_two_samples_before_a_swing_does_not_vote(mov
     assert follows is moves
 
 
+def _lines_beside_a_median_opening(rng, *, fork: bool, outer_moves: bool):
+    """Samples (s, d, owner) around a stretch 300-345 m where the pattern moves out by a
+    lane: the innermost line stays at 1.0 m (solid), the next line (4.5 m) is worn over
+    the stretch (seen before it only), the third (8.0 m) moves with the pattern when
+    ``outer_moves``; with ``fork`` a new line leaves the innermost one with the move."""
+    move = lambda s: LANE * _smoothstep(s, 300.0, 345.0)  # noqa: E731
+    before = np.arange(240.0, 300.0, 1.0)
+    inside = np.arange(300.0, 346.0, 1.0)
+    parts = [
+        (np.concatenate([before, inside]), np.full(before.size + inside.size, 1.0)),
+        (before, np.full(before.size, 1.0 + LANE)),
+        (
+            np.concatenate([before, inside]),
+            1.0 + 2 * LANE + np.concatenate([np.zeros(before.size), move(inside) * outer_moves]),
+        ),
+    ]
+    if fork:
+        parts.append((inside, 1.0 + move(inside)))
+    s = np.concatenate([p[0] for p in parts])
+    d = np.concatenate([p[1] for p in parts]) + rng.normal(0.0, 0.03, s.size)
+    owner = np.concatenate([np.full(p[0].size, k) for k, p in enumerate(parts)])
+    return s, d, owner.astype(np.int64), move
+
+
+@pytest.mark.parametrize(
+    ("fork", "outer_moves", "follows"),
+    [(True, True, True), (False, True, False), (True, False, False)],
+)
+def test_a_line_forking_off_the_innermost_one_votes_for_a_lane_opened_beside_the_median(
+    fork, outer_moves, follows
+):
+    """melbourne-1019-s11 with a noisier sensor (seed offset 920): a lane added beside the
+    median, the only lane line between the innermost line and the moving ones worn over
+    the 60 m the pattern moved. One line voted for the move and none against, not more
+    than half of the two: no shift was found, and the lanes beyond lay a lane off (lane
+    RMSE 0.189 m, a 4.6 m lane). The new lane's line leaving the innermost one with the
+    move is what a lane opening at the outer edge never makes: it votes for the move
+    (lanes 0.079 m). Without it, or where the other lines stay, there is no shift."""
+    s, d, owner, move = _lines_beside_a_median_opening(
+        np.random.default_rng(5), fork=fork, outer_moves=outer_moves
+    )
+    # the edge 1 m beyond the third lane line; lines within 2.5 m of it do not vote
+    assert _lines_follow(s, d, owner, 300.0, 345.0, move, 1.0 + 3 * LANE - 1.5) is follows
+
+
 @pytest.mark.parametrize(("dash", "period"), [(3.0, 12.0), (6.0, 18.0)])
 @pytest.mark.parametrize("seed", [1, 2])
 def test_a_swing_is_found_where_the_edge_is_hidden_just_after_it(dash, period, seed):

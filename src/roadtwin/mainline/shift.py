@@ -108,6 +108,9 @@ FOLLOW_M = 0.25
 """A sample lies on a line this close (metres) when lines moved and stayed are counted;
 a line votes for the way it is found in more than ``FOLLOW_CLEAR`` times as many steps."""
 FOLLOW_CLEAR = 2.0
+FORK_STEPS = 3
+"""A line found in this many steps of ``STEP_M`` off the innermost line, moved with the
+pattern, forks from it: a lane opening beside the median (it votes for the move)."""
 EDGE_SPAN_M = 150.0
 """A lane's shift of the whole pattern happens over at most this (metres); an edge that
 moves over a longer stretch opens or closes a lane (a gore's taper), it witnesses none."""
@@ -406,18 +409,25 @@ def _lines_follow(
     s_in, d_in, made = s_in[apart], d_in[apart], made[apart]
     step = np.floor((s_in - s_a) / STEP_M).astype(np.int64)
 
-    def found(shift: FloatArray) -> IntArray:
-        """Per line: in how many steps of ``STEP_M`` a sample lies on it."""
-        near = np.abs(d_in[:, None] - (lines[None, :] + shift[:, None])) < FOLLOW_M
+    def found(at: FloatArray, shift: FloatArray) -> IntArray:
+        """Per line of ``at``: in how many steps of ``STEP_M`` a sample lies on it."""
+        near = np.abs(d_in[:, None] - (at[None, :] + shift[:, None])) < FOLLOW_M
         hit_step, hit_line = np.nonzero(near)
-        pairs = np.unique(step[hit_step] * lines.size + hit_line)
-        return np.bincount(pairs % lines.size, minlength=lines.size)
+        pairs = np.unique(step[hit_step] * at.size + hit_line)
+        return np.bincount(pairs % at.size, minlength=at.size)
 
-    moved, stayed = found(made), found(np.zeros(s_in.size))
+    moved, stayed = found(lines, made), found(lines, np.zeros(s_in.size))
     # a line votes where it is found clearly more often one way; most lines must vote
     # for the move (a line seen on one side only, or as often either way, does not)
     for_move = int(np.sum(moved > FOLLOW_CLEAR * stayed))
-    return for_move > int(np.sum(stayed > FOLLOW_CLEAR * moved)) and 2 * for_move > lines.size
+    against = int(np.sum(stayed > FOLLOW_CLEAR * moved))
+    # the innermost line stays, but a line forking off it (joining it) and moving with
+    # the pattern is a lane opening (closing) beside the median, which a lane opening at
+    # the edge never makes: it votes for the move, and the lines that are not found
+    # either way (worn, out of reach) no longer count against it (melbourne-1019-s11+920:
+    # the only line a lane out was worn over the 60 m it moved, 0.69 m lane RMSE there)
+    fork = bool(found(np.array([innermost]), made - min(total, 0.0))[0] >= FORK_STEPS)
+    return for_move + int(fork) > against and (fork or 2 * for_move > lines.size)
 
 
 def _edge_move(
