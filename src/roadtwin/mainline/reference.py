@@ -695,7 +695,6 @@ def fit_median_edge(
         # (the first pass's trajectory frame drifting beside it, a 1.8 m step sized
         # there bent town06-auto-s3's reference 0.6 m at an inner exit)
         road, level_road, spans = _without_excursions(s, u, centres, level, drifting=it == 0)
-        road &= ~_beyond_level(s, u, edges, level_road)
         s, t, u = s[road], t[road], u[road]
         if it == 0 or has_steps:
             steps = edge_steps(
@@ -716,6 +715,11 @@ def fit_median_edge(
             if seen.any():
                 near = np.abs(u - np.interp(s, centres[seen], level_road[seen])) < 0.8
                 s, t, u = s[near], t[near], u[near]
+        else:
+            # nor, without them, points beyond the level path, where it was seen (left
+            # in, a ramp's dense curb line ending beside the edge pulled the first pass)
+            fit = ~_beyond_level(s, u, edges, level_road)
+            s, t, u = s[fit], t[fit], u[fit]
         if has_steps:
             # each segment moved onto the base level
             near = ~steps.ramp_points(s, u)
@@ -800,7 +804,10 @@ def _beyond_level(
 ) -> NDArray[np.bool_]:
     """Mask of edge points (stations ``s``, offsets ``u`` towards the median, metres)
     lying more than ``_BEYOND_LEVEL_M`` beyond the level path (per bin of ``edges``,
-    NaN where unseen: no point is dropped there).
+    NaN where unseen: no point is dropped there). Only for a fit without steps or
+    excursions: with them the points off the bridged level path are left out both ways,
+    and the step and excursion logic needs the ramp's edge beyond (melbourne-921-s9+860,
+    an inner exit: dropped before the steps were found, the edge was built 7.5 m off).
 
     A ramp whose edge line ends 7 m beside the median edge (krems-30799129-s11+920: 670
     points over 60 m, denser than the edge's own) pulled the first pass's fit 7 m
