@@ -137,6 +137,36 @@ def test_a_ramp_line_beside_the_road_in_a_gap_is_the_ramps_up_to_the_nose():
     assert 1800.0 - 682.0 <= gores[0] <= 1800.0 - 670.0
 
 
+def _acceleration_line() -> _Track:
+    """An acceleration lane's line from an entry's nose at 523 m: 2.8 m beyond the
+    outermost line (8.2 m) over 25 m, then closing onto it by 624 m (to 0.1 m)."""
+    g = np.arange(523.0, 624.5, 1.0)
+    x = np.clip((g - 548.0) / (624.0 - 548.0), 0.0, 1.0)
+    d = 11.0 - (11.0 - 8.3) * (3.0 * x**2 - 2.0 * x**3)
+    return _Track(3, float(g[0]), float(g[-1]), g, d, "broken", g.size, g)
+
+
+@pytest.mark.parametrize(("edge_before", "kept"), [(8.4, True), (10.0, False)])
+def test_a_line_going_on_from_a_nose_seen_before_a_gap_is_the_roads(edge_before, kept):
+    """a9-206615404-s7 with a noisier sensor (seed offset 920): an entry's nose was seen
+    3 m before a 100 m gap of the outer edge, the edge 0.2 m beyond the outermost line
+    there; the acceleration lane's line began at the nose, 2.8 m beyond that edge, and was
+    cut back to its last 8 m as a ramp's line beside the road. The lane was built 3.7 m
+    wide over its taper, 1.8 m off (edge 0.121 -> 0.056 m, lanes 0.145 -> 0.057 m). With
+    the edge a shoulder's width out before the gap the line is still the ramp's."""
+    grid = np.arange(0.0, 900.5, 1.0)
+    lines = [
+        _Track(k, 0.0, 900.0, grid, np.full(grid.size, d), "solid", grid.size, grid)
+        for k, d in enumerate((0.7, 4.45, 8.2))
+    ]
+    covered = (grid < 518.0) | (grid > 615.0)
+    d_edge = np.where(grid < 560.0, edge_before, 10.8)
+    out, _ = _snap_to_hidden_gores([*lines, _acceleration_line()], [], covered, grid, CFG, d_edge)
+    assert (out[3].lo == 523.0) is kept
+    if not kept:
+        assert out[3].lo >= 610.0
+
+
 def test_an_edge_line_leaving_the_edge_where_a_lane_opens_stays_apart():
     """oakland-28393854-lane1-s21 with a noisier sensor (seed offset 320): the edge line
     (on the edge) went on, unseen for 30 m, as the line of a lane opening beside it by a
