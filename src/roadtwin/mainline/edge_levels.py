@@ -38,7 +38,12 @@ from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d, uniform_filter1d
 
 from ..config import MainlineConfig
-from .gap_evidence import edge_line_departure, lines_held_to, ramp_edge_meets
+from .gap_evidence import (
+    edge_line_departure,
+    edge_line_through,
+    lines_held_to,
+    ramp_edge_meets,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -374,9 +379,15 @@ def edge_steps(
                 held = None
                 if line_pts is not None:
                     outer, exit_ = max(before, after), after < before
+                    inner = min(before, after)
                     station = edge_line_departure(*line_pts, gap, outer, forward=exit_)
+                    if (
+                        station is None
+                        and abs(change) >= _GAP_STEP_RAMP_MIN_M
+                        and edge_line_through(*line_pts, gap, outer, inner, forward=exit_)
+                    ):
+                        station = float(gap[1] if exit_ else gap[0])
                     if station is None:
-                        inner = min(before, after)
                         held = lines_held_to(*line_pts, gap, outer, inner, forward=exit_)
                 if station is None:
                     # an entry's ramp edge coming in onto the old level just before the

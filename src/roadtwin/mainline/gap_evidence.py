@@ -174,6 +174,43 @@ def edge_line_departure(
     return None if x0 is None else float(start + direction * (x0 + 0.5) * _LINE_BIN_M)
 
 
+_THROUGH_SEEN_SHARE = 0.5  # the edge's line walked through a gap: seen in this share of its bins
+
+
+def edge_line_through(
+    s: FloatArray,
+    u: FloatArray,
+    gap: tuple[float, float],
+    outer_level: float,
+    inner_level: float,
+    *,
+    forward: bool,
+) -> bool:
+    """Whether the line along the edge (:func:`_walk_edge_line`, arguments as
+    :func:`edge_line_departure`) is seen holding its course through the whole unseen
+    stretch ``gap``, to within ``_LINES_END_M`` of its far end, in
+    ``_THROUGH_SEEN_SHARE`` of its bins, without leaving, while the edge's level on the
+    other side (``inner_level``) lies inward of that line by ``_LINES_CLEAR_M`` or more.
+    The edge cannot cross its own line: it held its level through the gap, and the step
+    lies at the gap's far end (an exit's nose just after it, walked ``forward``; an
+    entry's just before it). melbourne-1019-lane1-s21+q860: an inner exit's 4.5 m step
+    under a 106 m gap, the inner shoulder's line seen 1 m inside the edge all through it,
+    was bridged as a taper over the gap, the edge up to 4.2 m off."""
+    walk = _walk_edge_line(s, u, gap, outer_level, forward=forward)
+    if walk is None:
+        return False
+    track, held, _, _ = walk
+    if inner_level > held - _LINES_CLEAR_M or _departure_bin(track, held) is not None:
+        return False
+    tracked = np.flatnonzero(np.isfinite(track))
+    if not tracked.size:
+        return False
+    reach = float(tracked[-1] + 1) * _LINE_BIN_M
+    return reach >= gap[1] - gap[0] - _LINES_END_M and tracked.size >= _THROUGH_SEEN_SHARE * (
+        tracked[-1] + 1
+    )
+
+
 def _departure_bin(track: FloatArray, held: float) -> float | None:
     """Where (bins of the walk, fractional) a walked line (:func:`_walk_line`, held at
     ``held`` next to the gap) leaves outward, as :func:`edge_line_departure` tells it;
