@@ -382,8 +382,10 @@ def edge_steps(
                     inner = min(before, after)
                     station = edge_line_departure(*line_pts, gap, outer, forward=exit_)
                     # an exit's only: on four entries it changed no measure by more than
-                    # 6 mm but gave one map a 1 m gap of an inner lane border at the step
-                    # that the ASAM checker rejects (melbourne-1019-s11+860; not understood)
+                    # 6 mm, but one map had the lane offset step 0.5 m at a section border
+                    # 38 m into a road, the inner shoulder widening by as much (borders
+                    # continuous), which the ASAM checker reports as horizontal gaps of
+                    # the lanes beyond (melbourne-1019-s11+860; not understood further)
                     if (
                         station is None
                         and exit_
