@@ -233,6 +233,35 @@ def test_a_lane_border_jump_inside_a_lane_section_is_caught(offset, width, jump_
 
 
 @pytest.mark.parametrize(
+    ("offset", "step_mm"),
+    [
+        (((0.0, 0.0, 0.0), (100.0, -0.5, 0.0)), 500.0),  # a step at the section border
+        (((0.0, 0.0, 0.0), (100.0, 0.0, 0.0)), None),  # a record that continues
+        (((0.0, 0.0, 0.0), (60.0, -0.5, 0.0)), None),  # inside a section: lane_jump's
+    ],
+)
+def test_a_lane_offset_step_at_a_section_border_is_told(offset, step_mm):
+    """``lane_offset_step`` (a warning): the ASAM checker reads a section's end with the
+    lane offset record that begins at the next section, so a step there reads as a gap of
+    every lane linked across it, even where a lane beside the centre widens by as much
+    and the borders meet (melbourne-1019-s11 with a noisier sensor: a 0.5 m step,
+    ``contact_point_no_horizontal_gaps`` on two lanes, our own rules all passed)."""
+    net = mainline_exit_network("default")
+    road1 = net.road("1")
+    assert [sec.s0 for sec in road1.lane_sections] == [0.0, 100.0]
+    road1 = replace(road1, lane_offset=CubicProfile(tuple(CubicPiece(*p) for p in offset)))
+    net = replace(net, roads=(road1, *net.roads[1:]))
+    found = [f for f in check_network(net) if f.code == "lane_offset_step"]
+    if step_mm is None:
+        assert found == []
+        return
+    assert len(found) == 1
+    assert found[0].severity == "warning"
+    assert found[0].value == pytest.approx(step_mm, abs=0.5)
+    assert found[0].s == pytest.approx(100.0)
+
+
+@pytest.mark.parametrize(
     ("pieces", "pinched_at"),
     [
         # melbourne-18-s11 with a noisier sensor: 3.66 m to 0 within 6 m and back to 3.5 m

@@ -18,6 +18,11 @@ Own checks (:func:`check_network`, on the model):
   (predecessor): a lane that leaves at a gore without a junction, a drop without a taper.
 * ``lane_shift``: a lane linked across a lane-section border whose inner or outer border
   moves there (thresholds of ``link_gap``).
+* ``lane_offset_step`` (a warning): the lane offset steps at a lane-section border inside
+  a road. Lanes may still meet there (a lane beside the centre widens by as much), but the
+  ASAM checker evaluates the ending section with the offset record that begins at the
+  border and reports gaps of the lanes linked across it
+  (``contact_point_no_horizontal_gaps``); thresholds of ``link_gap``.
 * ``lane_jump``: a lane border that jumps sideways inside a lane section, where a lane
   offset or width record begins whose value does not continue the one before it (a lane
   offset stepped a metre past a gore moved every lane 3 m there; esmini's car jumped);
@@ -556,6 +561,30 @@ class _Checker:
                     float(s_k),
                 )
 
+    def lane_offset_steps(self, road: Road) -> None:
+        """``lane_offset_step``: the lane offset's step (mm) at each lane-section border
+        inside ``road``; a warning from ``gap_warning_mm`` (the map's borders may be
+        continuous; the ASAM checker's reading of them is not: melbourne-1019-s11 with a
+        noisier sensor, a 0.5 m step made up for by the inner shoulder's width)."""
+        borders = np.array([sec.s0 for sec in road.lane_sections[1:]], dtype=float)
+        if not borders.size:
+            return
+        step_mm = 1000.0 * np.abs(
+            road.lane_offset.value(borders) - road.lane_offset.value(borders - 1e-7)
+        )
+        for s_k, mm in zip(borders, step_mm, strict=True):
+            if mm >= self.cfg.gap_warning_mm:
+                self.add(
+                    "warning",
+                    "lane_offset_step",
+                    f"the lane offset steps by {mm:.1f} mm at the lane section at "
+                    f"s={s_k:.2f}; the ASAM checker reads the section's end with the new "
+                    "offset and reports gaps of the lanes linked across it",
+                    road=road.id,
+                    s=float(s_k),
+                    value=float(mm),
+                )
+
     def lane_pinches(self, road: Road) -> None:
         """``lane_pinch``: driving lanes narrowing to almost nothing and widening back
         inside a lane section (sampled every half metre; one finding per lane and section,
@@ -981,6 +1010,7 @@ class _Checker:
             self.geometry(road)
             self.widths(road)
             self.lane_jumps(road)
+            self.lane_offset_steps(road)
             self.lane_pinches(road)
             self.links(road)
         for j in self.net.junctions:
