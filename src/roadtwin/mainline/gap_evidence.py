@@ -205,9 +205,10 @@ def edge_line_through(
     tracked = np.flatnonzero(np.isfinite(track))
     if not tracked.size:
         return False
-    reach = float(tracked[-1] + 1) * _LINE_BIN_M
-    return reach >= gap[1] - gap[0] - _LINES_END_M and tracked.size >= _THROUGH_SEEN_SHARE * (
-        tracked[-1] + 1
+    walked = int(tracked[-1]) + 1  # bins up to the last one the line was seen in
+    return (
+        walked * _LINE_BIN_M >= gap[1] - gap[0] - _LINES_END_M
+        and tracked.size >= _THROUGH_SEEN_SHARE * walked
     )
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -52,6 +51,17 @@ def _outermost_at(tracks: list[_Track], k: int, station: float) -> bool:
         float(np.interp(station, tr.s, tr.d)) > d_k + 0.5
         for j, tr in enumerate(tracks)
         if j != k and tr.lo <= station - _THROUGH_M and tr.hi >= station + _THROUGH_M
+    )
+
+
+def _other_lines_at(tracks: list[_Track], k: int, station: float) -> FloatArray:
+    """Offsets (metres) at ``station`` of the tracks other than ``k`` that run there."""
+    return np.array(
+        [
+            float(np.interp(station, tr.s, tr.d))
+            for j, tr in enumerate(tracks)
+            if j != k and tr.lo <= station <= tr.hi
+        ]
     )
 
 
@@ -119,13 +129,13 @@ def _beside_road_in_gap(
     gap: NDArray[np.bool_],
     grid: FloatArray,
     d_edge: FloatArray | None,
-    lines_at: Callable[[float], FloatArray],
+    others: tuple[list[_Track], int],
 ) -> tuple[float, float] | None:
     """The occlusion gap of the outer edge (``gap`` on ``grid``; its first and last
     stations, metres) whose start (end) track ``tr`` begins (``first``; else ends) within
     ``_AT_GAP_M`` of, more than ``_BEYOND_EDGE_M`` beyond the edge ``d_edge`` seen just
     before (after) the gap; None where it does not, or where that edge lies on a line
-    (``lines_at(station)``: the other lines' offsets there, metres), within
+    (``others``: the tracks and ``tr``'s index among them, :func:`_other_lines_at`), within
     ``_NO_SHOULDER_M``: there it is a nose, the ramp's pavement joins the road right
     beside it, and a line going on from the nose is the road's (a9-206615404-s7+920: an
     entry's nose seen 3 m before a 100 m gap, the acceleration lane's line beginning at
@@ -153,7 +163,9 @@ def _beside_road_in_gap(
         return None
     if float(tr.d[0] if first else tr.d[-1]) <= float(d_edge[seen_at]) + _BEYOND_EDGE_M:
         return None
-    if np.any(np.abs(lines_at(float(grid[seen_at])) - d_edge[seen_at]) < _NO_SHOULDER_M):
+    if np.any(
+        np.abs(_other_lines_at(*others, float(grid[seen_at])) - d_edge[seen_at]) < _NO_SHOULDER_M
+    ):
         return None
     return float(grid[a]), float(grid[b - 1])
 
@@ -211,22 +223,11 @@ def _snap_to_hidden_gores(
     for k, tr in enumerate(out):
         if tr.s.size < 20:
             continue
-
-        def lines_at(station: float, k: int = k) -> FloatArray:
-            """Offsets (metres) of the other lines seen at ``station``."""
-            return np.array(
-                [
-                    float(np.interp(station, o.s, o.d))
-                    for j, o in enumerate(out)
-                    if j != k and o.lo <= station <= o.hi
-                ]
-            )
-
         if tr.lo > grid[0] + step and hidden(tr.lo) and _outermost_at(out, k, tr.lo):
             rel, rel_slope = _beside_inner_line(tracks, k, tr)
             par = np.flatnonzero((rel_slope > -cfg.hidden_gore_slope) | (rel < _MET_M))
             met = np.flatnonzero(rel < _MET_M)
-            beside = _beside_road_in_gap(tr, True, gap, grid, d_edge, lines_at)
+            beside = _beside_road_in_gap(tr, True, gap, grid, d_edge, (out, k))
             if beside is not None and met.size and tr.s[met[0]] <= beside[1]:
                 # a ramp's line up to where it meets the line inward, however it ran
                 i0 = min(int(met[0]), tr.s.size - 2)
@@ -256,7 +257,7 @@ def _snap_to_hidden_gores(
             rel, rel_slope = _beside_inner_line(tracks, k, tr)
             par = np.flatnonzero((rel_slope < cfg.hidden_gore_slope) | (rel < _MET_M))
             met = np.flatnonzero(rel < _MET_M)
-            beside = _beside_road_in_gap(tr, False, gap, grid, d_edge, lines_at)
+            beside = _beside_road_in_gap(tr, False, gap, grid, d_edge, (out, k))
             if beside is not None and met.size and tr.s[met[-1]] >= beside[0]:
                 i1 = max(int(met[-1]), 1) + 1
                 tr = replace(tr, hi=float(tr.s[i1 - 1]), s=tr.s[:i1], d=tr.d[:i1])
